@@ -1,0 +1,41 @@
+"""The ``magsoro`` command line. Each sub-command lives in its own module under ``magsoro.commands`` and
+exposes ``register(subparsers)``, which adds its parser and sets ``func`` (called with the parsed args, returns
+an exit code). Add a new command by writing such a module and naming it in ``COMMANDS``."""
+
+import argparse
+import importlib
+import sys
+
+from magsoro import __version__
+from magsoro.errors import MagsoroError
+
+COMMANDS = [
+    "magsoro.commands.run",
+    "magsoro.commands.docs",
+]
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="magsoro", description="Simulator for magnetic soft robots.")
+    parser.add_argument("--version", action="version", version=f"magsoro {__version__}")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    for name in COMMANDS:
+        importlib.import_module(name).register(sub)
+    return parser
+
+
+def main(argv=None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    if not getattr(args, "func", None):
+        parser.print_help()
+        return 2
+    try:
+        return int(args.func(args) or 0)
+    except MagsoroError as exc:
+        print(f"magsoro {args.command}: error: {exc}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":
+    sys.exit(main())

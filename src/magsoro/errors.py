@@ -1,0 +1,18 @@
+"""Exceptions raised by magsoro. Each carries a message meant to be shown to the user as is."""
+
+
+class MagsoroError(Exception):
+    """Base class of every error magsoro raises on purpose."""
+
+
+class SceneError(MagsoroError):
+    """A scene (file or in-code description) is invalid; the message names the key and what is allowed."""
+
+
+class SimulationError(MagsoroError):
+    """A run could not go on (non-finite state, inverted element, ...); the message names step, time and cause."""
+
+    def __init__(self, message: str, step: int | None = None, time: float | None = None):
+        super().__init__(message)
+        self.step = step
+        self.time = time
