@@ -12,6 +12,7 @@ from magsoro.errors import MagsoroError
 COMMANDS = [
     "magsoro.commands.run",
     "magsoro.commands.docs",
+    "magsoro.commands.characterization",
 ]
 
 
