@@ -1,0 +1,65 @@
+"""``magsoro run SCENE.toml --out DIR``: run a scene and write its results."""
+
+import sys
+import time
+from pathlib import Path
+
+from magsoro.errors import SceneError
+
+
+def register(sub):
+    p = sub.add_parser("run", help="run a scene file and write results", description="Run a scene and write run.json, metrics.csv, a ParaView particle series and final.npz.")
+    p.add_argument("scene", help="scene file (TOML)")
+    p.add_argument("--out", required=True, help="output directory")
+    p.add_argument("--device", choices=None, help="cpu, cuda or cuda:N (overrides simulation.device)")
+    p.add_argument("--duration", type=float, help="simulated time in s (overrides simulation.duration)")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.set_defaults(func=run)
+
+
+def run(args) -> int:
+    import tomllib
+
+    from magsoro.io.recorder import RunWriter
+    from magsoro.scene import load_scene
+    from magsoro.simulation import Simulation
+
+    if args.device is not None and not (args.device == "cpu" or args.device.startswith("cuda")):
+        raise SceneError(f"--device: '{args.device}' is not allowed; use cpu, cuda or cuda:N")
+    if args.duration is not None and not args.duration > 0:
+        raise SceneError(f"--duration: must be > 0 s, got {args.duration}")
+    wall0 = time.perf_counter()
+    scene = load_scene(args.scene)  # every check happens before the output folder is touched
+    sim = Simulation(scene, device=args.device, source=args.scene)
+    echo = tomllib.loads(Path(args.scene).read_text())
+    duration = args.duration if args.duration is not None else scene.simulation.duration
+    writer = RunWriter(args.out, sim, echo, particles=scene.output.particles)
+    bar = None
+    if not args.quiet:
+        from tqdm import tqdm
+
+        bar = tqdm(total=duration, unit="s sim", file=sys.stderr, bar_format="{l_bar}{bar}| {n:.4g}/{total:.4g} s [{elapsed}<{remaining}{postfix}]")
+    last = [time.perf_counter(), 0]
+
+    def progress(s):
+        if bar is not None:
+            now = time.perf_counter()
+            rate = (s.steps - last[1]) / max(now - last[0], 1e-9)
+            last[0], last[1] = now, s.steps
+            bar.n = min(s.time, duration)
+            bar.set_postfix_str(f"{rate:.0f} steps/s, dt={s.dt:.3g} s")
+            bar.refresh()
+
+    try:
+        result = sim.run(duration, record=writer.record, record_every=scene.output.every, progress=progress)
+    finally:
+        if bar is not None:
+            bar.close()
+    writer.finish(result, time.perf_counter() - wall0)
+    if result.status != "completed":
+        print(f"magsoro run: {result.status}: {result.message}", file=sys.stderr)
+        print(f"results so far in {args.out} (run.json status '{result.status}')", file=sys.stderr)
+        return 1 if result.status == "failed" else 130
+    if not args.quiet:
+        print(f"{result.steps} steps in {result.wall_time:.1f} s ({result.steps / max(result.wall_time, 1e-9):.0f} steps/s), dt {sim.dt_min:.3g}-{sim.dt_max:.3g} s; results in {args.out}")
+    return 0

@@ -1,0 +1,1 @@
+"""Writing results: atomic file writes, ParaView particle series, CSV metrics."""

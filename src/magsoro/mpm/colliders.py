@@ -1,0 +1,194 @@
+"""Rigid colliders: half-space, box, sphere, cylinder; sticky, slip or Coulomb-friction contact; optional
+prescribed motion (position keyframes, whose slope gives the collider velocity used in the contact law).
+
+The device sees a flat float64 table, one row of COLLIDER_STRIDE values per collider:
+    0 type, 1 mode (0 sticky, 1 slip, 2 friction), 2 friction coefficient,
+    3-5 position (m), 6-14 rotation matrix local->world (row-major), 15-17 size, 18-20 velocity (m/s).
+Size: half-space -> outward unit normal; box -> half extents; sphere -> radius; cylinder -> radius, half length
+(axis = local z).
+"""
+
+import numpy as np
+import warp as wp
+
+from magsoro.fields.profiles import Keyframes
+
+COLLIDER_STRIDE = wp.constant(24)
+HALF_SPACE, BOX, SPHERE, CYLINDER = 0, 1, 2, 3
+KINDS = {"half_space": HALF_SPACE, "box": BOX, "sphere": SPHERE, "cylinder": CYLINDER}
+MODES = {"sticky": 0, "slip": 1, "friction": 2}
+
+
+@wp.func
+def _box_sdf(q: wp.vec3d, h: wp.vec3d):
+    """Signed distance and outward normal of an axis-aligned box of half extents h at the origin."""
+    zero = wp.float64(0.0)
+    d = wp.vec3d(wp.abs(q[0]) - h[0], wp.abs(q[1]) - h[1], wp.abs(q[2]) - h[2])
+    outside = wp.vec3d(wp.max(d[0], zero), wp.max(d[1], zero), wp.max(d[2], zero))
+    dist_out = wp.length(outside)
+    n = wp.vec3d(zero, zero, zero)
+    if dist_out > zero:
+        for a in range(3):
+            if q[a] < zero:
+                outside[a] = -outside[a]
+        return dist_out, outside / dist_out
+    # inside: nearest face
+    a_max = int(0)
+    for a in range(1, 3):
+        if d[a] > d[a_max]:
+            a_max = a
+    if q[a_max] < zero:
+        n[a_max] = wp.float64(-1.0)
+    else:
+        n[a_max] = wp.float64(1.0)
+    return d[a_max], n
+
+
+@wp.func
+def collider_sdf(table: wp.array(dtype=wp.float64), c: int, p: wp.vec3d):
+    """Signed distance (m, negative inside), outward unit normal and surface velocity of collider c at p."""
+    row = c * COLLIDER_STRIDE
+    kind = int(table[row])
+    centre = wp.vec3d(table[row + 3], table[row + 4], table[row + 5])
+    R = wp.mat33d(
+        table[row + 6], table[row + 7], table[row + 8],
+        table[row + 9], table[row + 10], table[row + 11],
+        table[row + 12], table[row + 13], table[row + 14],
+    )
+    size = wp.vec3d(table[row + 15], table[row + 16], table[row + 17])
+    vel = wp.vec3d(table[row + 18], table[row + 19], table[row + 20])
+    zero = wp.float64(0.0)
+    phi = zero
+    n = wp.vec3d(zero, zero, zero)
+    if kind == 0:
+        n = size
+        phi = wp.dot(p - centre, n)
+    elif kind == 2:
+        r = p - centre
+        rl = wp.length(r)
+        phi = rl - size[0]
+        n = wp.vec3d(zero, zero, wp.float64(1.0))
+        if rl > zero:
+            n = r / rl
+    else:
+        q = wp.transpose(R) * (p - centre)
+        nl = wp.vec3d(zero, zero, zero)
+        if kind == 1:
+            phi, nl = _box_sdf(q, size)
+        else:
+            # cylinder: a 2D box in (radial, axial) coordinates
+            rad = wp.sqrt(q[0] * q[0] + q[1] * q[1])
+            qq = wp.vec3d(rad, q[2], zero)
+            phi2, n2 = _box_sdf(qq, wp.vec3d(size[0], size[1], wp.float64(1.0e30)))
+            phi = phi2
+            radial_dir = wp.vec3d(wp.float64(1.0), zero, zero)
+            if rad > zero:
+                radial_dir = wp.vec3d(q[0] / rad, q[1] / rad, zero)
+            nl = n2[0] * radial_dir + wp.vec3d(zero, zero, n2[1])
+        n = R * nl
+    return phi, n, vel
+
+
+def _rotation(value) -> np.ndarray:
+    if value is None:
+        return np.eye(3)
+    R = np.asarray(value, dtype=np.float64)
+    if R.shape != (3, 3):
+        raise ValueError("a collider rotation must be a 3x3 matrix")
+    if not np.allclose(R @ R.T, np.eye(3), atol=1e-6) or np.linalg.det(R) < 0:
+        raise ValueError("a collider rotation must be a proper rotation matrix (orthonormal, det +1)")
+    return R
+
+
+class Collider:
+    """A rigid obstacle. Build with :meth:`half_space`, :meth:`box`, :meth:`sphere` or :meth:`cylinder`.
+
+    ``mode`` is 'sticky' (contact nodes move with the collider), 'slip' (frictionless) or 'friction'
+    (Coulomb with coefficient ``friction``). ``path`` (Keyframes of positions, m, over s) moves it.
+    """
+
+    def __init__(self, kind: str, position, size, rotation=None, mode: str = "slip", friction: float = 0.0, path: Keyframes | None = None):
+        if kind not in KINDS:
+            raise ValueError(f"collider kind must be one of {sorted(KINDS)}, got {kind!r}")
+        if mode not in MODES:
+            raise ValueError(f"collider mode must be one of {sorted(MODES)}, got {mode!r}")
+        if friction < 0:
+            raise ValueError(f"friction coefficient must be >= 0, got {friction}")
+        self.kind, self.mode, self.friction = kind, mode, float(friction)
+        self.position = np.asarray(position, dtype=np.float64).reshape(3)
+        self.size = np.asarray(size, dtype=np.float64).reshape(3)
+        self.rotation = _rotation(rotation)
+        if path is not None and path.values.shape[1] != 3:
+            raise ValueError("a collider path needs 3 position components")
+        self.path = path
+
+    @classmethod
+    def half_space(cls, point, normal, **kw):
+        n = np.asarray(normal, dtype=np.float64).reshape(3)
+        if np.linalg.norm(n) == 0:
+            raise ValueError("half-space normal must be non-zero")
+        return cls("half_space", point, n / np.linalg.norm(n), **kw)
+
+    @classmethod
+    def box(cls, center, half_extents, **kw):
+        return cls("box", center, half_extents, **kw)
+
+    @classmethod
+    def sphere(cls, center, radius, **kw):
+        return cls("sphere", center, (radius, 0.0, 0.0), **kw)
+
+    @classmethod
+    def cylinder(cls, center, radius, half_length, axis=(0, 0, 1), **kw):
+        R = kw.pop("rotation", None)
+        if R is None:
+            R = rotation_to_axis(axis)
+        return cls("cylinder", center, (radius, half_length, 0.0), rotation=R, **kw)
+
+    def row(self, t: float) -> np.ndarray:
+        r = np.zeros(COLLIDER_STRIDE)
+        r[0] = KINDS[self.kind]
+        r[1] = MODES[self.mode]
+        r[2] = self.friction
+        if self.path is not None:
+            r[3:6] = self.path.value(t)
+            r[18:21] = self.path.rate(t)
+        else:
+            r[3:6] = self.position
+        r[6:15] = self.rotation.ravel()
+        r[15:18] = self.size
+        return r
+
+    def signed_distance(self, points, t: float = 0.0) -> np.ndarray:
+        """Host-side signed distance (m) of (N, 3) points; negative inside."""
+        r = self.row(t)
+        p = np.asarray(points, dtype=np.float64) - r[3:6]
+        if self.kind == "half_space":
+            return p @ self.size
+        if self.kind == "sphere":
+            return np.linalg.norm(p, axis=1) - self.size[0]
+        q = p @ self.rotation
+        if self.kind == "box":
+            d = np.abs(q) - self.size
+        else:
+            d = np.stack([np.hypot(q[:, 0], q[:, 1]) - self.size[0], np.abs(q[:, 2]) - self.size[1]], axis=1)
+        return np.linalg.norm(np.maximum(d, 0), axis=1) + np.minimum(d.max(axis=1), 0)
+
+
+def rotation_to_axis(axis) -> np.ndarray:
+    """A rotation matrix whose third column is the unit vector ``axis``."""
+    z = np.asarray(axis, dtype=np.float64).reshape(3)
+    nz = np.linalg.norm(z)
+    if nz == 0:
+        raise ValueError("axis must be non-zero")
+    z = z / nz
+    helper = np.array([1.0, 0, 0]) if abs(z[0]) < 0.9 else np.array([0, 1.0, 0])
+    x = np.cross(helper, z)
+    x /= np.linalg.norm(x)
+    y = np.cross(z, x)
+    return np.stack([x, y, z], axis=1)
+
+
+def collider_table(colliders: list[Collider], t: float) -> np.ndarray:
+    if not colliders:
+        return np.zeros(COLLIDER_STRIDE)
+    return np.concatenate([c.row(t) for c in colliders])

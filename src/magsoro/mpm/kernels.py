@@ -1,0 +1,353 @@
+"""MLS-MPM kernels (seed 000 eqs 1-19), generated for a dimension (2 = plane strain, 3) and a precision.
+
+One factory builds every kernel from the same source, so 2D/3D and float32/float64 never drift apart; Warp
+compiles them for CPU and CUDA alike. Notation: dx grid spacing, inv_dx = 1/dx, particles carry reference
+volume V0, mass, shear modulus G, bulk modulus K, remanence Br (reference frame, in-plane part in 2D).
+
+Grid: a dense block of nodes whose global index origin ``org`` and shape ``shape`` follow the bodies (see
+:mod:`magsoro.mpm.solver`); arrays are flat, node (i, j[, k]) at ((i * ny) + j) * nz + k.
+Colliders come as a flat float64 table, one row of ``COLLIDER_STRIDE`` values each (see :mod:`colliders`).
+"""
+
+import functools
+
+import warp as wp
+
+from magsoro import MU0
+from magsoro.mpm.colliders import COLLIDER_STRIDE, collider_sdf
+
+# Collider boundary modes (also used by the scene schema)
+STICKY = 0
+SLIP = 1
+FRICTION = 2
+
+
+@functools.cache
+def make_kernels(dim: int, scalar):
+    """Return a namespace of kernels and functions for ``dim`` in (2, 3) and ``scalar`` in (wp.float32, wp.float64)."""
+    if dim not in (2, 3):
+        raise ValueError(f"dim must be 2 or 3, got {dim}")
+    vec = wp.types.vector(length=dim, dtype=scalar)
+    mat = wp.types.matrix(shape=(dim, dim), dtype=scalar)
+    ivec = wp.types.vector(length=dim, dtype=wp.int32)
+    v3 = wp.types.vector(length=3, dtype=scalar)
+    m3 = wp.types.matrix(shape=(3, 3), dtype=scalar)
+    NS = 3**dim
+    inv_mu0 = 1.0 / MU0
+
+    @wp.func
+    def neo_hookean_stress(F: mat, G: scalar, K: scalar):
+        """First Piola stress of compressible Neo-Hookean (seed 000 eq 10):
+        P = G J^(-2/3) (F - I1/3 F^-T) + K J (J - 1) F^-T, energy G/2 (J^(-2/3) I1 - 3) + K/2 (J - 1)^2.
+        (The extracted text of eq 10 reads F^-2 in the last term; F^-T is what the energy gives.)
+        In 2D (plane strain) F_zz = 1, so I1 gains 1 and J is the in-plane determinant."""
+        J = wp.determinant(F)
+        I1 = wp.trace(wp.transpose(F) * F)
+        if wp.static(dim == 2):
+            I1 = I1 + scalar(1.0)
+        FinvT = wp.transpose(wp.inverse(F))
+        Jm23 = wp.pow(J, scalar(-2.0 / 3.0))
+        return G * Jm23 * (F - (I1 / scalar(3.0)) * FinvT) + K * J * (J - scalar(1.0)) * FinvT
+
+    @wp.func
+    def neo_hookean_energy(F: mat, G: scalar, K: scalar):
+        """Strain energy density per reference volume matching :func:`neo_hookean_stress`."""
+        J = wp.determinant(F)
+        I1 = wp.trace(wp.transpose(F) * F)
+        if wp.static(dim == 2):
+            I1 = I1 + scalar(1.0)
+        Jm23 = wp.pow(J, scalar(-2.0 / 3.0))
+        return scalar(0.5) * G * (Jm23 * I1 - scalar(3.0)) + scalar(0.5) * K * (J - scalar(1.0)) * (J - scalar(1.0))
+
+    @wp.func
+    def inplane(b: v3):
+        if wp.static(dim == 2):
+            return vec(b[0], b[1])
+        else:
+            return vec(b[0], b[1], b[2])
+
+    @wp.func
+    def bspline_weights(fx: vec):
+        """Quadratic B-spline weights (seed 000 eq 2) of the three nodes base, base+1, base+2 along each axis."""
+        one = vec()
+        for a in range(dim):
+            one[a] = scalar(1.0)
+        half = scalar(0.5) * one
+        w0 = scalar(0.5) * wp.cw_mul(scalar(1.5) * one - fx, scalar(1.5) * one - fx)
+        w1 = scalar(0.75) * one - wp.cw_mul(fx - one, fx - one)
+        w2 = scalar(0.5) * wp.cw_mul(fx - half, fx - half)
+        return w0, w1, w2
+
+    @wp.func
+    def pick(w0: vec, w1: vec, w2: vec, o: int, a: int):
+        if o == 0:
+            return w0[a]
+        if o == 1:
+            return w1[a]
+        return w2[a]
+
+    @wp.func
+    def stencil_offset(q: int):
+        o = ivec()
+        if wp.static(dim == 2):
+            o = ivec(q // 3, q % 3)
+        else:
+            o = ivec(q // 9, (q // 3) % 3, q % 3)
+        return o
+
+    @wp.func
+    def flat_index(n: ivec, shape: ivec):
+        if wp.static(dim == 2):
+            return n[0] * shape[1] + n[1]
+        else:
+            return (n[0] * shape[1] + n[1]) * shape[2] + n[2]
+
+    @wp.func
+    def node_of_flat(idx: int, shape: ivec):
+        n = ivec()
+        if wp.static(dim == 2):
+            n = ivec(idx // shape[1], idx % shape[1])
+        else:
+            n = ivec(idx // (shape[1] * shape[2]), (idx // shape[2]) % shape[1], idx % shape[2])
+        return n
+
+    @wp.func
+    def local_coords(xp: vec, grid_lo: vec, inv_dx: scalar):
+        xg = (xp - grid_lo) * inv_dx
+        base = ivec()
+        fx = vec()
+        for a in range(dim):
+            b = int(wp.floor(xg[a] - scalar(0.5)))
+            base[a] = b
+            fx[a] = xg[a] - scalar(b)
+        return base, fx
+
+    @wp.kernel
+    def p2g(
+        x: wp.array(dtype=vec),
+        v: wp.array(dtype=vec),
+        C: wp.array(dtype=mat),
+        F: wp.array(dtype=mat),
+        vol0: wp.array(dtype=scalar),
+        mass: wp.array(dtype=scalar),
+        shear: wp.array(dtype=scalar),
+        bulk: wp.array(dtype=scalar),
+        Br: wp.array(dtype=v3),
+        clamped: wp.array(dtype=wp.int32),
+        B_uniform: v3,
+        has_gradient: int,
+        B_particle: wp.array(dtype=v3),
+        G_particle: wp.array(dtype=m3),
+        grid_lo: vec,
+        shape: ivec,
+        dx: scalar,
+        dt: scalar,
+        grid_p: wp.array(dtype=vec),
+        grid_m: wp.array(dtype=scalar),
+        grid_clamp: wp.array(dtype=wp.int32),
+        error: wp.array(dtype=wp.int32),
+    ):
+        p = wp.tid()
+        inv_dx = scalar(1.0) / dx
+        base, fx = local_coords(x[p], grid_lo, inv_dx)
+        for a in range(dim):
+            if base[a] < 0 or base[a] + 2 >= shape[a]:
+                error[0] = 1  # particle outside the active grid block: the solver refits and reports
+                return
+        w0, w1, w2 = bspline_weights(fx)
+        Fp = F[p]
+        B = B_uniform
+        if has_gradient != 0:
+            B = B + B_particle[p]
+        br = Br[p]
+        # Magnetic stress of a hard-magnetic elastomer (seed 000 eq 13): P = -(1/mu0) B (x) Br
+        P = neo_hookean_stress(Fp, shear[p], bulk[p]) - scalar(inv_mu0) * wp.outer(inplane(B), inplane(br))
+        # MLS-MPM: grid force -V0 P F^T grad w, with grad w = (4/dx^2) w (x_i - x_p) for quadratic B-splines
+        stress = (-dt * vol0[p] * scalar(4.0) * inv_dx * inv_dx) * (P * wp.transpose(Fp))
+        mp = mass[p]
+        affine = stress + mp * C[p]
+        mv = mp * v[p]
+        if has_gradient != 0:
+            # Gradient force (seed 000 eqs 15-16) per particle: f = (grad B)^T m, m = F Br V0 / mu0 the current
+            # moment; summing w f over nodes gives the node form since the weights sum to one.
+            Fbr = inplane(br)
+            Fbr = Fp * Fbr
+            m3d = v3()
+            for a in range(dim):
+                m3d[a] = Fbr[a]
+            if wp.static(dim == 2):
+                m3d[2] = br[2]  # plane strain: F_zz = 1
+            m3d = m3d * (vol0[p] * scalar(inv_mu0))
+            f3 = wp.transpose(G_particle[p]) * m3d
+            mv = mv + dt * inplane(f3)
+        is_clamped = clamped[p]
+        for q in range(NS):
+            o = stencil_offset(q)
+            weight = scalar(1.0)
+            dpos = vec()
+            for a in range(dim):
+                weight = weight * pick(w0, w1, w2, o[a], a)
+                dpos[a] = (scalar(o[a]) - fx[a]) * dx
+            idx = flat_index(base + o, shape)
+            wp.atomic_add(grid_p, idx, weight * (mv + affine * dpos))
+            wp.atomic_add(grid_m, idx, weight * mp)
+            if is_clamped != 0:
+                grid_clamp[idx] = 1
+
+    @wp.func
+    def contact(vel: vec, cvel: vec, normal: vec, mode: int, mu: scalar):
+        """Velocity projection against a rigid surface moving at ``cvel`` with outward unit ``normal``:
+        sticky -> the node moves with the surface; slip -> the approaching normal component is removed;
+        friction -> also the tangential part shrinks by mu |v_n| (Coulomb), stopping when it would reverse."""
+        if mode == 0:
+            return cvel
+        vr = vel - cvel
+        vn = wp.dot(vr, normal)
+        if vn >= scalar(0.0):
+            return vel  # separating: no contact force
+        vt = vr - vn * normal
+        if mode == 2:
+            vt_norm = wp.length(vt)
+            if vt_norm > scalar(0.0):
+                vt = vt * (wp.max(vt_norm + mu * vn, scalar(0.0)) / vt_norm)
+        return vt + cvel
+
+    @wp.kernel
+    def grid_update(
+        grid_p: wp.array(dtype=vec),
+        grid_m: wp.array(dtype=scalar),
+        grid_clamp: wp.array(dtype=wp.int32),
+        org: ivec,
+        shape: ivec,
+        domain_lo: vec,
+        domain_hi: vec,
+        wall_mode: int,
+        wall_friction: scalar,
+        dx: scalar,
+        dt: scalar,
+        damping_factor: scalar,
+        gravity: vec,
+        colliders: wp.array(dtype=wp.float64),
+        n_colliders: int,
+        plane_z: wp.float64,
+        grid_v: wp.array(dtype=vec),
+    ):
+        idx = wp.tid()
+        m = grid_m[idx]
+        if m <= scalar(0.0) or grid_clamp[idx] != 0:
+            grid_v[idx] = vec()
+            return
+        # damping f = -c p (seed 000 eq 17), integrated exactly over the step so any c is stable
+        vel = grid_p[idx] / m * damping_factor + dt * gravity
+        n = node_of_flat(idx, shape) + org
+        pos = vec()
+        for a in range(dim):
+            pos[a] = domain_lo[a] + scalar(n[a]) * dx
+        # domain walls: nodes within two cells of a wall may not move into it
+        for a in range(dim):
+            normal = vec()
+            if pos[a] < domain_lo[a] + scalar(2.0) * dx:
+                normal[a] = scalar(1.0)
+                vel = contact(vel, vec(), normal, wall_mode, wall_friction)
+            if pos[a] > domain_hi[a] - scalar(2.0) * dx:
+                normal[a] = scalar(-1.0)
+                vel = contact(vel, vec(), normal, wall_mode, wall_friction)
+        # rigid colliders: a node with signed distance <= 0 is in contact
+        if n_colliders > 0:
+            p3 = wp.vec3d(wp.float64(pos[0]), wp.float64(pos[1]), plane_z)
+            if wp.static(dim == 3):
+                p3 = wp.vec3d(wp.float64(pos[0]), wp.float64(pos[1]), wp.float64(pos[2]))
+            for c in range(n_colliders):
+                phi, nrm, cvel = collider_sdf(colliders, c, p3)
+                if phi <= wp.float64(0.0):
+                    row = c * COLLIDER_STRIDE
+                    mode = int(colliders[row + 1])
+                    mu = scalar(colliders[row + 2])
+                    vel = contact(vel, inplane(v3(cvel)), inplane(v3(nrm)), mode, mu)
+        grid_v[idx] = vel
+
+    @wp.kernel
+    def g2p(
+        grid_v: wp.array(dtype=vec),
+        clamped: wp.array(dtype=wp.int32),
+        grid_lo: vec,
+        shape: ivec,
+        dx: scalar,
+        dt: scalar,
+        x_in: wp.array(dtype=vec),
+        F_in: wp.array(dtype=mat),
+        x_out: wp.array(dtype=vec),
+        v_out: wp.array(dtype=vec),
+        C_out: wp.array(dtype=mat),
+        F_out: wp.array(dtype=mat),
+        bounds: wp.array(dtype=scalar),
+        max_speed: wp.array(dtype=scalar),
+        error: wp.array(dtype=wp.int32),
+    ):
+        p = wp.tid()
+        xp = x_in[p]
+        if clamped[p] != 0:
+            # held particles keep their place and shape
+            x_out[p] = xp
+            v_out[p] = vec()
+            C_out[p] = mat()
+            F_out[p] = F_in[p]
+        else:
+            inv_dx = scalar(1.0) / dx
+            base, fx = local_coords(xp, grid_lo, inv_dx)
+            w0, w1, w2 = bspline_weights(fx)
+            new_v = vec()
+            new_C = mat()
+            for q in range(NS):
+                o = stencil_offset(q)
+                weight = scalar(1.0)
+                dpos = vec()
+                for a in range(dim):
+                    weight = weight * pick(w0, w1, w2, o[a], a)
+                    dpos[a] = (scalar(o[a]) - fx[a]) * dx
+                gv = grid_v[flat_index(base + o, shape)]
+                new_v = new_v + weight * gv
+                new_C = new_C + (weight * scalar(4.0) * inv_dx * inv_dx) * wp.outer(gv, dpos)
+            Fn = (wp.identity(n=dim, dtype=scalar) + dt * new_C) * F_in[p]
+            xp = xp + dt * new_v
+            x_out[p] = xp
+            v_out[p] = new_v
+            C_out[p] = new_C
+            F_out[p] = Fn
+            J = wp.determinant(Fn)
+            ok = J > scalar(0.0)
+            for a in range(dim):
+                if not wp.isfinite(xp[a]) or not wp.isfinite(new_v[a]):
+                    ok = False
+            if not ok:
+                wp.atomic_max(error, 1, 1)
+            wp.atomic_max(max_speed, 0, wp.length(new_v))
+        for a in range(dim):
+            wp.atomic_min(bounds, a, xp[a])
+            wp.atomic_max(bounds, dim + a, xp[a])
+
+    @wp.kernel
+    def reset_reductions(bounds: wp.array(dtype=scalar), max_speed: wp.array(dtype=scalar), big: scalar):
+        for a in range(dim):
+            bounds[a] = big
+            bounds[dim + a] = -big
+        max_speed[0] = scalar(0.0)
+
+    @wp.kernel
+    def stress_kernel(F: wp.array(dtype=mat), G: scalar, K: scalar, P: wp.array(dtype=mat), psi: wp.array(dtype=scalar)):
+        i = wp.tid()
+        P[i] = neo_hookean_stress(F[i], G, K)
+        psi[i] = neo_hookean_energy(F[i], G, K)
+
+    return dict(
+        p2g=p2g,
+        grid_update=grid_update,
+        g2p=g2p,
+        reset_reductions=reset_reductions,
+        stress_kernel=stress_kernel,
+        vec=vec,
+        mat=mat,
+        ivec=ivec,
+        v3=v3,
+        m3=m3,
+    )

@@ -1,0 +1,366 @@
+"""Model / State / Control / Solver of the MLS-MPM engine.
+
+- :class:`Model`: what a run does not change (reference positions, volumes, per-particle material, remanence,
+  body ids, clamp mask, grid spacing, domain, precision, device).
+- :class:`State`: what a step changes (x, v, C, F, time).
+- :class:`Control`: what the user drives over time (field sources, colliders with their paths).
+- :class:`Solver`: ``step(state_in, state_out, control, dt)``; owns the grid and scratch memory.
+
+The grid is a dense block of nodes over the particles' bounding box plus a margin, re-fitted when the bodies
+move near its edge, so memory and per-step grid work follow the occupied region, not the domain.
+"""
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+import warp as wp
+
+from magsoro import MU0
+from magsoro.errors import SimulationError
+from magsoro.fields.device import FieldEvaluator
+from magsoro.mpm.colliders import MODES, Collider, collider_table
+from magsoro.mpm.kernels import make_kernels
+
+PRECISIONS = {"float32": (wp.float32, np.float32), "float64": (wp.float64, np.float64)}
+
+
+def resolve_device(name: str | None) -> str:
+    """'cpu', 'cuda' or 'cuda:N'; None picks CUDA when present, else CPU."""
+    if name is None:
+        return "cuda" if wp.get_cuda_device_count() > 0 else "cpu"
+    if name.startswith("cuda") and wp.get_cuda_device_count() == 0:
+        raise SimulationError(f"device {name!r} requested but no CUDA device is available; use device = 'cpu'")
+    return name
+
+
+class Model:
+    """Particles and settings that stay fixed during a run. Inputs are SI numpy arrays.
+
+    positions (N, dim) m; volumes (N,) m^3 (in 2D: area x depth); density (N,) kg/m^3; shear_modulus and
+    bulk_modulus (N,) Pa; remanence (N, 3) T in the reference frame; body (N,) int; clamped (N,) bool.
+    """
+
+    def __init__(
+        self,
+        positions,
+        volumes,
+        density,
+        shear_modulus,
+        bulk_modulus,
+        remanence,
+        body,
+        clamped,
+        *,
+        dx: float,
+        domain_lo,
+        domain_hi,
+        precision: str = "float32",
+        device: str | None = "cpu",
+    ):
+        if precision not in PRECISIONS:
+            raise ValueError(f"precision must be one of {sorted(PRECISIONS)}, got {precision!r}")
+        self.precision = precision
+        self.scalar, self.np_scalar = PRECISIONS[precision]
+        self.device = resolve_device(device)
+        X = np.asarray(positions, dtype=np.float64)
+        self.dim = X.shape[1]
+        n = len(X)
+        if n == 0:
+            raise ValueError("a model needs at least one particle")
+        self.n_particles = n
+        self.dx = float(dx)
+        self.domain_lo = np.asarray(domain_lo, dtype=np.float64).reshape(self.dim)
+        self.domain_hi = np.asarray(domain_hi, dtype=np.float64).reshape(self.dim)
+        k = make_kernels(self.dim, self.scalar)
+        self.kernels = k
+        self.host = dict(
+            positions=X,
+            volumes=np.broadcast_to(np.asarray(volumes, dtype=np.float64), (n,)).copy(),
+            density=np.broadcast_to(np.asarray(density, dtype=np.float64), (n,)).copy(),
+            shear_modulus=np.broadcast_to(np.asarray(shear_modulus, dtype=np.float64), (n,)).copy(),
+            bulk_modulus=np.broadcast_to(np.asarray(bulk_modulus, dtype=np.float64), (n,)).copy(),
+            remanence=np.broadcast_to(np.asarray(remanence, dtype=np.float64), (n, 3)).copy(),
+            body=np.broadcast_to(np.asarray(body, dtype=np.int32), (n,)).copy(),
+            clamped=np.broadcast_to(np.asarray(clamped, dtype=bool), (n,)).copy(),
+        )
+        h = self.host
+        h["mass"] = h["volumes"] * h["density"]
+        for key in ("volumes", "density", "shear_modulus", "bulk_modulus"):
+            if not np.all(h[key] > 0) or not np.all(np.isfinite(h[key])):
+                raise ValueError(f"particle {key} must be finite and > 0")
+        s, dev = self.np_scalar, self.device
+        self.X0 = wp.array(X.astype(s), dtype=k["vec"], device=dev)
+        self.vol0 = wp.array(h["volumes"].astype(s), dtype=self.scalar, device=dev)
+        self.mass = wp.array(h["mass"].astype(s), dtype=self.scalar, device=dev)
+        self.shear = wp.array(h["shear_modulus"].astype(s), dtype=self.scalar, device=dev)
+        self.bulk = wp.array(h["bulk_modulus"].astype(s), dtype=self.scalar, device=dev)
+        self.Br = wp.array(h["remanence"].astype(s), dtype=k["v3"], device=dev)
+        self.body = wp.array(h["body"], dtype=wp.int32, device=dev)
+        self.clamped = wp.array(h["clamped"].astype(np.int32), dtype=wp.int32, device=dev)
+
+    def wave_speed(self, field_magnitude: float = 0.0) -> float:
+        """Largest elastic wave speed sqrt((K + 4G/3 + |B||Br|/mu0) / rho) over particles, m/s.
+        The magnetic term bounds the stiffening a field of magnitude ``field_magnitude`` (T) adds."""
+        h = self.host
+        br = np.linalg.norm(h["remanence"], axis=1)
+        modulus = h["bulk_modulus"] + 4.0 * h["shear_modulus"] / 3.0 + field_magnitude * br / MU0
+        return float(np.sqrt(np.max(modulus / h["density"])))
+
+
+@dataclass
+class State:
+    """Particle state: x (positions, m), v (velocities, m/s), C (affine velocity, 1/s), F (deformation gradient)."""
+
+    x: wp.array
+    v: wp.array
+    C: wp.array
+    F: wp.array
+    time: float = 0.0
+    step: int = 0
+
+    def numpy(self) -> dict:
+        return {"x": self.x.numpy(), "v": self.v.numpy(), "C": self.C.numpy(), "F": self.F.numpy()}
+
+    def assign(self, other: "State") -> None:
+        wp.copy(self.x, other.x)
+        wp.copy(self.v, other.v)
+        wp.copy(self.C, other.C)
+        wp.copy(self.F, other.F)
+        self.time, self.step = other.time, other.step
+
+
+@dataclass
+class Control:
+    """Time-dependent drives: field sources (see :mod:`magsoro.fields`) and rigid colliders."""
+
+    sources: list = field(default_factory=list)
+    colliders: list[Collider] = field(default_factory=list)
+
+
+@dataclass
+class SolverSettings:
+    """Numerical settings. damping c in 1/s (f = -c p); gravity m/s^2 (dim components); walls: domain-boundary
+    contact mode; grid_margin: free cells kept around the particles; plane_z: z of the 2D plane for fields."""
+
+    damping: float = 0.0
+    gravity: tuple = (0.0, 0.0, 0.0)
+    walls: str = "slip"
+    wall_friction: float = 0.0
+    cfl: float = 0.4
+    grid_margin: int = 4
+    plane_z: float = 0.0
+
+
+class Solver:
+    """Steps a :class:`Model` forward. ``step(state_in, state_out, control, dt)`` never modifies ``state_in``."""
+
+    def __init__(self, model: Model, settings: SolverSettings | None = None):
+        self.model = model
+        self.settings = settings or SolverSettings()
+        st = self.settings
+        if st.walls not in MODES:
+            raise ValueError(f"walls must be one of {sorted(MODES)}, got {st.walls!r}")
+        self.k = model.kernels
+        dim, dev, sc = model.dim, model.device, model.scalar
+        self.dim, self.device, self.scalar = dim, dev, sc
+        g = np.zeros(dim)
+        gin = np.asarray(st.gravity, dtype=np.float64).ravel()
+        g[: min(dim, len(gin))] = gin[:dim]
+        self.gravity = self.k["vec"](*[sc(v) for v in g])
+        self.org = np.zeros(dim, dtype=np.int64)
+        self.shape = np.zeros(dim, dtype=np.int64)
+        self.capacity = 0
+        self.n_active = 0
+        self.refits = 0
+        self.error = wp.zeros(2, dtype=wp.int32, device=dev)
+        self.bounds = wp.zeros(2 * dim, dtype=sc, device=dev)
+        self.max_speed = wp.zeros(1, dtype=sc, device=dev)
+        self._bounds_valid = False
+        self._evaluator = None
+        self._evaluator_key = None
+        n = model.n_particles
+        self.B_particle = wp.zeros(n, dtype=self.k["v3"], device=dev)
+        self.G_particle = wp.zeros(n, dtype=self.k["m3"], device=dev)
+        self._collider_array = None
+
+    # -- states -------------------------------------------------------------------------------------------
+    def new_state(self, velocity=None) -> State:
+        """A state at the reference configuration (F = I) with optional initial velocities (N, dim) m/s."""
+        m, k = self.model, self.k
+        n, dim = m.n_particles, m.dim
+        v = np.zeros((n, dim)) if velocity is None else np.broadcast_to(np.asarray(velocity, dtype=np.float64), (n, dim))
+        eye = np.broadcast_to(np.eye(dim), (n, dim, dim))
+        s = m.np_scalar
+        return State(
+            x=wp.array(m.host["positions"].astype(s), dtype=k["vec"], device=m.device),
+            v=wp.array(np.ascontiguousarray(v, dtype=s), dtype=k["vec"], device=m.device),
+            C=wp.zeros(n, dtype=k["mat"], device=m.device),
+            F=wp.array(np.ascontiguousarray(eye, dtype=s), dtype=k["mat"], device=m.device),
+        )
+
+    # -- grid block -----------------------------------------------------------------------------------------
+    def _node_range(self, lo, hi):
+        """Global node index range [first, last] touched by particles inside [lo, hi] (quadratic stencil)."""
+        m = self.model
+        glo = (np.asarray(lo) - m.domain_lo) / m.dx
+        ghi = (np.asarray(hi) - m.domain_lo) / m.dx
+        return np.floor(glo - 0.5).astype(np.int64), np.floor(ghi - 0.5).astype(np.int64) + 2
+
+    def _fits(self, lo, hi) -> bool:
+        if self.n_active == 0:
+            return False
+        first, last = self._node_range(lo, hi)
+        return bool(np.all(first >= self.org) and np.all(last < self.org + self.shape))
+
+    def _refit(self, lo, hi) -> None:
+        first, last = self._node_range(lo, hi)
+        margin = self.settings.grid_margin
+        self.org = first - margin
+        self.shape = last - first + 1 + 2 * margin
+        need = int(np.prod(self.shape))
+        if need > self.capacity:
+            cap = int(need * 1.3) + 64  # slack so a slowly growing body does not reallocate every refit
+            k, dev, sc = self.k, self.device, self.scalar
+            self.grid_p = wp.zeros(cap, dtype=k["vec"], device=dev)
+            self.grid_v = wp.zeros(cap, dtype=k["vec"], device=dev)
+            self.grid_m = wp.zeros(cap, dtype=sc, device=dev)
+            self.grid_clamp = wp.zeros(cap, dtype=wp.int32, device=dev)
+            self.capacity = cap
+        self.n_active = need
+        self.refits += 1
+
+    def grid_info(self) -> dict:
+        return {"origin": self.org.tolist(), "shape": self.shape.tolist(), "nodes": self.n_active, "capacity": self.capacity, "refits": self.refits}
+
+    def _particle_bounds(self, state: State):
+        if self._bounds_valid:
+            b = self.bounds.numpy()
+            return b[: self.dim].astype(np.float64), b[self.dim :].astype(np.float64)
+        x = state.x.numpy()
+        return x.min(axis=0).astype(np.float64), x.max(axis=0).astype(np.float64)
+
+    # -- control --------------------------------------------------------------------------------------------
+    def _fields(self, control: Control) -> FieldEvaluator:
+        key = id(control), tuple(id(s) for s in control.sources)
+        if self._evaluator_key != key:
+            self._evaluator = FieldEvaluator(control.sources, self.dim, self.scalar, self.device, self.settings.plane_z)
+            self._evaluator_key = key
+        return self._evaluator
+
+    def stable_dt(self, control: Control | None = None, max_speed: float = 0.0, field_magnitude: float | None = None) -> float:
+        """CFL bound dt = cfl dx / (c + |v|max), with c the elastic (and magnetic) wave speed."""
+        if field_magnitude is None:
+            field_magnitude = self.field_magnitude(control) if control is not None else 0.0
+        c = self.model.wave_speed(field_magnitude)
+        return self.settings.cfl * self.model.dx / (c + max_speed)
+
+    def field_magnitude(self, control: Control, t: float = 0.0) -> float:
+        """Largest |B| (T) the sources give at the reference particle positions (uniform profiles: their peak)."""
+        pts = np.zeros((self.model.n_particles, 3))
+        pts[:, : self.dim] = self.model.host["positions"]
+        if self.dim == 2:
+            pts[:, 2] = self.settings.plane_z
+        total = 0.0
+        for s in control.sources:
+            for e in s.sources():
+                total += e.max_magnitude(pts, t)
+        return total
+
+    def last_max_speed(self) -> float:
+        return float(self.max_speed.numpy()[0])
+
+    # -- stepping -------------------------------------------------------------------------------------------
+    def step(self, state_in: State, state_out: State, control: Control, dt: float) -> None:
+        """Advance ``state_in`` by ``dt`` seconds into ``state_out``. Raises SimulationError on a bad state."""
+        m, k, st, dev, sc = self.model, self.k, self.settings, self.device, self.scalar
+        t = state_in.time
+        lo, hi = self._particle_bounds(state_in)
+        if not (np.all(np.isfinite(lo)) and np.all(np.isfinite(hi))):
+            raise SimulationError("particle positions are not finite", state_in.step, t)
+        if np.any(lo < m.domain_lo) or np.any(hi > m.domain_hi):
+            raise SimulationError(
+                f"a particle left the domain [{m.domain_lo.tolist()}, {m.domain_hi.tolist()}] m "
+                f"(particles span {lo.tolist()} to {hi.tolist()}); enlarge simulation.domain or check the drives",
+                state_in.step,
+                t,
+            )
+        if not self._fits(lo, hi):
+            self._refit(lo, hi)
+        fields = self._fields(control)
+        b0 = fields.uniform_value(t)
+        if fields.has_gradient:
+            fields.evaluate(state_in.x, self.B_particle, self.G_particle, t)
+        table = collider_table(control.colliders, t)
+        if self._collider_array is None or self._collider_array.shape[0] != len(table):
+            self._collider_array = wp.array(table, dtype=wp.float64, device=dev)
+        else:
+            self._collider_array.assign(table)
+        n_act = self.n_active
+        vec, ivec = k["vec"], k["ivec"]
+        shape = ivec(*[int(s) for s in self.shape])
+        org = ivec(*[int(o) for o in self.org])
+        grid_lo = vec(*[sc(m.domain_lo[a] + self.org[a] * m.dx) for a in range(self.dim)])
+        self.grid_p[:n_act].zero_()
+        self.grid_m[:n_act].zero_()
+        self.grid_clamp[:n_act].zero_()
+        self.error.zero_()
+        wp.launch(
+            k["p2g"],
+            dim=m.n_particles,
+            inputs=[
+                state_in.x, state_in.v, state_in.C, state_in.F,
+                m.vol0, m.mass, m.shear, m.bulk, m.Br, m.clamped,
+                k["v3"](*[sc(b) for b in b0]), 1 if fields.has_gradient else 0, self.B_particle, self.G_particle,
+                grid_lo, shape, sc(m.dx), sc(dt),
+                self.grid_p, self.grid_m, self.grid_clamp, self.error,
+            ],
+            device=dev,
+        )
+        wp.launch(
+            k["grid_update"],
+            dim=n_act,
+            inputs=[
+                self.grid_p, self.grid_m, self.grid_clamp, org, shape,
+                vec(*[sc(v) for v in m.domain_lo]), vec(*[sc(v) for v in m.domain_hi]),
+                MODES[st.walls], sc(st.wall_friction), sc(m.dx), sc(dt),
+                sc(math.exp(-st.damping * dt)), self.gravity,
+                self._collider_array, len(control.colliders), wp.float64(st.plane_z),
+                self.grid_v,
+            ],
+            device=dev,
+        )
+        wp.launch(k["reset_reductions"], dim=1, inputs=[self.bounds, self.max_speed, sc(1e30)], device=dev)
+        wp.launch(
+            k["g2p"],
+            dim=m.n_particles,
+            inputs=[
+                self.grid_v, m.clamped, grid_lo, shape, sc(m.dx), sc(dt),
+                state_in.x, state_in.F,
+                state_out.x, state_out.v, state_out.C, state_out.F,
+                self.bounds, self.max_speed, self.error,
+            ],
+            device=dev,
+        )
+        self._bounds_valid = True
+        state_out.time = t + dt
+        state_out.step = state_in.step + 1
+        err = self.error.numpy()
+        if err[0]:
+            # cannot happen while the margin exceeds the per-step motion; a refit at the next step would hide
+            # lost mass, so stop instead
+            raise SimulationError(
+                "a particle moved outside the active grid block within one step; the time step is too large "
+                "for the particle speed (lower simulation.dt or simulation.cfl)",
+                state_in.step,
+                t,
+            )
+        if err[1]:
+            self._bounds_valid = False
+            raise SimulationError(
+                "the state became invalid (non-finite values or an inverted element, det F <= 0); likely causes: "
+                "time step too large for the material stiffness (lower simulation.dt or simulation.cfl), or a "
+                "field too strong for the grid spacing (refine simulation.dx or raise damping)",
+                state_in.step,
+                t,
+            )

@@ -1,0 +1,194 @@
+"""Read and check scene files. Every error is one line naming the file, the key and what is allowed."""
+
+from __future__ import annotations
+
+import tomllib
+import typing
+from pathlib import Path
+
+import pydantic
+from pydantic import ValidationError
+
+from magsoro.errors import SceneError
+from magsoro.scene.schema import SHAPES_2D, SHAPES_3D, Scene
+
+
+def _loc_str(loc) -> str:
+    out = ""
+    for part in loc:
+        if isinstance(part, int):
+            out += f"[{part}]"
+        else:
+            out += ("." if out else "") + str(part)
+    return out
+
+
+def _inner_model(ann):
+    """Strip Optional/list/Annotated and return the model class (or a list of union members)."""
+    origin = typing.get_origin(ann)
+    if origin is typing.Annotated:
+        return _inner_model(typing.get_args(ann)[0])
+    if origin in (list, tuple):
+        return _inner_model(typing.get_args(ann)[0])
+    if origin in (typing.Union, getattr(__import__("types"), "UnionType", None)):
+        members = [a for a in typing.get_args(ann) if a is not type(None)]
+        if len(members) == 1:
+            return _inner_model(members[0])
+        return [m for m in members if isinstance(m, type) and issubclass(m, pydantic.BaseModel)] or None
+    if isinstance(ann, type) and issubclass(ann, pydantic.BaseModel):
+        return ann
+    return None
+
+
+def _resolve(loc):
+    """Follow loc through Scene, dropping discriminator tags; return (clean loc, model class or None)."""
+    cls = Scene
+    clean = []
+    for part in loc:
+        if isinstance(part, int):
+            clean.append(part)
+            continue
+        if isinstance(cls, list):  # union: part is the tag
+            match = [m for m in cls if getattr(m.model_fields.get("type"), "annotation", None) is not None and part in typing.get_args(m.model_fields["type"].annotation)]
+            if match:
+                cls = match[0]
+                continue
+            cls = None
+        clean.append(part)
+        if cls is not None and not isinstance(cls, list) and part in cls.model_fields:
+            cls = _inner_model(cls.model_fields[part].annotation)
+        else:
+            cls = None
+    return clean, cls
+
+
+def format_validation_error(exc: ValidationError, source: str = "scene") -> str:
+    """One line: '<source>: <key>: <problem>' for the first error, plus how many more there are."""
+    errors = exc.errors()
+    first = errors[0]
+    loc, _ = _resolve(first["loc"])
+    key = _loc_str(loc) or "(top level)"
+    kind = first["type"]
+    if kind == "extra_forbidden":
+        parent_loc, parent = _resolve(first["loc"][:-1])
+        allowed = sorted(parent.model_fields) if isinstance(parent, type) else []
+        msg = f"unknown key '{loc[-1]}'" + (f"; allowed keys here: {', '.join(allowed)}" if allowed else "")
+    elif kind == "missing":
+        msg = "required key is missing"
+    elif kind == "union_tag_invalid":
+        ctx = first.get("ctx", {})
+        msg = f"unknown type {ctx.get('tag')!r}; allowed: {ctx.get('expected_tags')}"
+    elif kind == "union_tag_not_found":
+        msg = f"needs a 'type' key; allowed: {first.get('ctx', {}).get('expected_tags', '')}"
+    else:
+        msg = first["msg"]
+        if "input" in first and not isinstance(first["input"], (dict, list)):
+            msg += f" (got {first['input']!r})"
+    more = f" (and {len(errors) - 1} more problem{'s' if len(errors) > 2 else ''})" if len(errors) > 1 else ""
+    return f"{source}: {key}: {msg}{more}"
+
+
+def parse_scene(data: dict, source: str = "scene", base_dir: Path | None = None) -> Scene:
+    """Validate a scene given as a dict (as read from TOML) and run the cross-key checks."""
+    try:
+        scene = Scene.model_validate(data)
+    except ValidationError as exc:
+        raise SceneError(format_validation_error(exc, source)) from None
+    check_scene(scene, source, base_dir)
+    scene._base_dir = base_dir  # where relative file names resolve
+    return scene
+
+
+def load_scene(path) -> Scene:
+    """Read a TOML scene file and validate it. Raises :class:`SceneError` with a one-line message."""
+    path = Path(path)
+    if not path.is_file():
+        raise SceneError(f"{path}: scene file not found")
+    try:
+        data = tomllib.loads(path.read_text())
+    except tomllib.TOMLDecodeError as exc:
+        raise SceneError(f"{path}: not valid TOML: {exc}") from None
+    scene = parse_scene(data, str(path), path.parent)
+    scene._source_path = path
+    return scene
+
+
+def _vec_len(value, n, key, source):
+    if value is not None and len(value) != n:
+        raise SceneError(f"{source}: {key}: needs {n} components in a {n}D scene, got {len(value)}")
+
+
+def _check_shape(shape, dim, key, source):
+    allowed = SHAPES_2D if dim == 2 else SHAPES_3D
+    if shape.type not in allowed:
+        raise SceneError(f"{source}: {key}.type: '{shape.type}' is not a {dim}D shape; allowed: {', '.join(allowed)}")
+    for attr in ("center", "size"):
+        if hasattr(shape, attr):
+            _vec_len(getattr(shape, attr), dim, f"{key}.{attr}", source)
+    if shape.type == "cylinder":
+        _vec_len(shape.axis, 3, f"{key}.axis", source)
+    if shape.type == "polygon":
+        for i, v in enumerate(shape.vertices):
+            _vec_len(v, 2, f"{key}.vertices[{i}]", source)
+        if len(shape.vertices) < 3:
+            raise SceneError(f"{source}: {key}.vertices: a polygon needs at least 3 vertices")
+    if hasattr(shape, "size") and any(s <= 0 for s in shape.size):
+        raise SceneError(f"{source}: {key}.size: every edge length must be > 0, got {shape.size}")
+
+
+def check_scene(scene: Scene, source: str, base_dir: Path | None) -> None:
+    """Checks that span several keys: dimensions, names, references, domain, files."""
+    sim = scene.simulation
+    dim = sim.dim
+    _vec_len(sim.domain_lo, dim, "simulation.domain_lo", source)
+    _vec_len(sim.domain_hi, dim, "simulation.domain_hi", source)
+    if any(h <= l for l, h in zip(sim.domain_lo, sim.domain_hi)):
+        raise SceneError(f"{source}: simulation.domain_hi: must exceed domain_lo along every axis")
+    extent = [h - l for l, h in zip(sim.domain_lo, sim.domain_hi)]
+    if min(extent) < 6 * sim.dx:
+        raise SceneError(f"{source}: simulation.dx: {sim.dx} m is too coarse for a domain of {min(extent)} m (need at least 6 cells per axis)")
+    _vec_len(sim.gravity, dim, "simulation.gravity", source)
+    names = [b.name for b in scene.bodies]
+    for i, b in enumerate(scene.bodies):
+        if names.count(b.name) > 1:
+            raise SceneError(f"{source}: bodies[{i}].name: duplicate body name '{b.name}'")
+        _check_shape(b.shape, dim, f"bodies[{i}].shape", source)
+        _vec_len(b.velocity, dim, f"bodies[{i}].velocity", source)
+    for i, c in enumerate(scene.clamps):
+        _check_shape(c.region, dim, f"clamps[{i}].region", source)
+        if c.body is not None and c.body not in names:
+            raise SceneError(f"{source}: clamps[{i}].body: no body named '{c.body}'; bodies: {', '.join(names)}")
+    for i, p in enumerate(scene.probes):
+        if p.body not in names:
+            raise SceneError(f"{source}: probes[{i}].body: no body named '{p.body}'; bodies: {', '.join(names)}")
+        if p.type in ("tip", "point"):
+            _check_shape(p.region, dim, f"probes[{i}].region", source)
+    probe_names = [p.name for p in scene.probes]
+    for i, p in enumerate(scene.probes):
+        if probe_names.count(p.name) > 1:
+            raise SceneError(f"{source}: probes[{i}].name: duplicate probe name '{p.name}'")
+    for i, c in enumerate(scene.colliders):
+        for attr in ("point", "normal", "center", "size"):
+            if hasattr(c, attr):
+                _vec_len(getattr(c, attr), dim, f"colliders[{i}].{attr}", source)
+        if c.type == "half_space" and all(v == 0 for v in c.normal):
+            raise SceneError(f"{source}: colliders[{i}].normal: must be non-zero")
+        if c.path is not None:
+            for j, pos in enumerate(c.path.positions):
+                _vec_len(pos, dim, f"colliders[{i}].path.positions[{j}]", source)
+    for i, f in enumerate(scene.fields):
+        if f.type == "keyframes":
+            if f.file is not None:
+                path = Path(f.file) if base_dir is None else Path(base_dir) / f.file
+                if not path.is_file():
+                    raise SceneError(f"{source}: fields[{i}].file: file '{path}' not found")
+            else:
+                if len(f.times) != len(f.values):
+                    raise SceneError(f"{source}: fields[{i}].values: needs one vector per time ({len(f.times)} times, {len(f.values)} values)")
+                for j, v in enumerate(f.values):
+                    _vec_len(v, 3, f"fields[{i}].values[{j}]", source)
+        if f.type == "dipole" and f.path is not None:
+            for j, pos in enumerate(f.path.positions):
+                _vec_len(pos, 3, f"fields[{i}].path.positions[{j}]", source)
+    if scene.output.every is not None and scene.output.every > sim.duration:
+        raise SceneError(f"{source}: output.every: {scene.output.every} s exceeds simulation.duration {sim.duration} s")

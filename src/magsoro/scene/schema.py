@@ -1,0 +1,328 @@
+"""Scene file schema (TOML), validated by pydantic v2.
+
+Every key carries its unit and default in its description; docs/scenes.md is generated from these models
+(``magsoro docs scenes``), so the reference cannot drift from the code. Unknown keys are refused.
+Vectors have 3 components in 3D scenes and 2 in 2D scenes, except field and magnetisation vectors, which
+always have 3 (the field is three-dimensional even when the body is planar).
+"""
+
+from __future__ import annotations
+
+from typing import Annotated, Literal, Union
+
+from pydantic import BaseModel, ConfigDict, Field, PrivateAttr, model_validator
+
+Vec = list[float]
+
+
+class Strict(BaseModel):
+    model_config = ConfigDict(extra="forbid", validate_default=True)
+
+
+def _check_len(v, name, n):
+    if v is not None and len(v) != n:
+        raise ValueError(f"{name} must have {n} components, got {len(v)}")
+
+
+# ---------------------------------------------------------------- shapes
+class BoxShape(Strict):
+    """Solid box (3D)."""
+
+    type: Literal["box"]
+    center: Vec = Field(description="Centre of the box, m.")
+    size: Vec = Field(description="Full edge lengths along x, y, z, m.")
+
+
+class CylinderShape(Strict):
+    """Solid cylinder (3D)."""
+
+    type: Literal["cylinder"]
+    center: Vec = Field(description="Centre of the cylinder, m.")
+    radius: float = Field(gt=0, description="Radius, m.")
+    length: float = Field(gt=0, description="Length along the axis, m.")
+    axis: Vec = Field(default=[0.0, 0.0, 1.0], description="Axis direction (any length).")
+
+
+class SphereShape(Strict):
+    """Solid sphere (3D)."""
+
+    type: Literal["sphere"]
+    center: Vec = Field(description="Centre, m.")
+    radius: float = Field(gt=0, description="Radius, m.")
+
+
+class RectangleShape(Strict):
+    """Rectangle (2D scenes)."""
+
+    type: Literal["rectangle"]
+    center: Vec = Field(description="Centre, m (2 components).")
+    size: Vec = Field(description="Full edge lengths along x and y, m.")
+    angle: float = Field(default=0.0, description="Rotation about z, degrees.")
+
+
+class PolygonShape(Strict):
+    """Simple polygon (2D scenes)."""
+
+    type: Literal["polygon"]
+    vertices: list[Vec] = Field(description="Vertices [[x, y], ...] in m, either winding order.")
+
+
+Shape3D = Annotated[Union[BoxShape, CylinderShape, SphereShape], Field(discriminator="type")]
+AnyShape = Annotated[Union[BoxShape, CylinderShape, SphereShape, RectangleShape, PolygonShape], Field(discriminator="type")]
+SHAPES_3D = ("box", "cylinder", "sphere")
+SHAPES_2D = ("rectangle", "polygon")
+
+
+# ---------------------------------------------------------------- bodies
+class Material(Strict):
+    """Material of a body: compressible Neo-Hookean solid (seed 000 eq 10)."""
+
+    density: float = Field(gt=0, description="Mass density, kg/m^3.")
+    shear_modulus: float = Field(gt=0, description="Shear modulus G, Pa.")
+    bulk_modulus: float | None = Field(default=None, gt=0, description="Bulk modulus K, Pa. Default 20 G (seed 000).")
+
+
+class Body(Strict):
+    """A body: a shape filled with particles of one material and one remanence vector."""
+
+    name: str = Field(description="Unique name, used by clamps and probes.")
+    shape: AnyShape = Field(description="Geometry; 'box', 'cylinder', 'sphere' in 3D, 'rectangle', 'polygon' in 2D.")
+    material: Material
+    magnetization: Vec = Field(
+        default=[0.0, 0.0, 0.0],
+        description="Remanent flux density Br in the reference frame, T (3 components; in 2D only x, y act).",
+    )
+    velocity: Vec | None = Field(default=None, description="Initial velocity, m/s. Default at rest.")
+
+    @model_validator(mode="after")
+    def _lengths(self):
+        _check_len(self.magnetization, "magnetization", 3)
+        return self
+
+
+# ---------------------------------------------------------------- clamps
+class Clamp(Strict):
+    """Particles whose reference position lies in ``region`` are held fixed (with their grid nodes)."""
+
+    region: AnyShape = Field(description="Region in the reference configuration (a shape, as for bodies).")
+    body: str | None = Field(default=None, description="Only clamp particles of this body. Default: all bodies.")
+
+
+# ---------------------------------------------------------------- colliders
+class Path(Strict):
+    """Prescribed motion: positions at times, linearly interpolated, held outside the table."""
+
+    times: list[float] = Field(description="Increasing times, s.")
+    positions: list[Vec] = Field(description="Positions at those times, m.")
+
+    @model_validator(mode="after")
+    def _same_len(self):
+        if len(self.times) != len(self.positions):
+            raise ValueError("times and positions must have the same length")
+        if any(b <= a for a, b in zip(self.times, self.times[1:])):
+            raise ValueError("times must be strictly increasing")
+        return self
+
+
+class ColliderBase(Strict):
+    mode: Literal["sticky", "slip", "friction"] = Field(default="slip", description="Contact law: sticky, slip (frictionless) or friction (Coulomb).")
+    friction: float = Field(default=0.0, ge=0, description="Coulomb friction coefficient (mode = 'friction').")
+    path: Path | None = Field(default=None, description="Optional motion of the collider's reference point.")
+
+
+class HalfSpaceCollider(ColliderBase):
+    """Half-space (floor or wall): material stays on the side the normal points to."""
+
+    type: Literal["half_space"]
+    point: Vec = Field(description="A point on the plane, m.")
+    normal: Vec = Field(description="Outward normal (towards the free side).")
+
+
+class BoxCollider(ColliderBase):
+    """Rigid box."""
+
+    type: Literal["box"]
+    center: Vec = Field(description="Centre, m.")
+    size: Vec = Field(description="Full edge lengths, m.")
+
+
+class SphereCollider(ColliderBase):
+    """Rigid sphere (a disc in 2D)."""
+
+    type: Literal["sphere"]
+    center: Vec = Field(description="Centre, m.")
+    radius: float = Field(gt=0, description="Radius, m.")
+
+
+class CylinderCollider(ColliderBase):
+    """Rigid cylinder."""
+
+    type: Literal["cylinder"]
+    center: Vec = Field(description="Centre, m.")
+    radius: float = Field(gt=0, description="Radius, m.")
+    length: float = Field(gt=0, description="Length, m.")
+    axis: Vec = Field(default=[0.0, 0.0, 1.0], description="Axis direction.")
+
+
+AnyCollider = Annotated[Union[HalfSpaceCollider, BoxCollider, SphereCollider, CylinderCollider], Field(discriminator="type")]
+
+
+# ---------------------------------------------------------------- fields
+class RampProfile(Strict):
+    """Linear ramp from zero to the full field over ``duration``, starting at ``start``."""
+
+    type: Literal["ramp"]
+    duration: float = Field(gt=0, description="Ramp duration, s.")
+    start: float = Field(default=0.0, ge=0, description="Ramp start time, s.")
+
+
+class SineProfile(Strict):
+    """B(t) = B (offset + sin(2 pi f t + phase))."""
+
+    type: Literal["sine"]
+    frequency: float = Field(gt=0, description="Frequency, Hz.")
+    phase: float = Field(default=0.0, description="Phase, degrees.")
+    offset: float = Field(default=0.0, description="Constant offset, in units of B.")
+
+
+Profile = Annotated[Union[RampProfile, SineProfile], Field(discriminator="type")]
+
+
+class UniformField(Strict):
+    """Spatially uniform field, constant or scaled by a time profile."""
+
+    type: Literal["uniform"]
+    B: Vec = Field(description="Field vector, T.")
+    profile: Profile | None = Field(default=None, description="Optional time profile: ramp or sine.")
+
+    @model_validator(mode="after")
+    def _len(self):
+        _check_len(self.B, "B", 3)
+        return self
+
+
+class RotatingField(Strict):
+    """Uniform field of constant magnitude rotating in the plane spanned by u and v (from u towards v)."""
+
+    type: Literal["rotating"]
+    magnitude: float = Field(description="Field magnitude, T.")
+    frequency: float = Field(description="Rotation frequency, Hz (negative reverses the sense).")
+    u: Vec = Field(default=[1.0, 0.0, 0.0], description="Direction at t = 0 (phase 0).")
+    v: Vec = Field(default=[0.0, 1.0, 0.0], description="Second in-plane direction.")
+    phase: float = Field(default=0.0, description="Phase at t = 0, degrees.")
+    ramp: float = Field(default=0.0, ge=0, description="Magnitude ramp-up time, s (0: none).")
+
+    @model_validator(mode="after")
+    def _len(self):
+        _check_len(self.u, "u", 3)
+        _check_len(self.v, "v", 3)
+        return self
+
+
+class KeyframedField(Strict):
+    """Uniform field interpolated linearly between keyframes, given inline or as a CSV file (t,Bx,By,Bz)."""
+
+    type: Literal["keyframes"]
+    times: list[float] | None = Field(default=None, description="Keyframe times, s.")
+    values: list[Vec] | None = Field(default=None, description="Field vectors at the keyframes, T.")
+    file: str | None = Field(default=None, description="CSV with header t,Bx,By,Bz (s, T); relative to the scene file.")
+
+    @model_validator(mode="after")
+    def _one_source(self):
+        inline = self.times is not None or self.values is not None
+        if inline == (self.file is not None):
+            raise ValueError("give either times and values, or file")
+        if inline and (self.times is None or self.values is None):
+            raise ValueError("inline keyframes need both times and values")
+        return self
+
+
+class DipoleField(Strict):
+    """Point dipole (a small permanent magnet), optionally moving along a path."""
+
+    type: Literal["dipole"]
+    moment: Vec = Field(description="Magnetic moment, A m^2.")
+    position: Vec = Field(default=[0.0, 0.0, 0.0], description="Position, m (3 components).")
+    path: Path | None = Field(default=None, description="Optional motion of the dipole (3-component positions).")
+
+    @model_validator(mode="after")
+    def _len(self):
+        _check_len(self.moment, "moment", 3)
+        _check_len(self.position, "position", 3)
+        return self
+
+
+AnyField = Annotated[Union[UniformField, RotatingField, KeyframedField, DipoleField], Field(discriminator="type")]
+
+
+# ---------------------------------------------------------------- probes
+class CentroidProbe(Strict):
+    """Mass-weighted centroid of a body (columns NAME_x, NAME_y[, NAME_z])."""
+
+    type: Literal["centroid"]
+    name: str = Field(description="Column prefix in metrics.csv.")
+    body: str = Field(description="Body name.")
+
+
+class PointProbe(Strict):
+    """Mean position of the particles of a body whose reference position lies in ``region`` (e.g. a tip)."""
+
+    type: Literal["tip", "point"]
+    name: str = Field(description="Column prefix in metrics.csv.")
+    body: str = Field(description="Body name.")
+    region: AnyShape = Field(description="Region in the reference configuration.")
+
+
+class BoundsProbe(Strict):
+    """Axis-aligned bounding box of a body (columns NAME_min_x, ..., NAME_max_z)."""
+
+    type: Literal["bbox"]
+    name: str = Field(description="Column prefix in metrics.csv.")
+    body: str = Field(description="Body name.")
+
+
+AnyProbe = Annotated[Union[CentroidProbe, PointProbe, BoundsProbe], Field(discriminator="type")]
+
+
+# ---------------------------------------------------------------- settings
+class Simulation(Strict):
+    """Numerical settings."""
+
+    dim: Literal[2, 3] = Field(default=3, description="2 (plane strain in x-y) or 3.")
+    dx: float = Field(gt=0, description="Grid spacing, m.")
+    particles_per_cell: int = Field(default=2, ge=1, le=4, description="Particles per cell along each axis.")
+    domain_lo: Vec = Field(description="Lower corner of the domain, m.")
+    domain_hi: Vec = Field(description="Upper corner of the domain, m.")
+    duration: float = Field(gt=0, description="Simulated time, s.")
+    dt: float | None = Field(default=None, gt=0, description="Fixed time step, s. Default: automatic CFL bound.")
+    cfl: float = Field(default=0.4, gt=0, le=1, description="Safety factor of the automatic time step.")
+    damping: float = Field(default=0.0, ge=0, description="Grid damping c in f = -c p, 1/s.")
+    gravity: Vec | None = Field(default=None, description="Gravity, m/s^2. Default none.")
+    walls: Literal["sticky", "slip", "friction"] = Field(default="slip", description="Contact law at the domain walls.")
+    wall_friction: float = Field(default=0.0, ge=0, description="Friction coefficient of the domain walls.")
+    depth: float = Field(default=1e-3, gt=0, description="2D only: out-of-plane thickness giving particle volumes, m.")
+    plane_z: float = Field(default=0.0, description="2D only: z coordinate of the plane for field sources, m.")
+    device: str = Field(default="cpu", pattern=r"^(cpu|cuda(:\d+)?)$", description="'cpu', 'cuda' or 'cuda:N'.")
+    precision: Literal["float32", "float64"] = Field(default="float32", description="Floating-point precision of the kernels.")
+
+
+class Output(Strict):
+    """What a run writes."""
+
+    every: float | None = Field(default=None, gt=0, description="Interval between recorded frames and metrics rows, s. Default: duration / 50.")
+    particles: bool = Field(default=True, description="Write the ParaView particle series (.vtp + .pvd).")
+
+
+class Scene(Strict):
+    """A magsoro scene: bodies, clamps, colliders, fields, probes, numerical settings and output."""
+
+    simulation: Simulation
+    bodies: list[Body] = Field(min_length=1, description="Bodies ([[bodies]] tables).")
+    clamps: list[Clamp] = Field(default_factory=list, description="Clamped regions ([[clamps]] tables).")
+    colliders: list[AnyCollider] = Field(default_factory=list, description="Rigid colliders ([[colliders]] tables).")
+    fields: list[AnyField] = Field(default_factory=list, description="Field sources ([[fields]] tables); they add up.")
+    probes: list[AnyProbe] = Field(default_factory=list, description="Recorded quantities ([[probes]] tables).")
+    output: Output = Field(default_factory=Output)
+    name: str | None = Field(default=None, description="Scene title.")
+    _base_dir: object = PrivateAttr(default=None)
+    _source_path: object = PrivateAttr(default=None)
