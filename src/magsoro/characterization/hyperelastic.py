@@ -247,10 +247,13 @@ class HyperelasticModel:
 
     def stress(self, params, strain) -> np.ndarray:
         """Nominal stress (Pa) at engineering ``strain`` for parameter vector ``params`` (Pa / dimensionless)."""
-        lam = 1.0 + np.asarray(strain, dtype=np.float64)
+        strain = np.asarray(strain, dtype=np.float64)
+        lam = 1.0 + strain.reshape(-1)
         if self.basis is not None:
-            return self.basis(lam) @ np.asarray(params, dtype=np.float64)
-        return _ogden_stress(params, lam)
+            out = self.basis(lam) @ np.asarray(params, dtype=np.float64)
+        else:
+            out = _ogden_stress(params, lam)
+        return out.reshape(strain.shape)
 
     def shear_modulus(self, params) -> float:
         """Initial (small-strain) shear modulus, Pa."""
