@@ -6,6 +6,7 @@ Every source gives ``B(points, t)`` -> (N, 3) tesla and ``grad_B(points, t)`` ->
 """
 
 from magsoro.fields.base import FieldSource, FieldSum
+from magsoro.fields.cylinder import CylinderMagnet
 from magsoro.fields.dipole import Dipole
 from magsoro.fields.profiles import Keyframes
 from magsoro.fields.uniform import KeyframedVector, Ramp, Rotating, Sine, Uniform
@@ -20,4 +21,5 @@ __all__ = [
     "KeyframedVector",
     "Keyframes",
     "Dipole",
+    "CylinderMagnet",
 ]
