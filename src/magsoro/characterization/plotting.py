@@ -44,3 +44,52 @@ def plot_tensile_fits(data, fits, path: str | Path, title: str | None = None, ma
     fig.savefig(path)
     plt.close(fig)
     return path
+
+
+def plot_force_torque_fit(fit, path: str | Path, magnet_position=(0.0, 0.0, 0.0), title: str | None = None) -> Path:
+    """Measured (markers, error bars = std over repetitions) and fitted (lines) force and torque against the
+    distance from the magnet centre, one row per sample orientation, like seed 001 Figs 5-6.
+
+    ``fit`` is a :class:`~magsoro.characterization.magnetization.MagnetizationFit`. Force in mN, torque in mN m,
+    distance in cm. Returns the path written.
+    """
+    plt = _pyplot()
+    d = fit.data
+    orientations = sorted(set(d.orientation.tolist()))
+    show_force = fit.n_force > 0
+    ncol = 2 if show_force else 1
+    fig, axes = plt.subplots(
+        len(orientations), ncol, figsize=(5.2 * ncol, 3.4 * len(orientations)), dpi=150, squeeze=False
+    )
+    dist = np.linalg.norm(d.position - np.asarray(magnet_position, dtype=np.float64), axis=1)
+    colors = ("tab:red", "tab:green", "tab:blue")
+    for r, o in enumerate(orientations):
+        rows = np.flatnonzero(d.orientation == o)
+        rows = rows[np.argsort(dist[rows])]
+        panels = [("torque [mN m]", d.torque, d.torque_std, fit.model_torque, d.use_torque, "T")]
+        if show_force:
+            panels.insert(0, ("force [mN]", d.force, d.force_std, fit.model_force, d.use_force, "F"))
+        for c, (label, meas, std, model, use, sym) in enumerate(panels):
+            ax = axes[r, c]
+            x = 100 * dist[rows]
+            for k, axis in enumerate("xyz"):
+                ok = use[rows]
+                ax.errorbar(
+                    x[ok], 1e3 * meas[rows[ok], k], yerr=1e3 * std[rows[ok], k], fmt="o", ms=3, color=colors[k],
+                    capsize=2, label=f"{sym}{axis} measured",
+                )
+                ax.plot(x, 1e3 * model[rows, k], "-", color=colors[k], lw=1.2, label=f"{sym}{axis} model")
+            ax.set_xlabel("distance from magnet centre [cm]")
+            ax.set_ylabel(label)
+            ax.set_title(f"orientation {o}", fontsize=9)
+            ax.grid(alpha=0.3)
+            if r == 0:
+                ax.legend(fontsize=6, ncol=2)
+    if title:
+        fig.suptitle(title, fontsize=10)
+    fig.tight_layout()
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path)
+    plt.close(fig)
+    return path

@@ -16,6 +16,7 @@ from magsoro.errors import MagsoroError
 
 def register(sub) -> None:
     _register_fit_material(sub)
+    _register_fit_magnetization(sub)
 
 
 # ----------------------------------------------------------------------------------------------------------------
@@ -132,6 +133,162 @@ def run_fit_material(args) -> int:
         pooled = fit_model(data, "linear", max_strain=1.0, weighting=args.weighting).params["E"]
         spread = f", {vals.mean() / 1e3:.2f} +- {vals.std(ddof=1) / 1e3:.2f} kPa over {len(vals)} specimens" if len(vals) > 1 else ""
         print(f"Young's modulus, linear fit up to 100% strain: E = {pooled / 1e3:.2f} kPa (all specimens){spread}")
+    for path in written:
+        print(f"wrote {path}")
+    return 0
+
+
+# ----------------------------------------------------------------------------------------------------------------
+# fit-magnetization
+
+
+def _floats(text: str, n: int, option: str) -> list[float]:
+    try:
+        vals = [float(t) for t in text.split(",")]
+    except ValueError:
+        vals = []
+    if len(vals) != n:
+        raise MagsoroError(f"{option}: expected {n} comma-separated numbers, got {text!r}")
+    return vals
+
+
+def _register_fit_magnetization(sub) -> None:
+    from magsoro.characterization.magnetization import NANO17_FORCE_RESOLUTION, NANO17_TORQUE_RESOLUTION
+
+    p = sub.add_parser(
+        "fit-magnetization",
+        help="fit a sample's magnetic moment to force/torque data near a cylinder magnet",
+        description=(
+            "Fit the moment m of a small magnetised sample (point dipole: F = (grad B)^T m, tau = m x B) to forces "
+            "and torques measured at several positions near a large axially magnetised cylinder (seed 001 sec IV, "
+            "eqs 7 and 10). CSV columns: x,y,z (sample centre, m), fx,fy,fz (N), tx,ty,tz (N m), optional "
+            "orientation (integer id) and repetition (integer id)."
+        ),
+    )
+    p.add_argument("data", metavar="DATA.csv", help="force/torque CSV file")
+    p.add_argument(
+        "--magnet", required=True, metavar="DIAMETER,LENGTH,REMANENCE",
+        help="reference cylinder magnet: diameter (m), length (m), remanence (T), e.g. 0.1016,0.1016,1.48",
+    )
+    p.add_argument("--magnet-position", default="0,0,0", metavar="X,Y,Z", help="magnet centre, m (default 0,0,0)")
+    p.add_argument(
+        "--magnet-axis", default="1,0,0", metavar="AX,AY,AZ",
+        help="magnetisation axis of the magnet (default 1,0,0: orthogonal to the z scan line, as in seed 001)",
+    )
+    p.add_argument(
+        "--field-model", choices=("multipole", "exact"), default="multipole",
+        help="cylinder field model (default multipole, seed 001 eqs 3-4)",
+    )
+    p.add_argument("--order", type=int, default=17, help="highest multipole order n (default 17, seed 001)")
+    p.add_argument(
+        "--orientations", metavar="ID:AXIS:DEG[,...]",
+        help="rotation (sample frame -> global) of each orientation id other than 0, e.g. 1:y:90 (seed 001 eq 10)",
+    )
+    p.add_argument("--torque-only", action="store_true", help="fit torques only (needs two orientations)")
+    p.add_argument("--volume", type=float, metavar="V", help="sample volume, m^3: reports |m|/V and Br = mu0 |m|/V")
+    p.add_argument(
+        "--force-noise", type=float, default=NANO17_FORCE_RESOLUTION, metavar="N",
+        help=f"std of one force reading, N (default {NANO17_FORCE_RESOLUTION:.4g}: assumed Nano17 resolution)",
+    )
+    p.add_argument(
+        "--torque-noise", type=float, default=NANO17_TORQUE_RESOLUTION, metavar="NM",
+        help=f"std of one torque reading, N m (default {NANO17_TORQUE_RESOLUTION:.4g}: assumed Nano17 resolution)",
+    )
+    p.add_argument(
+        "--zero-quiet-axes", type=float, nargs="?", const=1.0 / 3.0, metavar="FRACTION",
+        help="seed 001 filter 1: zero axes whose mean step between positions is < FRACTION (default 1/3) of the "
+        "largest",
+    )
+    p.add_argument(
+        "--drop-noisy-points", type=float, nargs="?", const=1.0 / 3.0, metavar="RATIO",
+        help="seed 001 filter 2: drop points whose std over repetitions exceeds RATIO (default 1/3) of the mean",
+    )
+    p.add_argument("--paper-filters", action="store_true", help="both seed 001 filters with their 1/3 thresholds")
+    p.add_argument("--json", action="store_true", help="print the result as JSON")
+    p.add_argument("--out", metavar="DIR", help="write fit_magnetization.png and fit_magnetization.json here")
+    p.set_defaults(func=run_fit_magnetization)
+
+
+def run_fit_magnetization(args) -> int:
+    import numpy as np
+
+    from magsoro.characterization.magnetization import fit_magnetization, parse_orientations, read_force_torque_csv
+    from magsoro.fields.cylinder import CylinderMagnet
+
+    diameter, length, remanence = _floats(args.magnet, 3, "--magnet")
+    if not (diameter > 0 and length > 0):
+        raise MagsoroError(f"--magnet: diameter and length must be > 0 m, got {args.magnet!r}")
+    position = _floats(args.magnet_position, 3, "--magnet-position")
+    axis = _floats(args.magnet_axis, 3, "--magnet-axis")
+    if not np.linalg.norm(axis) > 0:
+        raise MagsoroError("--magnet-axis: must be a non-zero vector")
+    if not 1 <= args.order <= 17:
+        raise MagsoroError(f"--order: must be in 1..17, got {args.order}")
+    if args.volume is not None and not args.volume > 0:
+        raise MagsoroError(f"--volume: must be > 0 m^3, got {args.volume}")
+    orientations = parse_orientations(args.orientations)
+    zero_fraction = args.zero_quiet_axes
+    std_ratio = args.drop_noisy_points
+    if args.paper_filters:
+        zero_fraction = 1.0 / 3.0 if zero_fraction is None else zero_fraction
+        std_ratio = 1.0 / 3.0 if std_ratio is None else std_ratio
+    magnet = CylinderMagnet(
+        diameter, length, remanence, position=position, axis=axis, model=args.field_model, order=args.order
+    )
+    data = read_force_torque_csv(args.data, require_force=not args.torque_only)
+    fit = fit_magnetization(
+        data,
+        magnet,
+        orientations,
+        torque_only=args.torque_only,
+        volume=args.volume,
+        force_noise=args.force_noise,
+        torque_noise=args.torque_noise,
+        zero_quiet_fraction=zero_fraction,
+        max_relative_std=std_ratio,
+    )
+    result = fit.to_json()
+    written = []
+    if args.out:
+        from magsoro.characterization.plotting import plot_force_torque_fit
+
+        out = Path(args.out)
+        out.mkdir(parents=True, exist_ok=True)
+        written.append(plot_force_torque_fit(fit, out / "fit_magnetization.png", position, Path(args.data).name))
+        (out / "fit_magnetization.json").write_text(json.dumps(result, indent=2) + "\n")
+        written.append(out / "fit_magnetization.json")
+    if args.json:
+        print(json.dumps(result, indent=2))
+        return 0
+
+    d = fit.data
+    field = f"multipole field to n = {args.order}" if args.field_model == "multipole" else "exact field"
+    print(
+        f"fit-magnetization: {len(d.position)} averaged points ({len(set(d.orientation.tolist()))} orientation(s), "
+        f"up to {int(d.count.max())} repetition(s)); fitted {fit.n_force} force and {fit.n_torque} torque components"
+    )
+    print(
+        f"reference magnet: cylinder D = {diameter * 1e3:g} mm, L = {length * 1e3:g} mm, Br = {remanence:g} T, "
+        f"centre {tuple(position)} m, axis {tuple(axis)}, {field}"
+    )
+    std = np.sqrt(np.diag(fit.moment_cov))
+    print(
+        "moment (sample frame): m = ("
+        + ", ".join(f"{v:.5g} +- {s:.2g}" for v, s in zip(fit.moment, std))
+        + ") A m^2"
+    )
+    print(
+        f"|m| = {fit.moment_norm:.5g} +- {fit.moment_norm_std:.2g} A m^2, direction ("
+        + ", ".join(f"{v:.4f}" for v in fit.direction)
+        + f") +- {fit.direction_std_deg:.2g} deg"
+    )
+    if fit.volume is not None:
+        print(f"magnetisation |m|/V = {fit.magnetization:.5g} +- {fit.magnetization_std:.2g} A/m")
+        print(f"remanence Br = mu0 |m|/V = {fit.remanence:.4f} +- {fit.remanence_std:.4f} T")
+    rms = f"torque {fit.rms_torque * 1e6:.3g} uN m" + (
+        f", force {fit.rms_force * 1e3:.3g} mN" if fit.rms_force is not None else ""
+    )
+    print(f"MAPE model vs data (driven components): {fit.mape:.2f} %; residual RMS: {rms}")
     for path in written:
         print(f"wrote {path}")
     return 0
