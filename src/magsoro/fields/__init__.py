@@ -6,8 +6,10 @@ Every source gives ``B(points, t)`` -> (N, 3) tesla and ``grad_B(points, t)`` ->
 """
 
 from magsoro.fields.base import FieldSource, FieldSum
+from magsoro.fields.cuboid import CuboidMagnet
 from magsoro.fields.cylinder import CylinderMagnet
 from magsoro.fields.dipole import Dipole
+from magsoro.fields.loops import CurrentLoop, HelmholtzPair, MaxwellPair
 from magsoro.fields.profiles import Keyframes
 from magsoro.fields.uniform import KeyframedVector, Ramp, Rotating, Sine, Uniform
 
@@ -22,4 +24,8 @@ __all__ = [
     "Keyframes",
     "Dipole",
     "CylinderMagnet",
+    "CuboidMagnet",
+    "CurrentLoop",
+    "HelmholtzPair",
+    "MaxwellPair",
 ]
