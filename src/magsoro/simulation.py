@@ -48,7 +48,8 @@ class Simulation:
         sim = scene.simulation
         self.fixed_dt = sim.dt
         self._field_peak = self.solver.field_magnitude(self.control)
-        self.dt = self.fixed_dt if self.fixed_dt is not None else self.solver.stable_dt(field_magnitude=self._field_peak)
+        self._wave_speed = self.model.wave_speed(self._field_peak)
+        self.dt = self.fixed_dt if self.fixed_dt is not None else self.solver.settings.cfl * self.model.dx / self._wave_speed
         self.dt_min = self.dt_max = self.dt
         self.steps = 0
         self.last_good_time = 0.0
@@ -108,7 +109,7 @@ class Simulation:
     def _next_dt(self, remaining: float) -> float:
         if self.fixed_dt is None:
             vmax = self.solver.last_max_speed() if self.steps else 0.0
-            self.dt = self.solver.stable_dt(max_speed=vmax, field_magnitude=self._field_peak)
+            self.dt = self.solver.settings.cfl * self.model.dx / (self._wave_speed + vmax)
         dt = self.dt
         if remaining < dt * (1 + 1e-9):
             dt = remaining

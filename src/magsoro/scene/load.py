@@ -150,7 +150,7 @@ def check_scene(scene: Scene, source: str, base_dir: Path | None) -> None:
     _vec_len(sim.gravity, dim, "simulation.gravity", source)
     names = [b.name for b in scene.bodies]
     for i, b in enumerate(scene.bodies):
-        if names.count(b.name) > 1:
+        if b.name in names[:i]:
             raise SceneError(f"{source}: bodies[{i}].name: duplicate body name '{b.name}'")
         _check_shape(b.shape, dim, f"bodies[{i}].shape", source)
         _vec_len(b.velocity, dim, f"bodies[{i}].velocity", source)
@@ -165,7 +165,7 @@ def check_scene(scene: Scene, source: str, base_dir: Path | None) -> None:
             _check_shape(p.region, dim, f"probes[{i}].region", source)
     probe_names = [p.name for p in scene.probes]
     for i, p in enumerate(scene.probes):
-        if probe_names.count(p.name) > 1:
+        if p.name in probe_names[:i]:
             raise SceneError(f"{source}: probes[{i}].name: duplicate probe name '{p.name}'")
     for i, c in enumerate(scene.colliders):
         for attr in ("point", "normal", "center", "size"):
