@@ -9,7 +9,9 @@ from magsoro.fields.base import FieldSource, FieldSum
 from magsoro.fields.cuboid import CuboidMagnet
 from magsoro.fields.cylinder import CylinderMagnet
 from magsoro.fields.dipole import Dipole
+from magsoro.fields.epm import EPMPose, epm_pose
 from magsoro.fields.loops import CurrentLoop, HelmholtzPair, MaxwellPair
+from magsoro.fields.magpylib_source import MagpylibSource
 from magsoro.fields.profiles import Keyframes
 from magsoro.fields.uniform import KeyframedVector, Ramp, Rotating, Sine, Uniform
 
@@ -28,4 +30,7 @@ __all__ = [
     "CurrentLoop",
     "HelmholtzPair",
     "MaxwellPair",
+    "MagpylibSource",
+    "EPMPose",
+    "epm_pose",
 ]
