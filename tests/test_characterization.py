@@ -9,18 +9,30 @@ import tomllib
 import numpy as np
 import pytest
 
+from magsoro import MU0
 from magsoro.characterization import (
     MODEL_NAMES,
+    NANO17_FORCE_RESOLUTION,
+    NANO17_TORQUE_RESOLUTION,
     CharacterizationDataError,
+    ForceTorqueData,
     TensileData,
+    average_repetitions,
+    fit_magnetization,
     fit_model,
     fit_models,
     get_model,
+    parse_orientations,
+    predict_force_torque,
+    read_force_torque_csv,
     read_tensile_csv,
     uniaxial_stress,
+    zero_quiet_axes,
 )
 from magsoro.cli import main
 from magsoro.errors import MagsoroError
+from magsoro.fields import Dipole
+from magsoro.fields.cylinder import CylinderMagnet
 
 # --------------------------------------------------------------------------------------------------------------
 # hyperelastic fitting
@@ -111,7 +123,10 @@ def test_uniaxial_stress_is_derivative_of_strain_energy(model):
     # nominal stress in incompressible uniaxial tension is dW/d(lambda) along lambda2 = lambda3 = lambda^-1/2
     rng = np.random.default_rng(3)
     names = get_model(model).param_names
-    p = {k: (rng.uniform(0.5, 4) * rng.choice([-1, 1]) if k.startswith("alpha") else rng.uniform(1e3, 2e4)) for k in names}
+    p = {
+        k: (rng.uniform(0.5, 4) * rng.choice([-1, 1]) if k.startswith("alpha") else rng.uniform(1e3, 2e4))
+        for k in names
+    }
     lam = np.linspace(1.05, 4.0, 30)
     h = 1e-6
     dW = (_energy(model, p, lam + h) - _energy(model, p, lam - h)) / (2 * h)
@@ -215,3 +230,146 @@ def test_fit_material_cli_rejects_unknown_model(tmp_path, capsys):
     path = _write(tmp_path, "ok.csv", "strain,stress\n0,0\n0.1,1000\n0.2,2100\n")
     assert main(["fit-material", str(path), "--models", "neo-hookean,arruda"]) == 2
     assert "arruda" in capsys.readouterr().err
+
+
+# --------------------------------------------------------------------------------------------------------------
+# magnetisation from force/torque data
+
+
+REF = dict(diameter=0.1016, length=0.1016, remanence=1.48)  # seed 001 N52 reference magnet, m, m, T
+CUBE_VOLUME = 6.35e-3**3  # m^3
+CUBE_BR = 1.40  # T
+CUBE_DIR = np.array([0.30, -0.20, 1.0]) / np.linalg.norm([0.30, -0.20, 1.0])
+CUBE_MOMENT = CUBE_BR * CUBE_VOLUME / MU0 * CUBE_DIR  # A m^2, sample frame
+ROTATIONS = parse_orientations("1:y:90")
+
+
+def _fit_magnet():
+    # what the fit uses: seed 001's multipole model to n = 17 (the data come from the exact closed form)
+    return CylinderMagnet(**REF, axis=(1, 0, 0), model="multipole", order=17)
+
+
+def synthetic_force_torque(orientations=(0, 1), repetitions=3, seed=0, moment=CUBE_MOMENT) -> ForceTorqueData:
+    """Seed 001 rig: 16 positions 16..31 cm along z, cylinder axis along x, Nano17-resolution Gaussian noise."""
+    rng = np.random.default_rng(seed)
+    magnet = CylinderMagnet(**REF, axis=(1, 0, 0), model="exact")
+    z = np.arange(16, 32) * 0.01
+    pos1 = np.stack([np.zeros_like(z), np.zeros_like(z), z], axis=1)
+    P, F, T, O = [], [], [], []
+    for o in orientations:
+        R = np.broadcast_to(ROTATIONS[o], (len(z), 3, 3))
+        f, t = predict_force_torque(magnet, pos1, moment, R)
+        for _ in range(repetitions):
+            P.append(pos1)
+            F.append(f + NANO17_FORCE_RESOLUTION * rng.standard_normal(f.shape))
+            T.append(t + NANO17_TORQUE_RESOLUTION * rng.standard_normal(t.shape))
+            O.append(np.full(len(z), o))
+    return ForceTorqueData.from_arrays(np.concatenate(P), np.concatenate(F), np.concatenate(T), np.concatenate(O))
+
+
+def _angle_deg(a, b):
+    return float(np.degrees(np.arccos(np.clip(a @ b / np.linalg.norm(a) / np.linalg.norm(b), -1, 1))))
+
+
+def test_forward_model_matches_two_dipole_closed_forms():
+    # independent check of F = (grad B)^T m and tau = m x B with a point-dipole source
+    m1, m2, r = 2.0, 0.3, 0.05  # A m^2, A m^2, m
+    src = Dipole(moment=(0, 0, m1))
+    F, T = predict_force_torque(src, [[0, 0, r]], [0, 0, m2])  # coaxial: attraction 3 mu0 m1 m2 / (2 pi r^4)
+    np.testing.assert_allclose(F[0], [0, 0, -3 * MU0 * m1 * m2 / (2 * np.pi * r**4)], rtol=1e-12, atol=1e-15)
+    np.testing.assert_allclose(T[0], 0, atol=1e-15)
+    F, T = predict_force_torque(src, [[r, 0, 0]], [m2, 0, 0])  # side by side; there B = -mu0 m1/(4 pi r^3) z
+    np.testing.assert_allclose(T[0], [0, MU0 * m1 * m2 / (4 * np.pi * r**3), 0], rtol=1e-12)
+    # F = 3 mu0/(4 pi r^4) [(m1.r)m2 + (m2.r)m1 + (m1.m2)r - 5(m1.r)(m2.r)r] = 3 mu0 m1 m2/(4 pi r^4) z
+    np.testing.assert_allclose(F[0], [0, 0, 3 * MU0 * m1 * m2 / (4 * np.pi * r**4)], rtol=1e-12)
+
+
+def test_force_and_torque_fit_recovers_remanence_and_direction():
+    data = synthetic_force_torque(orientations=(0,), seed=21)
+    fit = fit_magnetization(data, _fit_magnet(), volume=CUBE_VOLUME)
+    assert fit.remanence == pytest.approx(CUBE_BR, rel=0.03)
+    assert _angle_deg(fit.moment, CUBE_MOMENT) < 2.0
+    # the Jacobian-based uncertainty is a few mT and covers the actual error
+    assert 1e-4 < fit.remanence_std < 0.01
+    assert abs(fit.remanence - CUBE_BR) < 5 * fit.remanence_std
+    assert fit.magnetization == pytest.approx(fit.remanence / MU0)
+    assert fit.n_force == 48 and fit.n_torque == 48
+    assert fit.mape < 10.0
+
+
+def test_torque_only_with_two_orientations_recovers_remanence():
+    data = synthetic_force_torque(orientations=(0, 1), seed=22)
+    fit = fit_magnetization(data, _fit_magnet(), ROTATIONS, torque_only=True, volume=CUBE_VOLUME)
+    assert fit.remanence == pytest.approx(CUBE_BR, rel=0.03)
+    assert _angle_deg(fit.moment, CUBE_MOMENT) < 2.0
+    assert fit.n_force == 0 and fit.n_torque == 96
+
+
+def test_torque_only_single_orientation_cannot_determine_moment():
+    # on the scan line B is along the cylinder axis, so m . B never shows in the torque (seed 001 sec IV-B)
+    data = synthetic_force_torque(orientations=(0,), seed=23)
+    with pytest.raises(CharacterizationDataError, match="second orientation"):
+        fit_magnetization(data, _fit_magnet(), torque_only=True)
+
+
+def test_paper_filters_zero_noise_axes_and_drop_scattered_points():
+    moment_z = CUBE_BR * CUBE_VOLUME / MU0 * np.array([0, 0, 1.0])
+    data = synthetic_force_torque(orientations=(0,), seed=24, moment=moment_z)
+    filtered, zeroed = zero_quiet_axes(data, fraction=1 / 3)
+    # m along z, cylinder axis along x, scan along z: only Fx and Ty are driven
+    assert zeroed[:, [1, 2, 3, 5]].all() and not zeroed[:, [0, 4]].any()
+    assert np.all(filtered.force[:, 1:] == 0) and np.all(filtered.torque[:, [0, 2]] == 0)
+    # a repetition that slipped: one point's torque triples in one of the three runs
+    torque = filtered.torque.copy()
+    torque[5] *= 3.0
+    bad = ForceTorqueData(filtered.position, filtered.force, torque, filtered.orientation, filtered.repetition)
+    avg = average_repetitions(bad, max_relative_std=1 / 3)
+    dropped = np.flatnonzero(~avg.use_torque)
+    assert len(avg.position) == 16 and avg.count.tolist() == [3] * 16
+    assert dropped.tolist() == [5]
+    fit = fit_magnetization(bad, _fit_magnet(), volume=CUBE_VOLUME, zero_quiet_fraction=1 / 3, max_relative_std=1 / 3)
+    assert fit.remanence == pytest.approx(CUBE_BR, rel=0.03)
+
+
+FT_COLUMNS = ("x", "y", "z", "Fx", "Fy", "Fz", "Tx", "Ty", "Tz", "orientation")
+
+
+def _write_ft_csv(path, data: ForceTorqueData, columns=FT_COLUMNS):
+    values = {
+        "x": data.position[:, 0], "y": data.position[:, 1], "z": data.position[:, 2],
+        "Fx": data.force[:, 0], "Fy": data.force[:, 1], "Fz": data.force[:, 2],
+        "Tx": data.torque[:, 0], "Ty": data.torque[:, 1], "Tz": data.torque[:, 2],
+        "orientation": data.orientation,
+    }
+    with open(path, "w") as f:
+        f.write(",".join(columns) + "\n")
+        for i in range(len(data.position)):
+            cells = [str(int(values[c][i])) if c == "orientation" else repr(float(values[c][i])) for c in columns]
+            f.write(",".join(cells) + "\n")
+
+
+def test_fit_magnetization_cli_json(tmp_path, capsys):
+    path = tmp_path / "cube.csv"
+    _write_ft_csv(path, synthetic_force_torque(orientations=(0, 1), seed=25))
+    argv = ["fit-magnetization", str(path), "--magnet", "0.1016,0.1016,1.48", "--orientations", "1:y:90"]
+    argv += ["--volume", repr(CUBE_VOLUME), "--torque-only", "--json", "--out", str(tmp_path / "out")]
+    assert main(argv) == 0
+    res = json.loads(capsys.readouterr().out)
+    assert res["remanence"] == pytest.approx(CUBE_BR, rel=0.03)
+    assert _angle_deg(np.array(res["moment"]), CUBE_MOMENT) < 2.0
+    assert res["remanence_std"] > 0 and res["n_torque"] == 96 and res["n_force"] == 0
+    assert (tmp_path / "out" / "fit_magnetization.png").stat().st_size > 10_000
+
+
+def test_bad_force_torque_files_raise_clear_errors(tmp_path, capsys):
+    data = synthetic_force_torque(orientations=(0, 1), repetitions=1, seed=26)
+    path = tmp_path / "no_tz.csv"
+    _write_ft_csv(path, data, columns=("x", "y", "z", "Fx", "Fy", "Fz", "Tx", "Ty", "orientation"))
+    with pytest.raises(CharacterizationDataError, match=r"no_tz\.csv.*'tz'"):
+        read_force_torque_csv(path)
+    path = tmp_path / "ori.csv"
+    _write_ft_csv(path, data)
+    with pytest.raises(CharacterizationDataError, match=r"ori\.csv.*'orientation'.*1"):
+        fit_magnetization(read_force_torque_csv(path), _fit_magnet())  # id 1 given no rotation
+    assert main(["fit-magnetization", str(path), "--magnet", "0.1016,0.1016"]) == 2
+    assert "--magnet" in capsys.readouterr().err

@@ -189,7 +189,9 @@ def parse_orientations(spec: str | None) -> dict[int, np.ndarray]:
         try:
             oid, deg = int(parts[0]), float(parts[2])
         except ValueError:
-            raise CharacterizationDataError(f"--orientations: {item!r} needs an integer ID and a number of degrees") from None
+            raise CharacterizationDataError(
+                f"--orientations: {item!r} needs an integer ID and a number of degrees"
+            ) from None
         out[oid] = rotation_matrix(parts[1].strip(), deg)
     return out
 
@@ -199,13 +201,17 @@ def parse_orientations(spec: str | None) -> dict[int, np.ndarray]:
 
 
 def zero_quiet_axes(data: ForceTorqueData, magnet_position=(0.0, 0.0, 0.0), fraction: float = 1.0 / 3.0):
-    """Seed 001's first filter: per scan (orientation, repetition), sort the positions by distance from the
-    magnet, average the absolute difference between consecutive positions for each axis of F and of tau, and set
-    to zero every axis whose average is below ``fraction`` (seed: a third) of the largest average of its kind.
+    """Seed 001's first filter: "the difference between each two positions was averaged for each axis of the
+    measured F and tau. In case an axis' average was below a third of the maximum average recorded, the axis was
+    zeroed."
 
-    An axis the magnet drives changes steadily with distance; an axis that only carries sensor noise changes by
-    the noise alone, so its mean step is small. Returns a new :class:`ForceTorqueData` and the boolean mask
-    (N, 6) of zeroed entries (F then tau).
+    Per scan (orientation, repetition) the positions are sorted by distance from the magnet, the signed
+    differences between consecutive positions are averaged for each axis, and every axis of F (of tau) whose
+    absolute average is below ``fraction`` of the largest one of F (of tau) is set to zero. An axis the magnet
+    drives decays steadily with distance, so its differences add up; on an axis that carries only sensor noise
+    they cancel. (Averaging absolute differences instead would not separate them: at 31 cm the force signal
+    changes by about one Nano17 count per centimetre.) Returns a new :class:`ForceTorqueData` and the boolean
+    mask (N, 6) of zeroed entries (F then tau).
     """
     force = data.force.copy()
     torque = data.torque.copy()
@@ -219,7 +225,7 @@ def zero_quiet_axes(data: ForceTorqueData, magnet_position=(0.0, 0.0, 0.0), frac
         for k, arr in enumerate((force, torque)):
             if not np.all(np.isfinite(arr[idx])):
                 continue
-            step = np.mean(np.abs(np.diff(arr[idx], axis=0)), axis=0)
+            step = np.abs(np.mean(np.diff(arr[idx], axis=0), axis=0))
             quiet = step < fraction * step.max()
             arr[np.ix_(idx, np.flatnonzero(quiet))] = 0.0
             zeroed[np.ix_(idx, 3 * k + np.flatnonzero(quiet))] = True
@@ -285,7 +291,11 @@ def skew(v) -> np.ndarray:
     v = np.atleast_2d(v)
     z = np.zeros(len(v))
     return np.stack(
-        [np.stack([z, -v[:, 2], v[:, 1]], -1), np.stack([v[:, 2], z, -v[:, 0]], -1), np.stack([-v[:, 1], v[:, 0], z], -1)],
+        [
+            np.stack([z, -v[:, 2], v[:, 1]], -1),
+            np.stack([v[:, 2], z, -v[:, 0]], -1),
+            np.stack([-v[:, 1], v[:, 0], z], -1),
+        ],
         axis=1,
     )
 

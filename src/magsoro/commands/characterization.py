@@ -104,14 +104,14 @@ def run_fit_material(args) -> int:
 
         out_dir.mkdir(parents=True, exist_ok=True)
         sources = ", ".join(Path(s).name for s in data.sources)
-        written.append(plot_tensile_fits(data.select(args.max_strain), fits, out_dir / "fit_material.png", title=sources))
+        fitted = data.select(args.max_strain)
+        written.append(plot_tensile_fits(fitted, fits, out_dir / "fit_material.png", title=sources))
         (out_dir / "fit_material.json").write_text(json.dumps(result, indent=2) + "\n")
         written.append(out_dir / "fit_material.json")
     if args.save_material:
         chosen = args.material_model or best_model(fits)
-        written.append(
-            write_material(out_dir or Path("."), args.save_material, fits[chosen], ", ".join(data.sources), args.density)
-        )
+        source = ", ".join(data.sources)
+        written.append(write_material(out_dir or Path("."), args.save_material, fits[chosen], source, args.density))
 
     if args.json:
         print(json.dumps(result, indent=2))
@@ -131,7 +131,9 @@ def run_fit_material(args) -> int:
         per = youngs_modulus_per_specimen(data, 1.0, weighting=args.weighting)
         vals = np.array(list(per.values()))
         pooled = fit_model(data, "linear", max_strain=1.0, weighting=args.weighting).params["E"]
-        spread = f", {vals.mean() / 1e3:.2f} +- {vals.std(ddof=1) / 1e3:.2f} kPa over {len(vals)} specimens" if len(vals) > 1 else ""
+        spread = ""
+        if len(vals) > 1:
+            spread = f", {vals.mean() / 1e3:.2f} +- {vals.std(ddof=1) / 1e3:.2f} kPa over {len(vals)} specimens"
         print(f"Young's modulus, linear fit up to 100% strain: E = {pooled / 1e3:.2f} kPa (all specimens){spread}")
     for path in written:
         print(f"wrote {path}")
@@ -196,8 +198,8 @@ def _register_fit_magnetization(sub) -> None:
     )
     p.add_argument(
         "--zero-quiet-axes", type=float, nargs="?", const=1.0 / 3.0, metavar="FRACTION",
-        help="seed 001 filter 1: zero axes whose mean step between positions is < FRACTION (default 1/3) of the "
-        "largest",
+        help="seed 001 filter 1: zero axes whose mean change between consecutive positions is < FRACTION "
+        "(default 1/3) of the largest",
     )
     p.add_argument(
         "--drop-noisy-points", type=float, nargs="?", const=1.0 / 3.0, metavar="RATIO",
