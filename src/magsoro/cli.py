@@ -13,6 +13,7 @@ COMMANDS = [
     "magsoro.commands.run",
     "magsoro.commands.docs",
     "magsoro.commands.characterization",
+    "magsoro.commands.rod",
     "magsoro.commands.epm_pose",
 ]
 
