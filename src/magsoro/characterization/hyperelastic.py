@@ -30,7 +30,7 @@ Conventions (all incompressible, uniaxial tension, stretch ``lam = 1 + strain``)
 from __future__ import annotations
 
 import itertools
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable, Sequence
 
@@ -257,10 +257,7 @@ class HyperelasticModel:
 
     def shear_modulus(self, params) -> float:
         """Initial (small-strain) shear modulus, Pa."""
-        p = np.asarray(params, dtype=np.float64)
-        if self.name == "ogden3":
-            return float(np.sum(p[0::2]))
-        return float(np.dot(self.shear_weights, p))
+        return float(np.dot(self.shear_weights, np.asarray(params, dtype=np.float64)))
 
 
 _INF = np.inf
@@ -334,7 +331,7 @@ class ModelFit:
     params : fitted parameters by name (moduli in Pa, exponents dimensionless).
     initial_shear_modulus : small-strain shear modulus implied by the fit, Pa.
     mape : mean absolute percentage error over the fitted points with stress > 0, percent.
-    n_points : number of points fitted.
+    n_points : number of points the fit used (strain > 0, and stress > 0 with relative weighting).
     max_strain : largest strain fitted (dimensionless).
     weighting : 'relative' or 'absolute' residuals.
     """
@@ -346,7 +343,6 @@ class ModelFit:
     n_points: int
     max_strain: float
     weighting: str
-    extra: dict = field(default_factory=dict)
 
     def stress(self, strain) -> np.ndarray:
         """Fitted nominal stress (Pa) at engineering ``strain``."""
@@ -477,22 +473,26 @@ def fit_model(
     Raises :class:`CharacterizationDataError` when fewer usable points than parameters remain.
     """
     m = get_model(model)
+    if weighting not in ("relative", "absolute"):
+        raise CharacterizationDataError(f"unknown weighting {weighting!r}; choose 'relative' or 'absolute'")
     sub = data.select(max_strain)
-    scale = float(np.max(sub.stress)) if sub.stress.size and np.max(sub.stress) > 0 else 0.0
+    # every model gives zero stress at zero strain, so such points carry no information about the parameters
+    informative = TensileData(*(a[sub.strain > 0] for a in (sub.strain, sub.stress, sub.specimen)), sub.sources)
+    scale = float(np.max(informative.stress)) if informative.stress.size else 0.0
     if scale > 0:
-        use, w = _weights(sub.stress, weighting, scale)
+        use, w = _weights(informative.stress, weighting, scale)
     else:
-        use, w = np.zeros(sub.stress.shape, dtype=bool), np.zeros(0)
+        use, w = np.zeros(informative.stress.shape, dtype=bool), np.zeros(0)
     n_use = int(use.sum())
     if n_use < m.n_params:
-        rng = "all strains" if max_strain is None else f"strain <= {max_strain:g}"
+        rng = "strain > 0" if max_strain is None else f"0 < strain <= {max_strain:g}"
         cond = ", stress > 0" if weighting == "relative" else ""
         raise CharacterizationDataError(
             f"{', '.join(data.sources)}: columns 'strain'/'stress' give {n_use} usable point(s) ({rng}{cond}) "
             f"but model {m.name!r} has {m.n_params} parameter(s); give more points or a larger --max-strain"
         )
-    lam = 1.0 + sub.strain[use]
-    y = sub.stress[use] / scale  # nondimensional stress keeps the solver's tolerances meaningful
+    lam = 1.0 + informative.strain[use]
+    y = informative.stress[use] / scale  # nondimensional stress keeps the solver's tolerances meaningful
     if m.basis is not None:
         x = _fit_linear_in_params(m, lam, y, w)
     else:
@@ -507,7 +507,7 @@ def fit_model(
         params=pdict,
         initial_shear_modulus=m.shear_modulus(params),
         mape=mape(fitted, sub.stress),
-        n_points=int(sub.strain.size),
+        n_points=n_use,
         max_strain=float(np.max(sub.strain)),
         weighting=weighting,
     )

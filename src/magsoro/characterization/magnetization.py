@@ -34,7 +34,7 @@ repetition  optional integer id of the repeated scan (default: k-th visit of a p
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Mapping, Sequence
 
@@ -337,6 +337,8 @@ class MagnetizationFit:
     mape : mean absolute percentage error of model vs data (percent) over the driven components (see
     :func:`_driven_mask`); rms_force (N) and rms_torque (N m) the residual RMS of the fitted components.
     n_force, n_torque : number of force / torque components fitted.
+    data : the repetition-averaged (and filtered) measurements that were fitted.
+    model_force, model_torque : (M, 3) fitted model at the points of ``data``, N and N m.
     """
 
     moment: np.ndarray
@@ -358,7 +360,6 @@ class MagnetizationFit:
     data: AveragedData | None = None
     model_force: np.ndarray | None = None
     model_torque: np.ndarray | None = None
-    extra: dict = field(default_factory=dict)
 
     def to_json(self) -> dict:
         """Plain-JSON summary (SI units, names as in the attributes)."""

@@ -6,9 +6,7 @@ building the parser stays cheap.
 
 from __future__ import annotations
 
-import argparse
 import json
-import sys
 from pathlib import Path
 
 from magsoro.errors import MagsoroError
@@ -119,7 +117,7 @@ def run_fit_material(args) -> int:
 
     sub = data.select(args.max_strain)
     print(
-        f"fit-material: {len(data.specimens)} specimen(s), {sub.strain.size} points fitted, strain "
+        f"fit-material: {len(data.specimens)} specimen(s), {sub.strain.size} points in the fitted range, strain "
         f"{sub.strain.min():g} .. {sub.strain.max():g}, {args.weighting} residuals"
     )
     print(f"{'model':<14} {'MAPE [%]':>9} {'mu0 [kPa]':>10}  parameters")
@@ -155,8 +153,6 @@ def _floats(text: str, n: int, option: str) -> list[float]:
 
 
 def _register_fit_magnetization(sub) -> None:
-    from magsoro.characterization.magnetization import NANO17_FORCE_RESOLUTION, NANO17_TORQUE_RESOLUTION
-
     p = sub.add_parser(
         "fit-magnetization",
         help="fit a sample's magnetic moment to force/torque data near a cylinder magnet",
@@ -189,12 +185,12 @@ def _register_fit_magnetization(sub) -> None:
     p.add_argument("--torque-only", action="store_true", help="fit torques only (needs two orientations)")
     p.add_argument("--volume", type=float, metavar="V", help="sample volume, m^3: reports |m|/V and Br = mu0 |m|/V")
     p.add_argument(
-        "--force-noise", type=float, default=NANO17_FORCE_RESOLUTION, metavar="N",
-        help=f"std of one force reading, N (default {NANO17_FORCE_RESOLUTION:.4g}: assumed Nano17 resolution)",
+        "--force-noise", type=float, metavar="N",
+        help="std of one force reading, N (default 1/320 N: assumed ATI Nano17 resolution)",
     )
     p.add_argument(
-        "--torque-noise", type=float, default=NANO17_TORQUE_RESOLUTION, metavar="NM",
-        help=f"std of one torque reading, N m (default {NANO17_TORQUE_RESOLUTION:.4g}: assumed Nano17 resolution)",
+        "--torque-noise", type=float, metavar="NM",
+        help="std of one torque reading, N m (default 1/64 N mm: assumed ATI Nano17 resolution)",
     )
     p.add_argument(
         "--zero-quiet-axes", type=float, nargs="?", const=1.0 / 3.0, metavar="FRACTION",
@@ -214,7 +210,13 @@ def _register_fit_magnetization(sub) -> None:
 def run_fit_magnetization(args) -> int:
     import numpy as np
 
-    from magsoro.characterization.magnetization import fit_magnetization, parse_orientations, read_force_torque_csv
+    from magsoro.characterization.magnetization import (
+        NANO17_FORCE_RESOLUTION,
+        NANO17_TORQUE_RESOLUTION,
+        fit_magnetization,
+        parse_orientations,
+        read_force_torque_csv,
+    )
     from magsoro.fields.cylinder import CylinderMagnet
 
     diameter, length, remanence = _floats(args.magnet, 3, "--magnet")
@@ -228,6 +230,10 @@ def run_fit_magnetization(args) -> int:
         raise MagsoroError(f"--order: must be in 1..17, got {args.order}")
     if args.volume is not None and not args.volume > 0:
         raise MagsoroError(f"--volume: must be > 0 m^3, got {args.volume}")
+    force_noise = NANO17_FORCE_RESOLUTION if args.force_noise is None else args.force_noise
+    torque_noise = NANO17_TORQUE_RESOLUTION if args.torque_noise is None else args.torque_noise
+    if not (force_noise > 0 and torque_noise > 0):
+        raise MagsoroError("--force-noise and --torque-noise must be > 0")
     orientations = parse_orientations(args.orientations)
     zero_fraction = args.zero_quiet_axes
     std_ratio = args.drop_noisy_points
@@ -244,8 +250,8 @@ def run_fit_magnetization(args) -> int:
         orientations,
         torque_only=args.torque_only,
         volume=args.volume,
-        force_noise=args.force_noise,
-        torque_noise=args.torque_noise,
+        force_noise=force_noise,
+        torque_noise=torque_noise,
         zero_quiet_fraction=zero_fraction,
         max_relative_std=std_ratio,
     )
