@@ -217,7 +217,7 @@ def test_grad_B_matches_central_differences(name):
     src, pts, h = CASES[name]
     G = src.grad_B(pts)
     err = rel(G, central_difference_gradient(src, pts, h))
-    assert err.max() < 1e-4  # measured 1e-7 .. 3e-7 with h = 1 um
+    assert err.max() < 1e-4  # measured 7e-11 .. 4e-8 with h = 1 um
 
 
 @pytest.mark.parametrize("name", list(CASES))
@@ -227,8 +227,8 @@ def test_divergence_and_curl_of_B_vanish(name):
     scale = np.linalg.norm(Gfd, axis=(1, 2))
     div = np.abs(np.trace(Gfd, axis1=1, axis2=2)) / scale
     curl = np.linalg.norm(Gfd - np.transpose(Gfd, (0, 2, 1)), axis=(1, 2)) / scale
-    assert div.max() < 1e-6
-    assert curl.max() < 1e-6
+    assert div.max() < 1e-6  # measured <= 4.3e-8
+    assert curl.max() < 1e-6  # measured <= 4.3e-8
 
 
 # ------------------------------------------------------------------------------------------------------------------
@@ -290,11 +290,11 @@ def test_magpylib_source_within_1_percent_inside(magpylib_scene):
     pts = rng.uniform(bounds[0], bounds[1], size=(2000, 3))
     B, G = src.field_and_gradient(pts)
     err_b = rel(B, mp.getB(coll, pts))
-    assert err_b.max() < 0.01  # measured 3e-4
+    assert err_b.max() < 0.01  # measured 4.8e-4 (2.5 mm lattice, points 2..5 cm from the sources)
     h = 1e-6
     G_ref = np.stack([(mp.getB(coll, pts + h * e) - mp.getB(coll, pts - h * e)) / (2 * h) for e in np.eye(3)], axis=2)
     err_g = rel(G, G_ref)
-    assert err_g.max() < 0.02  # gradient of the interpolant, measured 6e-3
+    assert err_g.max() < 0.02  # gradient of the interpolant (O(h^2)), measured 9.9e-3
     # lattice nodes are reproduced exactly
     node = np.array([[-0.02 + 4 * 0.0025, -0.02 + 3 * 0.0025, 0.0025 * 2]])
     assert rel(src.B(node), mp.getB(coll, node)[None]).max() < 1e-12
@@ -447,7 +447,7 @@ def check_device(device, magpylib_src):
         ev = FieldEvaluator([src], dim=3, scalar=wp.float64, device=device)
         Bd, Gd = ev.evaluate_host(pts)
         B, G = src.B(pts), src.grad_B(pts)
-        assert rel(Bd, B).max() < 1e-9, name  # measured <= 3e-12
+        assert rel(Bd, B).max() < 1e-9, name  # measured <= 4e-13 (cuboid), 6e-15 (cylinder)
         assert rel(Gd, G).max() < 1e-9, name
 
 
