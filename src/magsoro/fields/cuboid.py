@@ -25,6 +25,7 @@ is singular only on the edges.
 import numpy as np
 import warp as wp
 
+from magsoro import MU0
 from magsoro.fields.base import FieldSource, as_points
 from magsoro.fields.elliptic import PI_F64
 from magsoro.fields.profiles import Keyframes
@@ -320,8 +321,6 @@ class CuboidMagnet(FieldSource):
 
     def moment(self, t: float = 0.0) -> np.ndarray:
         """Dipole moment J V / mu0 in the world frame, A m^2."""
-        from magsoro import MU0
-
         return self.rotation_at(t) @ self.remanence_vector * self.volume / MU0
 
     def field_and_gradient(self, points, t=0.0):

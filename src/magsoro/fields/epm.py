@@ -32,7 +32,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.optimize import minimize
 
 from magsoro import MU0
 
@@ -169,6 +168,8 @@ def epm_pose(
 
     if zero_component is None:
         return pose_for_direction(B, moment, direction(default), at)
+
+    from scipy.optimize import minimize  # only this branch needs it; keeps `import magsoro.fields` light
 
     k = _component_index(zero_component)
     pts = None if zero_points is None else np.asarray(zero_points, dtype=np.float64).reshape(-1, 3)

@@ -109,6 +109,7 @@ class MagpylibSource(FieldSource):
             self.times = tt
         self.lattices = lattices
         self.source = source
+        self._packed = None
 
     # lattice ----------------------------------------------------------------------------------------------------
     def contains(self, points) -> np.ndarray:
@@ -179,8 +180,14 @@ class MagpylibSource(FieldSource):
         return lattice_field
 
     def device_params(self, t):
+        # the engine asks every step; a static lattice (no times) is packed once
+        if self.times is None and self._packed is not None:
+            return self._packed
         header = np.concatenate([self.origin, self.spacing, self.nodes.astype(np.float64), self.lo, self.hi])
-        return np.concatenate([header, self._lattice_at(t).reshape(-1)])
+        packed = np.concatenate([header, self._lattice_at(t).reshape(-1)])
+        if self.times is None:
+            self._packed = packed
+        return packed
 
     def __repr__(self):
         return f"MagpylibSource({self.source!r}, bounds=({self.lo.tolist()}, {self.hi.tolist()}), shape={(self.cells + 1).tolist()})"
