@@ -15,7 +15,7 @@ import numpy as np
 
 from magsoro import MU0
 from magsoro.errors import SceneError, SimulationError
-from magsoro.rod._shooting import ConvergenceFailure, Loads, Shooter
+from magsoro.rod._shooting import ConvergenceFailure, Loads, Shooter, ShootingState
 from magsoro.rod.magnetisation import Magnetisation, _vec3
 from magsoro.rod.section import CrossSection, _positive
 
@@ -51,7 +51,7 @@ class RodSolution:
     field: np.ndarray
     residual: float
     iterations: int
-    _base_wrench: np.ndarray = dc_field(repr=False, default=None)  # non-dimensional m(0)
+    _state: ShootingState = dc_field(repr=False, default=None)  # non-dimensional shooting unknowns
     _loads: Loads = dc_field(repr=False, default=None)
     _tangents: np.ndarray = dc_field(repr=False, default=None)
 
@@ -182,9 +182,11 @@ class Rod:
         Raises :class:`magsoro.SimulationError` if no equilibrium is found.
         """
         if initial_guess is None:
-            x0, start = np.zeros(3), Loads.zero()
+            x0, start = self._shooter.straight_state(), Loads.zero()
         else:
-            x0, start = initial_guess._base_wrench, initial_guess._loads
+            if initial_guess._state is None or initial_guess._state.m.shape[0] != self._shooter.n_seg:
+                raise SceneError("initial_guess: not a solution of this rod")
+            x0, start = initial_guess._state, initial_guess._loads
         target = self._loads(field)
         waypoints = [target]
         if perturbation is not None:
@@ -214,9 +216,12 @@ class Rod:
 
     def _solution(self, x, loads: Loads, residual: float, iterations: int) -> RodSolution:
         sh = self._shooter
-        traj = sh.integrate(np.asarray(x)[None, :], loads, keep=True)[:, 0, :]  # (N, 15)
+        traj = sh.trajectory(x, loads)  # (N, 15): p, m, R
         L, ei = self.length, self._ei
-        rot = traj[:, 3:12].reshape(-1, 3, 3)
+        # RK4 keeps R orthonormal only to its truncation error (~1e-8 for strongly bent rods); hand out the
+        # nearest rotation (polar factor) so users can rely on R^T R = I
+        U, _, Vt = np.linalg.svd(traj[:, 6:15].reshape(-1, 3, 3))
+        rot = U @ Vt
         n = loads.internal_force(sh.nodes)
         if self.extensible:
             v = (ei / (L**2 * self.shear_stiffness)) * np.einsum("kji,kj->ki", rot, n)
@@ -230,11 +235,11 @@ class Rod:
             positions=traj[:, 0:3] * L,
             rotations=rot,
             internal_force=n * ei / L**2,
-            internal_moment=traj[:, 12:15] * ei / L,
+            internal_moment=traj[:, 3:6] * ei / L,
             field=loads.field.copy(),
             residual=float(residual),
             iterations=int(iterations),
-            _base_wrench=np.array(x, dtype=np.float64),
+            _state=x.copy(),
             _loads=loads,
             _tangents=tangent,
         )
