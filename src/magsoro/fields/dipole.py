@@ -9,6 +9,10 @@ from magsoro.fields.base import FieldSource, as_points
 from magsoro.fields.profiles import Keyframes
 
 
+# computed in Python double precision: arithmetic on literals inside a wp.func would be done in float32
+MU0_OVER_4PI = wp.constant(wp.float64(MU0 / (4.0 * np.pi)))
+
+
 @wp.func
 def dipole_field(p: wp.vec3d, prm: wp.array(dtype=wp.float64)):
     """B and grad B of a point dipole; prm = [px, py, pz, mx, my, mz]."""
@@ -19,7 +23,7 @@ def dipole_field(p: wp.vec3d, prm: wp.array(dtype=wp.float64)):
     if r2 == zero:
         return wp.vec3d(zero, zero, zero), wp.mat33d(zero, zero, zero, zero, zero, zero, zero, zero, zero)
     rn = wp.sqrt(r2)
-    k = wp.float64(MU0 / (4.0 * np.pi))
+    k = MU0_OVER_4PI
     inv3 = wp.float64(1.0) / (r2 * rn)
     mr = wp.dot(m, r)
     B = k * inv3 * (wp.float64(3.0) * mr / r2 * r - m)

@@ -33,7 +33,9 @@ def make_kernels(dim: int, scalar):
     v3 = wp.types.vector(length=3, dtype=scalar)
     m3 = wp.types.matrix(shape=(3, 3), dtype=scalar)
     NS = 3**dim
+    # Constants are computed here in double precision: literal arithmetic inside a kernel runs in float32.
     inv_mu0 = 1.0 / MU0
+    minus_two_thirds = -2.0 / 3.0
 
     @wp.func
     def neo_hookean_stress(F: mat, G: scalar, K: scalar):
@@ -46,7 +48,7 @@ def make_kernels(dim: int, scalar):
         if wp.static(dim == 2):
             I1 = I1 + scalar(1.0)
         FinvT = wp.transpose(wp.inverse(F))
-        Jm23 = wp.pow(J, scalar(-2.0 / 3.0))
+        Jm23 = wp.pow(J, scalar(minus_two_thirds))
         return G * Jm23 * (F - (I1 / scalar(3.0)) * FinvT) + K * J * (J - scalar(1.0)) * FinvT
 
     @wp.func
@@ -56,7 +58,7 @@ def make_kernels(dim: int, scalar):
         I1 = wp.trace(wp.transpose(F) * F)
         if wp.static(dim == 2):
             I1 = I1 + scalar(1.0)
-        Jm23 = wp.pow(J, scalar(-2.0 / 3.0))
+        Jm23 = wp.pow(J, scalar(minus_two_thirds))
         return scalar(0.5) * G * (Jm23 * I1 - scalar(3.0)) + scalar(0.5) * K * (J - scalar(1.0)) * (J - scalar(1.0))
 
     @wp.func
