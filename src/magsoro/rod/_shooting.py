@@ -149,6 +149,7 @@ class Shooter:
         self.h = np.append(h, 0.0)
         self.stage_s = np.concatenate([stage_s, stage_s[-1:]])
         self.b_stage = np.concatenate([b_stage, np.zeros((1, 3, 3))])
+        self.b_max = float(np.linalg.norm(b_stage, axis=-1).max()) if n_steps else 0.0
         n_seg = int(max(1, min(segments, n_steps)))
         self.bounds = np.round(np.linspace(0, n_steps, n_seg + 1)).astype(int)  # grid index of each cut
         self.n_seg = n_seg
@@ -338,6 +339,13 @@ class Shooter:
         return J
 
     # --- continuation ------------------------------------------------------------------------------------
+    def _load_size(self, a: Loads, b: Loads | None = None, difference: bool = False) -> float:
+        """Size of a load set (or of the change from a to b) in units of E I1 / L^2: the magnetic load
+        k^2 = |b|max |B| plus the distributed force, tip force and tip moment."""
+        parts = [x - y for x, y in zip(b.astuple(), a.astuple())] if difference else list(a.astuple())
+        field, f, F, M = (np.linalg.norm(v) for v in parts)
+        return float(self.b_max * field + f + F + M)
+
     @staticmethod
     def _extrapolate(a: ShootingState, b: ShootingState, ratio: float) -> ShootingState:
         """Secant predictor b + ratio (b - a), with orientations extrapolated on the rotation group."""
@@ -363,10 +371,16 @@ class Shooter:
         lam, dlam = 0.0, 1.0
         x_prev = tip_prev = lam_prev = None
         steps = 0
+        # The determinant test sees only an odd number of crossings per step. Along a straight, compressed
+        # rod the critical loads (k L)^2 = ((2j - 1) pi / 2)^2 are spaced by about 2 pi k L, so capping the load
+        # change per step at 2 + pi sqrt(load) (in units of E I1 / L^2) lets at most one crossing fit in a step.
+        load_rate = self._load_size(start, target, difference=True)
         residual = np.inf
         sign_flips = 0
         sel = [0, 1, 2, *range(6, 15)]  # tip position and orientation
         while lam < 1.0:
+            cap = (2.0 + np.pi * np.sqrt(self._load_size(start.lerp(target, lam)))) / max(load_rate, 1e-300)
+            dlam = min(dlam, cap)
             lam_try = min(1.0, lam + dlam)
             loads = start.lerp(target, lam_try)
             if x_prev is None:
@@ -401,5 +415,7 @@ class Shooter:
                             "Jacobian changes sign): past it the rod snaps or buckles. If the field opposes the "
                             "magnetisation, give a small transverse perturbation field to choose the side to "
                             "which the rod buckles." if sign_flips else "")
-                    raise ConvergenceFailure(f"continuation stalled at {100 * lam:.3g}% of the load step.{hint}")
+                    here = np.round(start.lerp(target, lam).field, 9).tolist()
+                    raise ConvergenceFailure(
+                        f"continuation stalled {100 * lam:.3g}% of the way, at field {here} T.{hint}")
         return x, residual, iterations, steps

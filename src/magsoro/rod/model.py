@@ -4,6 +4,10 @@ Formulation of Till et al. (2019) and Rucker & Webster (2011) as used in seed 00
 y = (R, p, n, m), equilibrium n' + f = 0 and m' + p' x n + l = 0, with the magnetic couple per unit length
 l = A (R Br / mu0) x B (uniform field, so no magnetic force). Linear constitutive law
 m = R K_bt u, n = R K_se (v - e3). The default rod is the Kirchhoff limit (inextensible, unshearable: v = e3).
+
+The boundary value problem (clamped at s = 0, prescribed tip wrench at s = L) is solved by multiple shooting
+with fixed-step RK4 and Newton's method, inside an adaptive continuation on the loads that follows one
+equilibrium branch (see ``_shooting.py`` for the numerics and docs/rod.md for the validation).
 """
 
 from __future__ import annotations
@@ -39,7 +43,8 @@ class RodSolution:
         internal_force: (N, 3) n(s), N, global frame: force the part beyond s exerts on the part before s.
         internal_moment: (N, 3) m(s), N m, global frame: moment the part beyond s exerts on the part before s.
         field: (3,) applied uniform field B, T.
-        residual: norm of the free-end mismatch in units of E I1 / L (moment) and E I1 / L^2 (force).
+        residual: norm of the shooting residual (mismatches at the shooting cuts and at the free end) in the
+            rod's own units (lengths / L, moments / (E I1 / L)); below 1e-10 times the largest moment.
         iterations: Newton iterations used (all continuation steps together).
     """
 
@@ -98,7 +103,7 @@ class Rod:
         extensible: False (default) for the Kirchhoff rod (inextensible, unshearable); True adds extension
             (stiffness E A) and shear (kappa G A, kappa the section's Timoshenko coefficient).
         n_nodes: number of uniformly spaced output nodes (the segment ends are added to them).
-        max_step: largest integration step, m (default L / 200).
+        max_step: largest integration step, m (default L / 100).
     """
 
     def __init__(self, length: float, cross_section: CrossSection, youngs_modulus: float,
@@ -197,8 +202,8 @@ class Rod:
                 x, residual, its, _ = self._shooter.continuation(x, start, goal)
             except ConvergenceFailure as exc:
                 raise SimulationError(
-                    f"rod: no static equilibrium found for field {np.round(goal.field, 9).tolist()} T ({exc}); "
-                    "try a sweep with smaller field steps or a finer max_step") from None
+                    f"rod: could not follow the equilibrium to field {np.round(goal.field, 9).tolist()} T: {exc}"
+                ) from None
             iterations += its
             start = goal
         return self._solution(x, target, residual, iterations)
