@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import json
 import re
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -385,13 +386,18 @@ def test_bad_arguments_to_the_api_raise_scene_error():
     assert issubclass(SceneError, MagsoroError)
 
 
+EXAMPLE_SCENE = Path(__file__).resolve().parents[1] / "scenes" / "rod_cantilever.toml"
+
+
 def test_example_scene_and_cli(tmp_path, capsys):
     from magsoro.cli import main
 
-    config = load_rod_config("scenes/rod_cantilever.toml")
+    scene = str(EXAMPLE_SCENE)
+    config = load_rod_config(scene)
     api_tip = config.build().solve((0.0, 0.0, 0.004)).tip_position
+    assert api_tip[2] > 0.1 * config.length  # a visible deflection, so the comparisons below mean something
     out = tmp_path / "rod"
-    rc = main(["rod", "scenes/rod_cantilever.toml", "--field", "0", "0", "0.004", "--out", str(out), "--json"])
+    rc = main(["rod", scene, "--field", "0", "0", "0.004", "--out", str(out), "--json"])
     assert rc == 0
     result = json.loads(capsys.readouterr().out)
     assert np.allclose(result["tip_position_m"], api_tip, rtol=0, atol=1e-12)
@@ -403,8 +409,7 @@ def test_example_scene_and_cli(tmp_path, capsys):
     assert (out / "centreline.png").stat().st_size > 10_000
 
     bad = tmp_path / "bad.toml"
-    bad.write_text((tmp_path / "..").joinpath("x").name and "length = 0.01\nyoungs_modulus = -5.0\n"
-                   "[cross_section]\nwidth = 1e-3\nthickness = 1e-3\n")
+    bad.write_text("length = 0.01\nyoungs_modulus = -5.0\n[cross_section]\nwidth = 1e-3\nthickness = 1e-3\n")
     rc = main(["rod", str(bad), "--out", str(tmp_path / "bad")])
     err = capsys.readouterr().err.strip()
     assert rc == 2 and "youngs_modulus" in err and len(err.splitlines()) == 1

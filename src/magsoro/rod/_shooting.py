@@ -335,7 +335,8 @@ class Shooter:
             J[rows.start + 3:rows.start + 6, c + 3:c + 6] = -np.eye(3)
             R_pert = st.R[j][None] @ exp_rotation(dphi * np.eye(3))
             base = rotation_mismatch(st.R[j], R_end[j - 1, 0])
-            J[rows.start + 6:rows.stop, c + 6:c + 9] = ((rotation_mismatch(R_pert, R_end[j - 1, 0][None]) - base) / dphi).T
+            moved = rotation_mismatch(R_pert, R_end[j - 1, 0][None])
+            J[rows.start + 6:rows.stop, c + 6:c + 9] = ((moved - base) / dphi).T
         return J
 
     # --- continuation ------------------------------------------------------------------------------------

@@ -44,9 +44,14 @@ class CrossSectionConfig(_Strict):
     """``[cross_section]``: a rectangle (width along the material axis d1, thickness along d2) or a circle."""
 
     shape: Literal["rectangle", "circle"] = Field(
-        "rectangle", description='Cross-section shape: "rectangle" (needs width, thickness) or "circle" (needs diameter). Default "rectangle".')
+        "rectangle",
+        description='Cross-section shape: "rectangle" (needs width, thickness) or "circle" (needs diameter). '
+                    'Default "rectangle".')
     width: float | None = Field(None, gt=0, description="Rectangle width along d1, m. Required for a rectangle.")
-    thickness: float | None = Field(None, gt=0, description="Rectangle thickness along d2 (the soft bending direction when thickness < width), m. Required for a rectangle.")
+    thickness: float | None = Field(None, gt=0, description=(
+        "Rectangle thickness along d2 (the soft bending direction when thickness < width), m. Required "
+        "for a rectangle."
+    ))
     diameter: float | None = Field(None, gt=0, description="Circle diameter, m. Required for a circle.")
 
     @model_validator(mode="after")
@@ -70,8 +75,12 @@ class SegmentConfig(_Strict):
     """``[[magnetisation]]``: one uniformly magnetised stretch of the rod, start <= s < end."""
 
     start: float = Field(0.0, ge=0, description="Arc length where the segment starts, m from the clamp. Default 0.")
-    end: float = Field(..., gt=0, description="Arc length where the segment ends, m from the clamp (<= length). Required.")
-    remanence: Vec3 = Field(..., description="Remanent flux density Br in the material frame (d1 width, d2 thickness, d3 axis), T. Required.")
+    end: float = Field(..., gt=0, description=(
+        "Arc length where the segment ends, m from the clamp (<= length). Required."
+    ))
+    remanence: Vec3 = Field(..., description=(
+        "Remanent flux density Br in the material frame (d1 width, d2 thickness, d3 axis), T. Required."
+    ))
 
 
 class RodConfig(_Strict):
@@ -80,20 +89,44 @@ class RodConfig(_Strict):
     length: float = Field(..., gt=0, description="Rod length L, m. Required.")
     cross_section: CrossSectionConfig = Field(..., description="Cross-section table, see CrossSectionConfig. Required.")
     youngs_modulus: float = Field(..., gt=0, description="Young's modulus E, Pa. Required.")
-    shear_modulus: float | None = Field(None, gt=0, description="Shear modulus G, Pa. Default E/3 (incompressible elastomer).")
-    density: float = Field(0.0, ge=0, description="Density of the rod material, kg/m^3; its weight acts along `gravity`. Default 0 (weightless).")
+    shear_modulus: float | None = Field(None, gt=0, description=(
+        "Shear modulus G, Pa. Default E/3 (incompressible elastomer)."
+    ))
+    density: float = Field(0.0, ge=0, description=(
+        "Density of the rod material, kg/m^3; its weight acts along `gravity`. Default 0 (weightless)."
+    ))
     gravity: Vec3 = Field((0.0, 0.0, -9.81), description="Gravitational acceleration, m/s^2. Default [0, 0, -9.81].")
-    magnetisation: list[SegmentConfig] = Field(default_factory=list, description="Magnetised segments ([[magnetisation]] tables); uncovered stretches are unmagnetised. Default none.")
-    field: Vec3 = Field((0.0, 0.0, 0.0), description="Uniform applied field B, T (global frame). Default [0, 0, 0]; the CLI --field overrides it.")
-    perturbation: Vec3 | None = Field(None, description="Small field added during the solve and removed at the end, T; picks the buckling side when the field opposes the magnetisation. Default none.")
-    tip_force: Vec3 = Field((0.0, 0.0, 0.0), description="Dead force on the free end, N (global frame). Default [0, 0, 0].")
-    tip_moment: Vec3 = Field((0.0, 0.0, 0.0), description="Couple on the free end, N m (global frame). Default [0, 0, 0].")
+    magnetisation: list[SegmentConfig] = Field(default_factory=list, description=(
+        "Magnetised segments ([[magnetisation]] tables); uncovered stretches are unmagnetised. Default "
+        "none."
+    ))
+    field: Vec3 = Field((0.0, 0.0, 0.0), description=(
+        "Uniform applied field B, T (global frame). Default [0, 0, 0]; the CLI --field overrides it."
+    ))
+    perturbation: Vec3 | None = Field(None, description=(
+        "Small field added during the solve and removed at the end, T; picks the buckling side when the "
+        "field opposes the magnetisation. Default none."
+    ))
+    tip_force: Vec3 = Field((0.0, 0.0, 0.0), description=(
+        "Dead force on the free end, N (global frame). Default [0, 0, 0]."
+    ))
+    tip_moment: Vec3 = Field((0.0, 0.0, 0.0), description=(
+        "Couple on the free end, N m (global frame). Default [0, 0, 0]."
+    ))
     base_position: Vec3 = Field((0.0, 0.0, 0.0), description="Clamp position p(0), m. Default [0, 0, 0].")
     base_rotation: tuple[Vec3, Vec3, Vec3] = Field(
         tuple(tuple(r) for r in DEFAULT_BASE_ROTATION.tolist()),
-        description="Clamp orientation R(0) as 3 rows; its columns are d1 (width), d2 (thickness), d3 (rod axis) in the global frame. Default [[0,0,1],[1,0,0],[0,1,0]]: axis along +x, thickness along z.")
-    extensible: bool = Field(False, description="false: Kirchhoff rod (inextensible, unshearable); true: extension E A and shear kappa G A included. Default false.")
-    n_nodes: int = Field(101, ge=2, le=100_000, description="Uniformly spaced output nodes along the rod (segment ends are added). Default 101.")
+        description=(
+            "Clamp orientation R(0) as 3 rows; its columns are d1 (width), d2 (thickness), d3 (rod axis) "
+            "in the global frame. Default [[0,0,1],[1,0,0],[0,1,0]]: axis along +x, thickness along z."
+        ))
+    extensible: bool = Field(False, description=(
+        "false: Kirchhoff rod (inextensible, unshearable); true: extension E A and shear kappa G A "
+        "included. Default false."
+    ))
+    n_nodes: int = Field(101, ge=2, le=100_000, description=(
+        "Uniformly spaced output nodes along the rod (segment ends are added). Default 101."
+    ))
     max_step: float | None = Field(None, gt=0, description="Largest integration step, m. Default length/100.")
 
     @model_validator(mode="after")
