@@ -8,7 +8,20 @@ from pathlib import Path
 import numpy as np
 
 from magsoro.errors import SceneError
-from magsoro.fields import Dipole, Keyframes, KeyframedVector, Ramp, Rotating, Sine, Uniform
+from magsoro.fields import (
+    CuboidMagnet,
+    CurrentLoop,
+    CylinderMagnet,
+    Dipole,
+    HelmholtzPair,
+    Keyframes,
+    KeyframedVector,
+    MaxwellPair,
+    Ramp,
+    Rotating,
+    Sine,
+    Uniform,
+)
 from magsoro.geometry.primitives import Box, Cylinder, Polygon, Rectangle, Sphere, fill_lattice
 from magsoro.mpm.colliders import Collider
 from magsoro.mpm.solver import Control, Model, SolverSettings
@@ -57,9 +70,18 @@ def make_field(spec, base_dir: Path | None):
             except (ValueError, FileNotFoundError) as exc:
                 raise SceneError(f"fields: {exc}") from None
         return Uniform(KeyframedVector(spec.times, spec.values))
+    path = Keyframes(spec.path.times, spec.path.positions) if getattr(spec, "path", None) is not None else None
     if t == "dipole":
-        path = Keyframes(spec.path.times, spec.path.positions) if spec.path is not None else None
         return Dipole(spec.moment, spec.position, path)
+    if t == "cylinder_magnet":
+        return CylinderMagnet(spec.diameter, spec.length, spec.remanence, spec.position, spec.axis, spec.model, spec.order, path=path)
+    if t == "cuboid_magnet":
+        return CuboidMagnet(spec.dimensions, spec.remanence, spec.position, spec.orientation, path=path)
+    if t in ("loop", "helmholtz", "maxwell"):
+        if t == "loop":
+            return CurrentLoop(spec.radius, spec.current, spec.position, spec.axis, turns=spec.turns)
+        cls = HelmholtzPair if t == "helmholtz" else MaxwellPair
+        return cls(spec.radius, spec.current, spec.position, spec.axis, turns=spec.turns)
     raise SceneError(f"unknown field type {t!r}")
 
 
@@ -180,7 +202,12 @@ def build(scene: Scene, device: str | None = None, source: str = "scene") -> Bui
         X, np.concatenate(vol), np.concatenate(rho), np.concatenate(G), np.concatenate(K), np.concatenate(Br), body_id, clamped,
         dx=dx, domain_lo=lo, domain_hi=hi, precision=sim.precision, device=device or sim.device,
     )
-    sources = [make_field(f, getattr(scene, "_base_dir", None)) for f in scene.fields]
+    sources = []
+    for i, f in enumerate(scene.fields):
+        try:
+            sources.append(make_field(f, getattr(scene, "_base_dir", None)))
+        except ValueError as exc:
+            raise SceneError(f"{source}: fields[{i}]: {exc}") from None
     colliders = [make_collider(c, dim, sim.plane_z) for c in scene.colliders]
     settings = SolverSettings(
         damping=sim.damping,

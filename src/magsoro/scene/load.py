@@ -187,7 +187,7 @@ def check_scene(scene: Scene, source: str, base_dir: Path | None) -> None:
                     raise SceneError(f"{source}: fields[{i}].values: needs one vector per time ({len(f.times)} times, {len(f.values)} values)")
                 for j, v in enumerate(f.values):
                     _vec_len(v, 3, f"fields[{i}].values[{j}]", source)
-        if f.type == "dipole" and f.path is not None:
+        if getattr(f, "path", None) is not None:
             for j, pos in enumerate(f.path.positions):
                 _vec_len(pos, 3, f"fields[{i}].path.positions[{j}]", source)
     if scene.output.every is not None and scene.output.every > sim.duration:

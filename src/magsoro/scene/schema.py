@@ -252,7 +252,65 @@ class DipoleField(Strict):
         return self
 
 
-AnyField = Annotated[Union[UniformField, RotatingField, KeyframedField, DipoleField], Field(discriminator="type")]
+class CylinderMagnetField(Strict):
+    """Axially magnetised cylindrical permanent magnet: exact closed form or the multipole expansion of seed 001."""
+
+    type: Literal["cylinder_magnet"]
+    diameter: float = Field(gt=0, description="Diameter, m.")
+    length: float = Field(gt=0, description="Length along the axis, m.")
+    remanence: float = Field(description="Remanence Br along the axis, T (negative flips it).")
+    position: Vec = Field(default=[0.0, 0.0, 0.0], description="Centre, m (3 components).")
+    axis: Vec = Field(default=[0.0, 0.0, 1.0], description="Magnetisation axis.")
+    model: Literal["exact", "multipole"] = Field(default="exact", description="'exact' closed form or 'multipole' (valid outside the bounding sphere).")
+    order: int = Field(default=17, ge=1, le=17, description="Highest odd multipole order (model = 'multipole').")
+    path: Path | None = Field(default=None, description="Optional motion of the centre (3-component positions).")
+
+    @model_validator(mode="after")
+    def _len(self):
+        _check_len(self.position, "position", 3)
+        _check_len(self.axis, "axis", 3)
+        return self
+
+
+class CuboidMagnetField(Strict):
+    """Homogeneously magnetised cuboid permanent magnet (closed form)."""
+
+    type: Literal["cuboid_magnet"]
+    dimensions: Vec = Field(description="Edge lengths along its local x, y, z, m.")
+    remanence: Vec = Field(description="Remanence vector in its local frame, T.")
+    position: Vec = Field(default=[0.0, 0.0, 0.0], description="Centre, m (3 components).")
+    orientation: list[Vec] | None = Field(default=None, description="Rotation matrix local -> world (3 rows). Default identity.")
+    path: Path | None = Field(default=None, description="Optional motion of the centre (3-component positions).")
+
+    @model_validator(mode="after")
+    def _len(self):
+        _check_len(self.dimensions, "dimensions", 3)
+        _check_len(self.remanence, "remanence", 3)
+        _check_len(self.position, "position", 3)
+        return self
+
+
+class CoilField(Strict):
+    """Circular current loop, or a Helmholtz (uniform) or Maxwell (gradient) pair of loops."""
+
+    type: Literal["loop", "helmholtz", "maxwell"]
+    radius: float = Field(gt=0, description="Loop radius, m.")
+    current: float = Field(description="Current per turn, A (right-handed about the axis).")
+    turns: float = Field(default=1.0, gt=0, description="Number of turns.")
+    position: Vec = Field(default=[0.0, 0.0, 0.0], description="Centre of the loop or pair, m (3 components).")
+    axis: Vec = Field(default=[0.0, 0.0, 1.0], description="Coil axis.")
+
+    @model_validator(mode="after")
+    def _len(self):
+        _check_len(self.position, "position", 3)
+        _check_len(self.axis, "axis", 3)
+        return self
+
+
+AnyField = Annotated[
+    Union[UniformField, RotatingField, KeyframedField, DipoleField, CylinderMagnetField, CuboidMagnetField, CoilField],
+    Field(discriminator="type"),
+]
 
 
 # ---------------------------------------------------------------- probes
