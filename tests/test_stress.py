@@ -7,22 +7,32 @@ import warp as wp
 from magsoro.mpm.kernels import make_kernels
 
 
-def _evaluate(dim, Fs, G, K):
+def _evaluate(dim, Fs, G, K, model=0, prm=(0.0, 0.0, 0.0)):
     k = make_kernels(dim, wp.float64)
     F = wp.array(np.asarray(Fs, dtype=np.float64), dtype=k["mat"])
     P = wp.zeros(len(Fs), dtype=k["mat"])
     psi = wp.zeros(len(Fs), dtype=wp.float64)
-    wp.launch(k["stress_kernel"], dim=len(Fs), inputs=[F, G, K, P, psi])
+    wp.launch(k["stress_kernel"], dim=len(Fs), inputs=[F, model, G, K, k["v3"](*prm), P, psi])
     return P.numpy(), psi.numpy()
 
 
+MODELS = {
+    "neo-hookean": (0, (0.0, 0.0, 0.0)),
+    "mooney-rivlin": (1, (1.1e5, 0.4e5, 0.0)),
+    "yeoh": (2, (1.2e5, -2.0e3, 4.0e2)),
+}
+
+
 @pytest.mark.parametrize("dim", [2, 3])
-def test_neo_hookean_stress_is_energy_derivative(dim):
+@pytest.mark.parametrize("name", list(MODELS))
+def test_stress_is_energy_derivative(dim, name):
+    """First Piola stress of each engine material equals central differences of its energy (float64)."""
+    model, prm = MODELS[name]
     rng = np.random.default_rng(3)
     G, K = 3.0e5, 6.0e6
     Fs = [np.eye(dim) + 0.3 * rng.standard_normal((dim, dim)) for _ in range(6)]
     Fs = [F if np.linalg.det(F) > 0.2 else np.eye(dim) for F in Fs]
-    P, _ = _evaluate(dim, Fs, G, K)
+    P, _ = _evaluate(dim, Fs, G, K, model, prm)
     h = 1e-6
     for n, F in enumerate(Fs):
         perturbed = []
@@ -32,7 +42,7 @@ def test_neo_hookean_stress_is_energy_derivative(dim):
                     Fp = F.copy()
                     Fp[i, j] += s * h
                     perturbed.append(Fp)
-        _, psi = _evaluate(dim, perturbed, G, K)
+        _, psi = _evaluate(dim, perturbed, G, K, model, prm)
         fd = ((psi[0::2] - psi[1::2]) / (2 * h)).reshape(dim, dim)
         rel = np.abs(fd - P[n]).max() / np.abs(P[n]).max()
         assert rel < 1e-5, (n, rel)
@@ -52,3 +62,24 @@ def test_stress_free_at_rest_and_linear_limit():
     eps = 1e-6
     P2, _ = _evaluate(2, [np.diag([1 + eps, 1.0])], G, K)
     assert P2[0][0, 0] == pytest.approx((K + 4 * G / 3) * eps, rel=1e-4)
+
+
+@pytest.mark.parametrize("name", ["mooney-rivlin", "yeoh"])
+def test_small_strain_shear_modulus_of_other_models(name):
+    """Simple shear at small strain: P_xy = mu0 gamma with mu0 = 2 (C10 + C01) or 2 C10."""
+    model, prm = MODELS[name]
+    mu0 = 2 * (prm[0] + prm[1]) if name == "mooney-rivlin" else 2 * prm[0]
+    gamma = 1e-6
+    F = np.eye(3)
+    F[0, 1] = gamma
+    P, _ = _evaluate(3, [F], 0.0, 4e6, model, prm)
+    assert P[0][0, 1] == pytest.approx(mu0 * gamma, rel=1e-4)
+
+
+def test_yeoh_stiffens_under_large_stretch():
+    """Yeoh with C30 > 0 carries more nominal stress than Neo-Hookean of the same initial modulus at 200 % strain."""
+    lam = 3.0
+    F = np.diag([lam, lam**-0.5, lam**-0.5])
+    Pn, _ = _evaluate(3, [F], 2.4e5, 5e6, 0, (0, 0, 0))
+    Py, _ = _evaluate(3, [F], 0.0, 5e6, 2, (1.2e5, 0.0, 4.0e2))
+    assert Py[0][0, 0] > Pn[0][0, 0]

@@ -38,28 +38,60 @@ def make_kernels(dim: int, scalar):
     minus_two_thirds = -2.0 / 3.0
 
     @wp.func
-    def neo_hookean_stress(F: mat, G: scalar, K: scalar):
-        """First Piola stress of compressible Neo-Hookean (seed 000 eq 10):
-        P = G J^(-2/3) (F - I1/3 F^-T) + K J (J - 1) F^-T, energy G/2 (J^(-2/3) I1 - 3) + K/2 (J - 1)^2.
-        (The extracted text of eq 10 reads F^-2 in the last term; F^-T is what the energy gives.)
-        In 2D (plane strain) F_zz = 1, so I1 gains 1 and J is the in-plane determinant."""
+    def invariants(F: mat):
+        """J, I1 = tr C and tr(C^2) of C = F^T F; in 2D (plane strain) F_zz = 1 adds 1 to both traces."""
+        C = wp.transpose(F) * F
         J = wp.determinant(F)
-        I1 = wp.trace(wp.transpose(F) * F)
+        I1 = wp.trace(C)
+        trC2 = wp.trace(C * C)
         if wp.static(dim == 2):
             I1 = I1 + scalar(1.0)
-        FinvT = wp.transpose(wp.inverse(F))
-        Jm23 = wp.pow(J, scalar(minus_two_thirds))
-        return G * Jm23 * (F - (I1 / scalar(3.0)) * FinvT) + K * J * (J - scalar(1.0)) * FinvT
+            trC2 = trC2 + scalar(1.0)
+        return J, I1, trC2
 
     @wp.func
-    def neo_hookean_energy(F: mat, G: scalar, K: scalar):
-        """Strain energy density per reference volume matching :func:`neo_hookean_stress`."""
-        J = wp.determinant(F)
-        I1 = wp.trace(wp.transpose(F) * F)
-        if wp.static(dim == 2):
-            I1 = I1 + scalar(1.0)
+    def elastic_stress(F: mat, model: int, G: scalar, K: scalar, prm: v3):
+        """First Piola stress of the compressible hyperelastic models, volumetric part K/2 (J - 1)^2 for all:
+
+        model 0, Neo-Hookean (seed 000 eq 10): W = G/2 (I1b - 3),  P = G J^(-2/3) (F - I1/3 F^-T) + ...
+          (the extracted text of eq 10 reads F^-2 in the last term; F^-T is what the energy gives)
+        model 1, Mooney-Rivlin: W = C10 (I1b - 3) + C01 (I2b - 3),             prm = (C10, C01, 0)
+        model 2, Yeoh:          W = C10 (I1b - 3) + C20 (I1b - 3)^2 + C30 (I1b - 3)^3, prm = (C10, C20, C30)
+        with I1b = J^(-2/3) I1, I2b = J^(-4/3) I2 the isochoric invariants, so the deviatoric and
+        volumetric responses separate as in the incompressible fits of seed 001.
+        """
+        J, I1, trC2 = invariants(F)
+        FinvT = wp.transpose(wp.inverse(F))
         Jm23 = wp.pow(J, scalar(minus_two_thirds))
-        return scalar(0.5) * G * (Jm23 * I1 - scalar(3.0)) + scalar(0.5) * K * (J - scalar(1.0)) * (J - scalar(1.0))
+        dI1b = Jm23 * (scalar(2.0) * F - (scalar(2.0) / scalar(3.0)) * I1 * FinvT)  # dI1b/dF
+        P = K * J * (J - scalar(1.0)) * FinvT
+        if model == 0:
+            P = P + scalar(0.5) * G * dI1b
+        elif model == 1:
+            I2 = scalar(0.5) * (I1 * I1 - trC2)
+            FC = F * (wp.transpose(F) * F)
+            dI2b = Jm23 * Jm23 * (scalar(2.0) * (I1 * F - FC) - (scalar(4.0) / scalar(3.0)) * I2 * FinvT)
+            P = P + prm[0] * dI1b + prm[1] * dI2b
+        else:
+            e = Jm23 * I1 - scalar(3.0)
+            P = P + (prm[0] + scalar(2.0) * prm[1] * e + scalar(3.0) * prm[2] * e * e) * dI1b
+        return P
+
+    @wp.func
+    def elastic_energy(F: mat, model: int, G: scalar, K: scalar, prm: v3):
+        """Strain energy density per reference volume matching :func:`elastic_stress`."""
+        J, I1, trC2 = invariants(F)
+        Jm23 = wp.pow(J, scalar(minus_two_thirds))
+        e = Jm23 * I1 - scalar(3.0)
+        W = scalar(0.5) * K * (J - scalar(1.0)) * (J - scalar(1.0))
+        if model == 0:
+            W = W + scalar(0.5) * G * e
+        elif model == 1:
+            I2 = scalar(0.5) * (I1 * I1 - trC2)
+            W = W + prm[0] * e + prm[1] * (Jm23 * Jm23 * I2 - scalar(3.0))
+        else:
+            W = W + prm[0] * e + prm[1] * e * e + prm[2] * e * e * e
+        return W
 
     @wp.func
     def inplane(b: v3):
@@ -134,6 +166,8 @@ def make_kernels(dim: int, scalar):
         mass: wp.array(dtype=scalar),
         shear: wp.array(dtype=scalar),
         bulk: wp.array(dtype=scalar),
+        material_model: wp.array(dtype=wp.int32),
+        material_params: wp.array(dtype=v3),
         Br: wp.array(dtype=v3),
         clamped: wp.array(dtype=wp.int32),
         B_uniform: v3,
@@ -163,7 +197,7 @@ def make_kernels(dim: int, scalar):
             B = B + B_particle[p]
         br = Br[p]
         # Magnetic stress of a hard-magnetic elastomer (seed 000 eq 13): P = -(1/mu0) B (x) Br
-        P = neo_hookean_stress(Fp, shear[p], bulk[p]) - scalar(inv_mu0) * wp.outer(inplane(B), inplane(br))
+        P = elastic_stress(Fp, material_model[p], shear[p], bulk[p], material_params[p]) - scalar(inv_mu0) * wp.outer(inplane(B), inplane(br))
         # MLS-MPM: grid force -V0 P F^T grad w, with grad w = (4/dx^2) w (x_i - x_p) for quadratic B-splines
         stress = (-dt * vol0[p] * scalar(4.0) * inv_dx * inv_dx) * (P * wp.transpose(Fp))
         mp = mass[p]
@@ -336,10 +370,12 @@ def make_kernels(dim: int, scalar):
         max_speed[0] = scalar(0.0)
 
     @wp.kernel
-    def stress_kernel(F: wp.array(dtype=mat), G: scalar, K: scalar, P: wp.array(dtype=mat), psi: wp.array(dtype=scalar)):
+    def stress_kernel(
+        F: wp.array(dtype=mat), model: int, G: scalar, K: scalar, prm: v3, P: wp.array(dtype=mat), psi: wp.array(dtype=scalar)
+    ):
         i = wp.tid()
-        P[i] = neo_hookean_stress(F[i], G, K)
-        psi[i] = neo_hookean_energy(F[i], G, K)
+        P[i] = elastic_stress(F[i], model, G, K, prm)
+        psi[i] = elastic_energy(F[i], model, G, K, prm)
 
     return dict(
         p2g=p2g,

@@ -39,7 +39,12 @@ class Model:
 
     positions (N, dim) m; volumes (N,) m^3 (in 2D: area x depth); density (N,) kg/m^3; shear_modulus and
     bulk_modulus (N,) Pa; remanence (N, 3) T in the reference frame; body (N,) int; clamped (N,) bool.
+    material_model (N,) int: 0 Neo-Hookean (default), 1 Mooney-Rivlin, 2 Yeoh, with material_params (N, 3) Pa:
+    (C10, C01, 0) or (C10, C20, C30); shear_modulus is then the initial shear modulus (2 C10 + 2 C01 or
+    2 C10), used for the time step. See :func:`magsoro.mpm.kernels.make_kernels` (elastic_stress).
     """
+
+    MATERIAL_MODELS = {"neo-hookean": 0, "mooney-rivlin": 1, "yeoh": 2}
 
     def __init__(
         self,
@@ -57,6 +62,8 @@ class Model:
         domain_hi,
         precision: str = "float32",
         device: str | None = "cpu",
+        material_model=None,
+        material_params=None,
     ):
         if precision not in PRECISIONS:
             raise ValueError(f"precision must be one of {sorted(PRECISIONS)}, got {precision!r}")
@@ -83,6 +90,8 @@ class Model:
             remanence=np.broadcast_to(np.asarray(remanence, dtype=np.float64), (n, 3)).copy(),
             body=np.broadcast_to(np.asarray(body, dtype=np.int32), (n,)).copy(),
             clamped=np.broadcast_to(np.asarray(clamped, dtype=bool), (n,)).copy(),
+            material_model=np.broadcast_to(np.asarray(0 if material_model is None else material_model, dtype=np.int32), (n,)).copy(),
+            material_params=np.broadcast_to(np.asarray(0.0 if material_params is None else material_params, dtype=np.float64), (n, 3)).copy(),
         )
         h = self.host
         h["mass"] = h["volumes"] * h["density"]
@@ -96,6 +105,10 @@ class Model:
         self.shear = wp.array(h["shear_modulus"].astype(s), dtype=self.scalar, device=dev)
         self.bulk = wp.array(h["bulk_modulus"].astype(s), dtype=self.scalar, device=dev)
         self.Br = wp.array(h["remanence"].astype(s), dtype=k["v3"], device=dev)
+        if not np.all(np.isin(h["material_model"], [0, 1, 2])):
+            raise ValueError("material_model must be 0 (Neo-Hookean), 1 (Mooney-Rivlin) or 2 (Yeoh)")
+        self.material_model = wp.array(h["material_model"], dtype=wp.int32, device=dev)
+        self.material_params = wp.array(h["material_params"].astype(s), dtype=k["v3"], device=dev)
         self.body = wp.array(h["body"], dtype=wp.int32, device=dev)
         self.clamped = wp.array(h["clamped"].astype(np.int32), dtype=wp.int32, device=dev)
 
@@ -310,7 +323,7 @@ class Solver:
             dim=m.n_particles,
             inputs=[
                 state_in.x, state_in.v, state_in.C, state_in.F,
-                m.vol0, m.mass, m.shear, m.bulk, m.Br, m.clamped,
+                m.vol0, m.mass, m.shear, m.bulk, m.material_model, m.material_params, m.Br, m.clamped,
                 k["v3"](*[sc(b) for b in b0]), 1 if fields.has_gradient else 0, self.B_particle, self.G_particle,
                 grid_lo, shape, sc(m.dx), sc(dt),
                 self.grid_p, self.grid_m, self.grid_clamp, self.error,

@@ -112,6 +112,63 @@ def make_collider(spec, dim: int, plane_z: float):
     raise SceneError(f"unknown collider type {spec.type!r}")
 
 
+ENGINE_MODELS = {"neo-hookean": 0, "mooney-rivlin": 1, "yeoh": 2}
+
+
+def resolve_material(spec, base_dir, key: str) -> dict:
+    """Material of a body as engine numbers: model id, initial shear modulus, bulk modulus, params, density.
+
+    Reads ``spec.file`` (a `magsoro fit-material` entry) when given; inline keys override it.
+    """
+    values = {}
+    if spec.file is not None:
+        import tomllib
+
+        path = Path(spec.file) if base_dir is None else Path(base_dir) / spec.file
+        if not path.is_file():
+            raise SceneError(f"{key}.file: material file '{path}' not found")
+        try:
+            entry = tomllib.loads(path.read_text())
+        except tomllib.TOMLDecodeError as exc:
+            raise SceneError(f"{key}.file: '{path}' is not valid TOML: {exc}") from None
+        model = entry.get("model")
+        if model not in ENGINE_MODELS:
+            raise SceneError(f"{key}.file: '{path}' holds model {model!r}; the engine supports {', '.join(ENGINE_MODELS)}")
+        values["model"] = model
+        if "density" in entry:
+            values["density"] = entry["density"]
+        params = entry.get("parameters", {})
+        if model == "neo-hookean":
+            values["shear_modulus"] = 2.0 * params["C10"] if "C10" in params else entry.get("shear_modulus")
+        else:
+            for name in ("C10", "C01", "C20", "C30"):
+                if name in params:
+                    values[name] = params[name]
+    for name in ("model", "density", "shear_modulus", "C10", "C01", "C20", "C30", "bulk_modulus"):
+        v = getattr(spec, name)
+        if v is not None:
+            values[name] = v
+    model = values.get("model", "neo-hookean")
+    if values.get("density") is None:
+        raise SceneError(f"{key}.density: required (kg/m^3), inline or in the material file")
+    try:
+        if model == "neo-hookean":
+            G = float(values["shear_modulus"])
+            params = (0.0, 0.0, 0.0)
+        elif model == "mooney-rivlin":
+            params = (float(values["C10"]), float(values.get("C01", 0.0)), 0.0)
+            G = 2.0 * (params[0] + params[1])
+        else:
+            params = (float(values["C10"]), float(values.get("C20", 0.0)), float(values.get("C30", 0.0)))
+            G = 2.0 * params[0]
+    except (KeyError, TypeError) as exc:
+        raise SceneError(f"{key}: model '{model}' lacks parameter {exc}") from None
+    if not G > 0:
+        raise SceneError(f"{key}: the initial shear modulus must be > 0 Pa, got {G}")
+    K = float(values.get("bulk_modulus") or 20.0 * G)
+    return {"model": ENGINE_MODELS[model], "shear_modulus": G, "bulk_modulus": K, "params": params, "density": float(values["density"])}
+
+
 @dataclass
 class ProbeSpec:
     """A probe resolved to particle indices."""
@@ -158,7 +215,7 @@ def build(scene: Scene, device: str | None = None, source: str = "scene") -> Bui
     dim, dx, ppc = sim.dim, sim.dx, sim.particles_per_cell
     lo, hi = np.asarray(sim.domain_lo, dtype=np.float64), np.asarray(sim.domain_hi, dtype=np.float64)
     depth = sim.depth if dim == 2 else 1.0
-    pos, vol, rho, G, K, Br, body, vel = [], [], [], [], [], [], [], []
+    pos, vol, rho, G, K, Br, body, vel, mat_model, mat_params = [], [], [], [], [], [], [], [], [], []
     report = []
     for i, b in enumerate(scene.bodies):
         shape = make_shape(b.shape)
@@ -177,11 +234,14 @@ def build(scene: Scene, device: str | None = None, source: str = "scene") -> Bui
                 f"[{lo.tolist()}, {hi.tolist()}] shrunk by two cells ({margin} m); move it or enlarge simulation.domain_lo/domain_hi"
             )
         n = len(pts)
+        mat = resolve_material(b.material, getattr(scene, "_base_dir", None), f"{source}: bodies[{i}].material")
         pos.append(pts)
         vol.append(np.full(n, v_each * depth))
-        rho.append(np.full(n, b.material.density))
-        G.append(np.full(n, b.material.shear_modulus))
-        K.append(np.full(n, b.material.bulk_modulus if b.material.bulk_modulus is not None else 20.0 * b.material.shear_modulus))
+        rho.append(np.full(n, mat["density"]))
+        G.append(np.full(n, mat["shear_modulus"]))
+        K.append(np.full(n, mat["bulk_modulus"]))
+        mat_model.append(np.full(n, mat["model"], dtype=np.int32))
+        mat_params.append(np.tile(mat["params"], (n, 1)))
         Br.append(np.tile(np.asarray(b.magnetization, dtype=np.float64), (n, 1)))
         body.append(np.full(n, i, dtype=np.int32))
         vel.append(np.tile(np.asarray(b.velocity if b.velocity is not None else np.zeros(dim), dtype=np.float64), (n, 1)))
@@ -201,6 +261,7 @@ def build(scene: Scene, device: str | None = None, source: str = "scene") -> Bui
     model = Model(
         X, np.concatenate(vol), np.concatenate(rho), np.concatenate(G), np.concatenate(K), np.concatenate(Br), body_id, clamped,
         dx=dx, domain_lo=lo, domain_hi=hi, precision=sim.precision, device=device or sim.device,
+        material_model=np.concatenate(mat_model), material_params=np.concatenate(mat_params),
     )
     sources = []
     for i, f in enumerate(scene.fields):

@@ -75,11 +75,41 @@ SHAPES_2D = ("rectangle", "polygon")
 
 # ---------------------------------------------------------------- bodies
 class Material(Strict):
-    """Material of a body: compressible Neo-Hookean solid (seed 000 eq 10)."""
+    """Material of a body: a compressible hyperelastic solid with volumetric energy K/2 (J - 1)^2.
 
-    density: float = Field(gt=0, description="Mass density, kg/m^3.")
-    shear_modulus: float = Field(gt=0, description="Shear modulus G, Pa.")
-    bulk_modulus: float | None = Field(default=None, gt=0, description="Bulk modulus K, Pa. Default 20 G (seed 000).")
+    model 'neo-hookean' (seed 000 eq 10) takes shear_modulus; 'mooney-rivlin' takes C10 and C01; 'yeoh' takes
+    C10, C20, C30 (W = sum Ci0 (I1b - 3)^i). Instead of inline values, ``file`` may name a material entry written
+    by ``magsoro fit-material --save-material`` (keys given here override the file's).
+    """
+
+    file: str | None = Field(default=None, description="Material entry TOML (from magsoro fit-material), relative to the scene file.")
+    model: Literal["neo-hookean", "mooney-rivlin", "yeoh"] | None = Field(default=None, description="Constitutive model. Default 'neo-hookean' (or the file's).")
+    density: float | None = Field(default=None, gt=0, description="Mass density, kg/m^3 (required here or in the file).")
+    shear_modulus: float | None = Field(default=None, gt=0, description="Neo-Hookean shear modulus G, Pa.")
+    C10: float | None = Field(default=None, gt=0, description="Mooney-Rivlin / Yeoh C10, Pa.")
+    C01: float | None = Field(default=None, description="Mooney-Rivlin C01, Pa (C10 + C01 > 0).")
+    C20: float | None = Field(default=None, description="Yeoh C20, Pa.")
+    C30: float | None = Field(default=None, description="Yeoh C30, Pa.")
+    bulk_modulus: float | None = Field(default=None, gt=0, description="Bulk modulus K, Pa. Default 20 x the initial shear modulus (seed 000).")
+
+    @model_validator(mode="after")
+    def _complete(self):
+        if self.file is not None:
+            return self  # completed against the file when the scene is built
+        model = self.model or "neo-hookean"
+        if self.density is None:
+            raise ValueError("density is required (kg/m^3)")
+        needs = {"neo-hookean": ["shear_modulus"], "mooney-rivlin": ["C10", "C01"], "yeoh": ["C10"]}[model]
+        missing = [k for k in needs if getattr(self, k) is None]
+        if missing:
+            raise ValueError(f"model '{model}' needs {', '.join(missing)}")
+        unused = {"neo-hookean": ["C10", "C01", "C20", "C30"], "mooney-rivlin": ["shear_modulus", "C20", "C30"], "yeoh": ["shear_modulus", "C01"]}[model]
+        given = [k for k in unused if getattr(self, k) is not None]
+        if given:
+            raise ValueError(f"model '{model}' does not use {', '.join(given)}")
+        if model == "mooney-rivlin" and self.C10 + self.C01 <= 0:
+            raise ValueError("mooney-rivlin needs C10 + C01 > 0")
+        return self
 
 
 class Body(Strict):
