@@ -102,7 +102,7 @@ def main():
         "acceptance": "ratio >= 0.8",
         "passed": ratio >= 0.8,
     }
-    out = ROOT / "benchmarks" / "results" / f"grid_domain_scaling-{datetime.date.today()}-{args.device}-{commit}.json"
+    out = ROOT / "benchmarks" / "results" / f"grid_domain_scaling-{args.dim}d-{datetime.date.today()}-{args.device}-{commit}.json"
     out.write_text(json.dumps(result, indent=2) + "\n")
     print(json.dumps({k: result[k] for k in ("device", "dim", "steps_per_s_ratio_large_over_tight", "passed")}))
     print(f"tight {tight['steps_per_s']:.0f} steps/s ({tight['grid']['nodes']} nodes), large {large['steps_per_s']:.0f} steps/s ({large['grid']['nodes']} nodes); wrote {out}")
