@@ -1,0 +1,174 @@
+"""Eversion mechanics (seed 004 eqs 1-13): closed forms against quadrature and the general hyperelastic
+formulas, friction trends, the minimum field for pressure-free growth and the ``magsoro evert`` command."""
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+from scipy.integrate import quad
+
+from magsoro import MU0
+from magsoro.actuation.eversion import EversionModel, Friction
+from magsoro.cli import main
+
+ROOT = Path(__file__).resolve().parents[1]
+DESIGNS = ROOT / "examples" / "actuation"
+
+CASES = [
+    # A, B, lambda_z, a, field, alpha
+    (0.8e-3, 0.9e-3, 1.0, 0.85e-3, 0.0, 0.0),
+    (0.8e-3, 0.9e-3, 1.0, 0.5e-3, 0.04, 0.3),
+    (0.8e-3, 0.9e-3, 1.2, 1.1e-3, 0.06, 0.3),
+    (1.0e-3, 2.0e-3, 0.9, 1.5e-3, 0.02, -0.2),
+    (5.0e-3, 6.0e-3, 1.5, 4.0e-3, 0.1, 1.0),
+]
+
+
+def _quadrature(m: EversionModel, a: float, field: float):
+    """Eqs 10 and 11 integrated numerically in r, straight from the stretches of eq 5."""
+    b = float(m.everted_outer_radius(a))
+    lz = m.axial_stretch
+    mu = float(m.shear_modulus_at(field))
+
+    def lt(r):
+        return r / np.sqrt(m.outer_radius**2 - lz * (r * r - a * a))
+
+    kw = dict(epsabs=0.0, epsrel=1e-13, limit=200)
+    P = mu * quad(lambda r: (lt(r) ** 2 - lt(r) ** -2 / lz**2) / r, a, b, **kw)[0]
+    el = np.pi * mu * quad(lambda r: (2 * lz**2 - lt(r) ** 2 - lt(r) ** -2 / lz**2) * r, a, b, **kw)[0]
+    I4 = (field / MU0 / lz) ** 2
+    maxwell = np.pi * quad(lambda r: MU0 * I4 * (lz**2 - lz**-2) * r, a, b, **kw)[0]
+    return P, el + np.pi * a * a * P + maxwell
+
+
+@pytest.mark.parametrize("A,B,lz,a,field,alpha", CASES)
+def test_pressure_and_tip_force_match_quadrature(A, B, lz, a, field, alpha):
+    m = EversionModel(A, B, 60e3, magnetic_stiffening=alpha, saturation_field=0.05, axial_stretch=lz)
+    P_q, N_q = _quadrature(m, a, field)
+    assert float(m.pressure(a, field)) == pytest.approx(P_q, rel=1e-6)
+    assert float(m.tip_force_ideal(a, field)) == pytest.approx(N_q, rel=1e-6)
+    # both closed forms are exact: the agreement is at rounding level
+    assert abs(float(m.pressure(a, field)) / P_q - 1) < 1e-9
+    assert abs(float(m.tip_force_ideal(a, field)) / N_q - 1) < 1e-9
+
+
+def _neo_hookean_general(mu, A, B, lz, a):
+    """Zero-field result from the general incompressible formulas with W(l1, l2, l3) = mu/2 (sum l^2 - 3)
+    differentiated numerically: P = int (lt W_t - lr W_r) dr/r, N = pi int (2 lz W_z - lr W_r - lt W_t) r dr
+    + pi a^2 P (radial equilibrium of the tube wall)."""
+
+    def W(l1, l2, l3):
+        return 0.5 * mu * (l1 * l1 + l2 * l2 + l3 * l3 - 3.0)
+
+    def dW(i, lam, h=1e-6):
+        up, dn = list(lam), list(lam)
+        up[i] += h
+        dn[i] -= h
+        return (W(*up) - W(*dn)) / (2 * h)
+
+    def stretches(r):
+        R = np.sqrt(B * B - lz * (r * r - a * a))
+        lt = r / R
+        return 1.0 / (lt * lz), lt, lz  # lambda_r from det F = 1 (eq 4)
+
+    def s(r):
+        lam = stretches(r)
+        return [lam[i] * dW(i, lam) for i in range(3)]
+
+    b = np.sqrt(a * a + (B * B - A * A) / lz)
+    kw = dict(epsabs=0.0, epsrel=1e-10, limit=200)  # the central differences carry ~1e-10 noise
+    P = quad(lambda r: (s(r)[1] - s(r)[0]) / r, a, b, **kw)[0]
+    N = np.pi * quad(lambda r: (2 * s(r)[2] - s(r)[0] - s(r)[1]) * r, a, b, **kw)[0] + np.pi * a * a * P
+    return P, N
+
+
+@pytest.mark.parametrize("lz,a", [(1.0, 0.85e-3), (1.3, 0.6e-3), (0.8, 1.2e-3)])
+def test_zero_field_reduces_to_neo_hookean(lz, a):
+    A, B, mu = 0.8e-3, 0.9e-3, 60e3
+    m = EversionModel(A, B, mu, magnetic_stiffening=0.7, saturation_field=0.02, axial_stretch=lz)
+    assert float(m.shear_modulus_at(0.0)) == mu
+    assert float(m.maxwell_force(a, 0.0)) == 0.0
+    P_ref, N_ref = _neo_hookean_general(mu, A, B, lz, a)
+    assert float(m.pressure(a, 0.0)) == pytest.approx(P_ref, rel=1e-6)
+    assert float(m.tip_force_ideal(a, 0.0)) == pytest.approx(N_ref, rel=1e-6)
+    # and a field changes the result (the reduction is not trivially satisfied)
+    assert abs(float(m.tip_force_ideal(a, 0.05)) - N_ref) > 1e-3 * abs(N_ref)
+
+
+def test_pressure_free_state_as_seed_describes():
+    """P = 0 fixes a0 independently of the field; there N < 0 at lambda_z = 1 and N grows with lambda_z."""
+    forces = []
+    for lz in (1.0, 1.05, 1.1, 1.2):
+        m = EversionModel(0.8e-3, 0.9e-3, 60e3, magnetic_stiffening=0.3, saturation_field=0.05, axial_stretch=lz)
+        a0 = m.pressure_free_radius()
+        for B in (0.0, 0.02, 0.05):
+            assert abs(float(m.pressure(a0, B))) < 1e-9 * 60e3
+        forces.append(float(m.pressure_free_tip_force(0.04, contact_radius=a0)))
+    assert forces[0] < 0
+    assert np.all(np.diff(forces) > 0) and forces[-1] > 0
+
+
+def test_friction_lowers_tip_force_as_eqs_12_13():
+    a, B = 0.95e-3, 0.03
+    base = EversionModel(0.8e-3, 0.9e-3, 60e3, axial_stretch=1.05)
+    P = float(base.pressure(a, B))
+    assert P > 0
+    b = float(base.everted_outer_radius(a))
+    N_ideal = float(base.tip_force_ideal(a, B))
+
+    def N(mu_k=0.3, theta=0.0, tail="cylindrical", alpha=0.5, l=0.02):
+        fr = Friction.for_tail(tail, l, mu_k, alpha)
+        m = EversionModel(0.8e-3, 0.9e-3, 60e3, axial_stretch=1.05, friction=fr)
+        return float(m.tip_force(a, B, bend_angle=theta))
+
+    assert N(mu_k=0.0) == pytest.approx(N_ideal, rel=1e-15)
+    mus = [N(mu_k=k) for k in (0.0, 0.1, 0.3, 0.6)]
+    thetas = [N(theta=t) for t in (0.0, 0.5, 1.5, np.pi)]
+    assert np.all(np.diff(mus) < 0) and np.all(np.diff(thetas) < 0)
+    # eq 12-13 value: l mu_k (alpha P) phi 2 pi b exp(gamma mu_k Theta)
+    expect = N_ideal - 0.02 * 0.3 * 0.5 * P * 1.0 * 2 * np.pi * b * np.exp(1.0 * 0.3 * 1.5)
+    assert N(theta=1.5) == pytest.approx(expect, rel=1e-12)
+    # a cruciform tail (smaller perimeter and capstan factors) loses less
+    assert N(tail="cruciform", theta=1.5) > N(tail="cylindrical", theta=1.5)
+
+
+def test_minimum_growth_field():
+    fr = Friction.for_tail("cylindrical", 0.02, 0.12, 0.1)
+    m = EversionModel(0.8e-3, 0.9e-3, 50e3, magnetic_stiffening=0.05, saturation_field=0.1, axial_stretch=1.015, friction=fr)
+    b_min = m.minimum_growth_field()
+    assert b_min is not None and 0 < b_min < 1.0
+    assert abs(float(m.pressure_free_tip_force(b_min))) < 1e-9
+    assert float(m.pressure_free_tip_force(0.99 * b_min)) < 0 < float(m.pressure_free_tip_force(1.01 * b_min))
+    # a load at the tip, a bend or more friction raise the field needed; a cruciform tail lowers it
+    assert m.minimum_growth_field(required_force=1e-4) > b_min
+    assert m.minimum_growth_field(bend_angle=np.pi) > b_min
+    cruciform = EversionModel(0.8e-3, 0.9e-3, 50e3, 0.05, 0.1, 1.015, Friction.for_tail("cruciform", 0.02, 0.12, 0.1))
+    assert cruciform.minimum_growth_field() < b_min
+    # at lambda_z = 1 the Maxwell term vanishes and no field helps
+    flat = EversionModel(0.8e-3, 0.9e-3, 50e3, 0.05, 0.1, 1.0, fr)
+    assert flat.minimum_growth_field() is None
+
+
+def test_evert_cli_writes_curves_and_summary(tmp_path, capsys):
+    assert main(["evert", str(DESIGNS / "design_cruciform.toml"), "--out", str(tmp_path), "--json"]) == 0
+    summary = json.loads(capsys.readouterr().out)
+    for name in ("eversion.csv", "eversion.png", "summary.json"):
+        assert (tmp_path / name).stat().st_size > 0
+    data = np.genfromtxt(tmp_path / "eversion.csv", delimiter=",", names=True)
+    assert len(data) == 200 and "P_Pa_50mT" in data.dtype.names
+    assert summary["minimum_growth_field_T"] == pytest.approx(0.1573, rel=1e-3)
+    assert main(["evert", str(DESIGNS / "design_cylindrical.toml"), "--out", str(tmp_path / "cyl"), "--json"]) == 0
+    cyl = json.loads(capsys.readouterr().out)
+    assert cyl["minimum_growth_field_T"] > summary["minimum_growth_field_T"]
+
+
+def test_evert_cli_rejects_bad_design(tmp_path, capsys):
+    bad = tmp_path / "bad.toml"
+    bad.write_text("[tube]\ninner_radius = 0.8e-3\nouter_radius = 0.9e-3\nshear_modulus = 5e4\n[friction]\nmu = 0.1\n")
+    assert main(["evert", str(bad), "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "friction.mu: unknown key" in err and "friction_coefficient" in err
+    bad.write_text("[tube]\ninner_radius = 0.9e-3\nouter_radius = 0.8e-3\nshear_modulus = 5e4\n")
+    assert main(["evert", str(bad), "--out", str(tmp_path / "o")]) == 2
+    assert "inner_radius" in capsys.readouterr().err
