@@ -15,6 +15,7 @@ COMMANDS = [
     "magsoro.commands.characterization",
     "magsoro.commands.rod",
     "magsoro.commands.epm_pose",
+    "magsoro.commands.evert",
 ]
 
 
