@@ -176,3 +176,118 @@ def fill_lattice(shape: Shape, dx: float, particles_per_cell: int, origin, dim: 
     pts = lattice_points(lo, hi, dx, particles_per_cell, np.asarray(origin, dtype=np.float64)[:dim])
     inside = shape.contains(pts)
     return pts[inside], (dx / particles_per_cell) ** dim
+
+
+def euler_rotation(degrees) -> np.ndarray:
+    """Rotation matrix (local -> world) from angles [rx, ry, rz] in degrees, applied about the fixed x, then y,
+    then z axes (R = Rz Ry Rx). A 2D scene's shapes use rz only."""
+    rx, ry, rz = np.deg2rad(np.asarray(degrees, dtype=np.float64).reshape(3))
+    cx, sx, cy, sy, cz, sz = np.cos(rx), np.sin(rx), np.cos(ry), np.sin(ry), np.cos(rz), np.sin(rz)
+    Rx = np.array([[1, 0, 0], [0, cx, -sx], [0, sx, cx]])
+    Ry = np.array([[cy, 0, sy], [0, 1, 0], [-sy, 0, cy]])
+    Rz = np.array([[cz, -sz, 0], [sz, cz, 0], [0, 0, 1]])
+    return Rz @ Ry @ Rx
+
+
+class Transformed(Shape):
+    """A shape defined in its own frame, placed by a rotation ``rotation`` (local -> world, 3x3 or 2x2) and a
+    translation ``position`` (m): world = R local + position."""
+
+    def __init__(self, local: Shape, position, rotation=None):
+        self.local = local
+        self.dim = local.dim
+        d = self.dim
+        self.position = np.asarray(position, dtype=np.float64).reshape(d)
+        R = np.eye(d) if rotation is None else np.asarray(rotation, dtype=np.float64)
+        self.R = R[:d, :d]
+
+    def contains(self, points):
+        return self.local.contains((np.asarray(points, dtype=np.float64)[:, : self.dim] - self.position) @ self.R)
+
+    def bounds(self):
+        lo, hi = (np.asarray(b, dtype=np.float64)[: self.dim] for b in self.local.bounds())
+        corners = np.array(np.meshgrid(*[[l, h] for l, h in zip(lo, hi)], indexing="ij")).reshape(self.dim, -1).T
+        world = corners @ self.R.T + self.position
+        return world.min(axis=0), world.max(axis=0)
+
+    def volume(self):
+        return self.local.volume()
+
+
+class Tube(Shape):
+    """Hollow cylinder: ``inner_radius`` <= r <= ``outer_radius``, length ``length`` (m), centred at ``center``
+    along ``axis``."""
+
+    def __init__(self, center, outer_radius, inner_radius, length, axis=(0, 0, 1)):
+        self.center = np.asarray(center, dtype=np.float64).reshape(3)
+        self.outer, self.inner, self.length = float(outer_radius), float(inner_radius), float(length)
+        if not (0 <= self.inner < self.outer) or self.length <= 0:
+            raise ValueError("a tube needs 0 <= inner_radius < outer_radius and length > 0")
+        self.R = rotation_to_axis(axis)
+        self._hull = Cylinder(center, outer_radius, length, axis)
+
+    def contains(self, points):
+        q = (np.asarray(points) - self.center) @ self.R
+        r = np.hypot(q[:, 0], q[:, 1])
+        return (r <= self.outer) & (r >= self.inner) & (np.abs(q[:, 2]) <= 0.5 * self.length)
+
+    def bounds(self):
+        return self._hull.bounds()
+
+    def volume(self):
+        return np.pi * (self.outer**2 - self.inner**2) * self.length
+
+
+class Slab(Shape):
+    """A 2D region (polygon, annular sector) extruded symmetrically along local z over ``thickness`` (m)."""
+
+    def __init__(self, profile: Shape, thickness: float):
+        if profile.dim != 2:
+            raise ValueError("the extruded profile must be two-dimensional")
+        self.profile, self.thickness = profile, float(thickness)
+        if self.thickness <= 0:
+            raise ValueError("extrusion thickness must be > 0")
+
+    def contains(self, points):
+        p = np.asarray(points)
+        return self.profile.contains(p[:, :2]) & (np.abs(p[:, 2]) <= 0.5 * self.thickness)
+
+    def bounds(self):
+        lo, hi = self.profile.bounds()
+        t = 0.5 * self.thickness
+        return np.array([lo[0], lo[1], -t]), np.array([hi[0], hi[1], t])
+
+    def volume(self):
+        return self.profile.volume() * self.thickness
+
+
+class AnnularSector(Shape):
+    """2D annular sector about the origin: ``radius`` - width/2 <= r <= ``radius`` + width/2 and polar angle in
+    [start, end] (radians, end > start, span <= 2 pi). Used for arc/arch strips."""
+
+    dim = 2
+
+    def __init__(self, radius: float, width: float, start: float, end: float):
+        self.inner, self.outer = float(radius) - 0.5 * float(width), float(radius) + 0.5 * float(width)
+        self.start, self.end = float(start), float(end)
+        if not (0 <= self.inner < self.outer):
+            raise ValueError("an arc needs 0 < width <= 2 radius")
+        if not (0 < self.end - self.start <= 2 * np.pi + 1e-12):
+            raise ValueError("an arc needs 0 < end_angle - start_angle <= 360 degrees")
+
+    def contains(self, points):
+        p = np.asarray(points)
+        r = np.hypot(p[:, 0], p[:, 1])
+        # angle measured from start in [0, 2 pi): robust to sectors crossing the +x axis
+        a = np.mod(np.arctan2(p[:, 1], p[:, 0]) - self.start, 2 * np.pi)
+        return (r >= self.inner) & (r <= self.outer) & (a <= self.end - self.start + 1e-12)
+
+    def bounds(self):
+        # the extreme points are the corner points and the axis crossings inside the span
+        angles = [self.start, self.end] + [k * 0.5 * np.pi for k in range(-8, 9) if self.start < k * 0.5 * np.pi < self.end]
+        a = np.asarray(angles)
+        pts = np.concatenate([np.stack([r * np.cos(a), r * np.sin(a)], axis=1) for r in (self.inner, self.outer)])
+        return pts.min(axis=0), pts.max(axis=0)
+
+    def volume(self):
+        return 0.5 * (self.end - self.start) * (self.outer**2 - self.inner**2)

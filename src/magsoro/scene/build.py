@@ -22,14 +22,29 @@ from magsoro.fields import (
     Sine,
     Uniform,
 )
-from magsoro.geometry.primitives import Box, Cylinder, Polygon, Rectangle, Sphere, fill_lattice
+from magsoro.geometry import magnetization as magprofiles
+from magsoro.geometry.mesh import MeshError, MeshShape
+from magsoro.geometry.primitives import (
+    AnnularSector,
+    Box,
+    Cylinder,
+    Polygon,
+    Rectangle,
+    Slab,
+    Sphere,
+    Transformed,
+    Tube,
+    euler_rotation,
+    fill_lattice,
+)
+from magsoro.materials.library import MaterialLibraryError, get_material, load_library
 from magsoro.mpm.colliders import Collider
 from magsoro.mpm.solver import Control, Model, SolverSettings
 from magsoro.scene.schema import Scene
 
 
-def make_shape(spec):
-    """Geometry object for a shape table of the scene."""
+def make_shape(spec, base_dir: Path | None = None, dim: int = 3):
+    """Geometry object for a shape table of the scene; mesh files resolve against ``base_dir``."""
     t = spec.type
     if t == "box":
         return Box(spec.center, spec.size)
@@ -41,6 +56,18 @@ def make_shape(spec):
         return Rectangle(spec.center, spec.size, np.deg2rad(spec.angle))
     if t == "polygon":
         return Polygon(spec.vertices)
+    if t == "tube":
+        return Tube(spec.center, spec.outer_radius, spec.inner_radius, spec.length, spec.axis)
+    if t == "extrusion":
+        return Transformed(Slab(Polygon(spec.vertices), spec.thickness), spec.position, euler_rotation(spec.rotation))
+    if t == "arc":
+        sector = AnnularSector(spec.radius, spec.width, np.deg2rad(spec.start_angle), np.deg2rad(spec.end_angle))
+        if dim == 2:
+            return Transformed(sector, spec.center)
+        return Transformed(Slab(sector, spec.thickness), spec.center, euler_rotation(spec.rotation))
+    if t == "mesh":
+        path = Path(spec.file) if base_dir is None else Path(base_dir) / spec.file
+        return MeshShape.from_file(path, spec.scale, spec.position, euler_rotation(spec.rotation))
     raise SceneError(f"unknown shape type {t!r}")
 
 
@@ -115,12 +142,31 @@ def make_collider(spec, dim: int, plane_z: float):
 ENGINE_MODELS = {"neo-hookean": 0, "mooney-rivlin": 1, "yeoh": 2}
 
 
-def resolve_material(spec, base_dir, key: str) -> dict:
-    """Material of a body as engine numbers: model id, initial shear modulus, bulk modulus, params, density.
+def resolve_material(spec, base_dir, key: str, library: dict | None = None) -> dict:
+    """Material of a body as engine numbers: model id, initial shear modulus, bulk modulus, params, density,
+    and the library remanence (T, 0 when not from the library).
 
-    Reads ``spec.file`` (a `magsoro fit-material` entry) when given; inline keys override it.
+    ``spec`` is a Material table or a library entry name. Reads ``spec.library`` (an entry of ``library``, default
+    the built-in one) or ``spec.file`` (a `magsoro fit-material` entry) when given; inline keys override it.
     """
     values = {}
+    remanence = None
+    lib_key = key
+    if isinstance(spec, str):
+        from magsoro.scene.schema import Material
+
+        spec = Material(library=spec)
+    else:
+        lib_key = f"{key}.library"
+    if spec.library is not None:
+        try:
+            entry = get_material(spec.library, library)
+        except MaterialLibraryError as exc:
+            raise SceneError(f"{lib_key}: {exc}") from None
+        values.update(model="neo-hookean", density=entry.density, shear_modulus=entry.shear_modulus)
+        remanence = entry.remanence
+        if spec.model not in (None, "neo-hookean"):
+            values.pop("shear_modulus")  # the library's modulus is Neo-Hookean; another model needs its own constants
     if spec.file is not None:
         import tomllib
 
@@ -166,7 +212,212 @@ def resolve_material(spec, base_dir, key: str) -> dict:
     if not G > 0:
         raise SceneError(f"{key}: the initial shear modulus must be > 0 Pa, got {G}")
     K = float(values.get("bulk_modulus") or 20.0 * G)
-    return {"model": ENGINE_MODELS[model], "shear_modulus": G, "bulk_modulus": K, "params": params, "density": float(values["density"])}
+    return {"model": ENGINE_MODELS[model], "shear_modulus": G, "bulk_modulus": K, "params": params, "density": float(values["density"]), "remanence": remanence}
+
+
+def make_magnetization(spec, remanence: float | None, base_dir, key: str):
+    """Profile function X (N, 3) m -> Br (N, 3) T for a body's ``magnetization`` (vector or profile table).
+
+    ``remanence`` (T) is the library material's, used when a profile gives no magnitude.
+    """
+    if isinstance(spec, list):
+        return magprofiles.uniform(spec)
+
+    def magnitude():
+        if spec.magnitude is not None:
+            return spec.magnitude
+        if remanence is None:
+            raise SceneError(f"{key}.magnitude: required (T) unless the material is a library entry (whose remanence is the default)")
+        return remanence
+
+    try:
+        if spec.type == "uniform":
+            d = np.asarray(spec.direction, dtype=np.float64)
+            return magprofiles.uniform(magnitude() * d / np.linalg.norm(d))
+        if spec.type == "rotating":
+            return magprofiles.rotating(magnitude(), spec.axis, spec.origin, spec.period, spec.u, spec.v, np.deg2rad(spec.phase))
+        if spec.type == "table":
+            vec = np.asarray(spec.vectors, dtype=np.float64)
+            if spec.magnitude is not None:
+                n = np.linalg.norm(vec, axis=1, keepdims=True)
+                vec = spec.magnitude * np.divide(vec, n, out=np.zeros_like(vec), where=n > 0)
+            return magprofiles.table(spec.axis, spec.origin, spec.positions, vec, spec.interpolation)
+        if spec.type == "file":
+            return magprofiles.from_array_file(Path(spec.file) if base_dir is None else Path(base_dir) / spec.file)
+        if spec.type == "expression":
+            return magprofiles.expression([spec.x, spec.y, spec.z])
+    except (ValueError, FileNotFoundError) as exc:
+        raise SceneError(f"{key}: {exc}") from None
+    raise SceneError(f"{key}: unknown magnetisation type {spec.type!r}")
+
+
+@dataclass
+class Particles:
+    """The particles of a scene before any engine object exists (used by build and by `magsoro show`).
+
+    positions (N, dim) m; volumes (N,) m^3 (2D: area x depth); density, shear_modulus, bulk_modulus (N,);
+    remanence (N, 3) T; body (N,) int; clamped (N,) bool; material_model (N,) int; material_params (N, 3) Pa;
+    velocity (N, dim) m/s.
+    """
+
+    positions: np.ndarray
+    volumes: np.ndarray
+    density: np.ndarray
+    shear_modulus: np.ndarray
+    bulk_modulus: np.ndarray
+    remanence: np.ndarray
+    body: np.ndarray
+    clamped: np.ndarray
+    material_model: np.ndarray
+    material_params: np.ndarray
+    velocity: np.ndarray
+    body_names: list[str]
+    report: list[dict]
+
+
+def _lattice_index(pts, lo, h):
+    """Integer lattice coordinates of lattice points (exact: every fill uses the same grid-aligned lattice)."""
+    return np.rint((pts - lo) / h - 0.5).astype(np.int64)
+
+
+def fill_bodies(scene: Scene, source: str = "scene", magnetization=None) -> Particles:
+    """Fill every body with particles on the grid-aligned lattice and give them material and remanence.
+
+    ``magnetization``: optional Python callable X (N, 3) m -> Br (N, 3) T applied to every body, or a dict
+    {body name: callable}; it replaces the scene's magnetisation of those bodies. Overlapping bodies keep the
+    shared particles for the one with the higher ``priority``; without distinct priorities they are refused.
+    """
+    sim = scene.simulation
+    dim, dx, ppc = sim.dim, sim.dx, sim.particles_per_cell
+    lo, hi = np.asarray(sim.domain_lo, dtype=np.float64), np.asarray(sim.domain_hi, dtype=np.float64)
+    depth = sim.depth if dim == 2 else 1.0
+    h = dx / ppc
+    libs = getattr(scene, "_material_libraries", None) or []
+    try:
+        library = load_library(libs) if libs else None
+    except MaterialLibraryError as exc:
+        raise SceneError(f"{source}: material_library: {exc}") from None
+    names = [b.name for b in scene.bodies]
+    if magnetization is None and getattr(scene, "_magnetization", None):
+        magnetization = dict(scene._magnetization)  # set by Scene.set_magnetization
+    if isinstance(magnetization, dict):
+        unknown = [k for k in magnetization if k not in names]
+        if unknown:
+            raise SceneError(f"magnetization: no body named '{unknown[0]}'; bodies: {', '.join(names)}")
+    per_body = []
+    report = []
+    for i, b in enumerate(scene.bodies):
+        bsrc = getattr(b, "_source", None) or source
+        bkey = getattr(b, "_key", None) or f"bodies[{i}]"
+        base_dir = getattr(b, "_base_dir", None)
+        if base_dir is None:
+            base_dir = getattr(scene, "_base_dir", None)
+        try:
+            shape = make_shape(b.shape, base_dir, dim)
+            pts, v_each = fill_lattice(shape, dx, ppc, lo, dim)
+        except MeshError as exc:
+            raise SceneError(f"{bsrc}: {bkey}.shape.file: {exc}") from None
+        except ValueError as exc:
+            raise SceneError(f"{bsrc}: {bkey}.shape: {exc}") from None
+        if len(pts) == 0:
+            raise SceneError(f"{bsrc}: {bkey}.shape: body '{b.name}' holds no particle at dx = {dx} m; refine simulation.dx or enlarge the shape")
+        blo, bhi = shape.bounds()
+        blo, bhi = np.asarray(blo)[:dim], np.asarray(bhi)[:dim]
+        margin = 2 * dx  # walls act on the outer two cells
+        if np.any(blo < lo + margin) or np.any(bhi > hi - margin):
+            raise SceneError(
+                f"{bsrc}: {bkey}.shape: body '{b.name}' spans {blo.tolist()} to {bhi.tolist()} m, outside the domain "
+                f"[{lo.tolist()}, {hi.tolist()}] shrunk by two cells ({margin} m); move it or enlarge simulation.domain_lo/domain_hi"
+            )
+        mat = resolve_material(b.material, base_dir, f"{bsrc}: {bkey}.material", library)
+        fn = magnetization.get(b.name) if isinstance(magnetization, dict) else magnetization
+        key = "magnetization (Python callable)" if fn is not None else f"{bkey}.magnetization"
+        if fn is None:
+            fn = make_magnetization(b.magnetization, mat["remanence"], base_dir, f"{bsrc}: {bkey}.magnetization")
+        try:
+            Br = magprofiles.evaluate(fn, pts)
+        except magprofiles.ExpressionError as exc:
+            raise SceneError(f"{bsrc}: {key}: {exc}") from None
+        except (ValueError, TypeError, ArithmeticError) as exc:
+            raise SceneError(f"{bsrc}: {key}: body '{b.name}': {exc}") from None
+        if b.magnetic and not np.any(np.linalg.norm(Br, axis=1) > 0):
+            raise SceneError(f"{bsrc}: {bkey}.magnetization: body '{b.name}' is marked magnetic but its magnetisation is zero everywhere; give a magnitude (T) or a magnetised library material")
+        per_body.append(dict(pts=pts, v_each=v_each, mat=mat, Br=Br, key=bkey, src=bsrc))
+        report.append({"body": b.name, "particles": len(pts), "filled_volume": len(pts) * v_each * (depth if dim == 2 else 1.0),
+                       "shape_volume": shape.volume() * (depth if dim == 2 else 1.0), "density": mat["density"],
+                       "mass": len(pts) * v_each * depth * mat["density"]})
+    _resolve_overlaps(scene, per_body, report, lo, h, source)
+    n_total = sum(len(pb["pts"]) for pb in per_body)
+    if n_total == 0:
+        raise SceneError(f"{source}: bodies: no particle left after resolving overlaps")
+    X = np.concatenate([pb["pts"] for pb in per_body])
+    body_id = np.concatenate([np.full(len(pb["pts"]), i, dtype=np.int32) for i, pb in enumerate(per_body)])
+    clamped = np.concatenate([np.full(len(pb["pts"]), bool(b.clamped)) for b, pb in zip(scene.bodies, per_body)])
+
+    def per(f, dtype=np.float64):
+        return np.concatenate([np.full(len(pb["pts"]), f(pb), dtype=dtype) for pb in per_body])
+
+    vel = np.concatenate([
+        np.tile(np.asarray(b.velocity if b.velocity is not None else np.zeros(dim), dtype=np.float64), (len(pb["pts"]), 1))
+        for b, pb in zip(scene.bodies, per_body)
+    ])
+    return Particles(
+        positions=X,
+        volumes=per(lambda pb: pb["v_each"] * depth),
+        density=per(lambda pb: pb["mat"]["density"]),
+        shear_modulus=per(lambda pb: pb["mat"]["shear_modulus"]),
+        bulk_modulus=per(lambda pb: pb["mat"]["bulk_modulus"]),
+        remanence=np.concatenate([pb["Br"] for pb in per_body]),
+        body=body_id,
+        clamped=clamped,
+        material_model=per(lambda pb: pb["mat"]["model"], np.int32),
+        material_params=np.concatenate([np.tile(pb["mat"]["params"], (len(pb["pts"]), 1)) for pb in per_body]),
+        velocity=vel,
+        body_names=names,
+        report=report,
+    )
+
+
+def _resolve_overlaps(scene, per_body, report, lo, h, source):
+    """All bodies share one lattice, so overlapping bodies have particles at identical sites: find them exactly."""
+    if len(per_body) < 2:
+        return
+    idx = [_lattice_index(pb["pts"], lo[: pb["pts"].shape[1]], h) for pb in per_body]
+    span = np.max(np.concatenate([np.abs(i).max(axis=0, keepdims=True) for i in idx]), axis=0) * 2 + 3
+    off = span // 2 + 1
+
+    def code(i):
+        c = np.zeros(len(i), dtype=np.int64)
+        for a in range(i.shape[1]):
+            c = c * span[a] + (i[:, a] + off[a])
+        return c
+
+    codes = [code(i) for i in idx]
+    bodies = scene.bodies
+    for a in range(len(per_body)):
+        for b in range(a + 1, len(per_body)):
+            shared = np.isin(codes[a], codes[b])
+            if not shared.any():
+                continue
+            pa, pb_ = bodies[a].priority, bodies[b].priority
+            if pa is None or pb_ is None or pa == pb_:
+                raise SceneError(
+                    f"{per_body[b]['src']}: {per_body[b]['key']}.priority: bodies '{bodies[a].name}' and '{bodies[b].name}' overlap "
+                    f"({int(shared.sum())} particles); give them different priorities (the higher one keeps the overlap) or move them apart"
+                )
+            loser, lose_mask = (b, np.isin(codes[b], codes[a])) if pa > pb_ else (a, shared)
+            keep = ~lose_mask
+            for k in ("pts", "Br"):
+                per_body[loser][k] = per_body[loser][k][keep]
+            codes[loser] = codes[loser][keep]
+            r = report[loser]
+            r["particles"] = len(per_body[loser]["pts"])
+            factor = r["particles"] / max(r["particles"] + int(lose_mask.sum()), 1)
+            r["filled_volume"] *= factor
+            r["mass"] *= factor
+            r["overlap_removed"] = r.get("overlap_removed", 0) + int(lose_mask.sum())
+            if r["particles"] == 0:
+                raise SceneError(f"{per_body[loser]['src']}: {per_body[loser]['key']}.shape: body '{bodies[loser].name}' lies entirely inside a body of higher priority")
 
 
 @dataclass
@@ -206,52 +457,22 @@ class Built:
     fill_report: list[dict] = field(default_factory=list)
 
 
-def build(scene: Scene, device: str | None = None, source: str = "scene") -> Built:
+def build(scene: Scene, device: str | None = None, source: str = "scene", magnetization=None) -> Built:
     """Fill bodies with particles and assemble Model, Control, SolverSettings and probes.
 
-    Raises SceneError when a body has no particle at this resolution or lies (partly) outside the domain.
+    ``magnetization``: optional callable X (N, 3) m -> Br (N, 3) T (all bodies) or {body name: callable}, replacing
+    the scene's magnetisation (see :func:`fill_bodies`). Raises SceneError when a body has no particle at this
+    resolution, lies (partly) outside the domain, or overlaps another without a priority rule.
     """
     sim = scene.simulation
-    dim, dx, ppc = sim.dim, sim.dx, sim.particles_per_cell
+    dim, dx = sim.dim, sim.dx
     lo, hi = np.asarray(sim.domain_lo, dtype=np.float64), np.asarray(sim.domain_hi, dtype=np.float64)
-    depth = sim.depth if dim == 2 else 1.0
-    pos, vol, rho, G, K, Br, body, vel, mat_model, mat_params = [], [], [], [], [], [], [], [], [], []
-    report = []
-    for i, b in enumerate(scene.bodies):
-        shape = make_shape(b.shape)
-        try:
-            pts, v_each = fill_lattice(shape, dx, ppc, lo, dim)
-        except ValueError as exc:
-            raise SceneError(f"{source}: bodies[{i}].shape: {exc}") from None
-        if len(pts) == 0:
-            raise SceneError(f"{source}: bodies[{i}].shape: body '{b.name}' holds no particle at dx = {dx} m; refine simulation.dx or enlarge the shape")
-        blo, bhi = shape.bounds()
-        blo, bhi = np.asarray(blo)[:dim], np.asarray(bhi)[:dim]
-        margin = 2 * dx  # walls act on the outer two cells
-        if np.any(blo < lo + margin) or np.any(bhi > hi - margin):
-            raise SceneError(
-                f"{source}: bodies[{i}].shape: body '{b.name}' spans {blo.tolist()} to {bhi.tolist()} m, outside the domain "
-                f"[{lo.tolist()}, {hi.tolist()}] shrunk by two cells ({margin} m); move it or enlarge simulation.domain_lo/domain_hi"
-            )
-        n = len(pts)
-        mat = resolve_material(b.material, getattr(scene, "_base_dir", None), f"{source}: bodies[{i}].material")
-        pos.append(pts)
-        vol.append(np.full(n, v_each * depth))
-        rho.append(np.full(n, mat["density"]))
-        G.append(np.full(n, mat["shear_modulus"]))
-        K.append(np.full(n, mat["bulk_modulus"]))
-        mat_model.append(np.full(n, mat["model"], dtype=np.int32))
-        mat_params.append(np.tile(mat["params"], (n, 1)))
-        Br.append(np.tile(np.asarray(b.magnetization, dtype=np.float64), (n, 1)))
-        body.append(np.full(n, i, dtype=np.int32))
-        vel.append(np.tile(np.asarray(b.velocity if b.velocity is not None else np.zeros(dim), dtype=np.float64), (n, 1)))
-        report.append({"body": b.name, "particles": n, "filled_volume": n * v_each, "shape_volume": shape.volume()})
-    X = np.concatenate(pos)
-    body_id = np.concatenate(body)
-    clamped = np.zeros(len(X), dtype=bool)
-    names = [b.name for b in scene.bodies]
+    p = fill_bodies(scene, source, magnetization)
+    X, body_id, clamped = p.positions, p.body, p.clamped.copy()
+    names = p.body_names
+    base_dir = getattr(scene, "_base_dir", None)
     for i, c in enumerate(scene.clamps):
-        region = make_shape(c.region)
+        region = make_shape(c.region, base_dir, dim)
         inside = region.contains(X)
         if c.body is not None:
             inside &= body_id == names.index(c.body)
@@ -259,10 +480,12 @@ def build(scene: Scene, device: str | None = None, source: str = "scene") -> Bui
             raise SceneError(f"{source}: clamps[{i}].region: holds no particle; check the region against the bodies")
         clamped |= inside
     model = Model(
-        X, np.concatenate(vol), np.concatenate(rho), np.concatenate(G), np.concatenate(K), np.concatenate(Br), body_id, clamped,
+        X, p.volumes, p.density, p.shear_modulus, p.bulk_modulus, p.remanence, body_id, clamped,
         dx=dx, domain_lo=lo, domain_hi=hi, precision=sim.precision, device=device or sim.device,
-        material_model=np.concatenate(mat_model), material_params=np.concatenate(mat_params),
+        material_model=p.material_model, material_params=p.material_params,
     )
+    report = p.report
+    p_vel = p.velocity
     sources = []
     for i, f in enumerate(scene.fields):
         try:
@@ -283,7 +506,7 @@ def build(scene: Scene, device: str | None = None, source: str = "scene") -> Bui
     for i, p in enumerate(scene.probes):
         sel = np.flatnonzero(body_id == names.index(p.body))
         if p.type in ("tip", "point"):
-            region = make_shape(p.region)
+            region = make_shape(p.region, base_dir, dim)
             sel = sel[region.contains(X[sel])]
             if len(sel) == 0:
                 raise SceneError(f"{source}: probes[{i}].region: holds no particle of body '{p.body}'")
@@ -292,4 +515,4 @@ def build(scene: Scene, device: str | None = None, source: str = "scene") -> Bui
             probes.append(ProbeSpec(p.name, "centroid", sel, masses[sel]))
         else:
             probes.append(ProbeSpec(p.name, "bbox", sel))
-    return Built(model, Control(sources, colliders), settings, probes, names, np.concatenate(vel), report)
+    return Built(model, Control(sources, colliders), settings, probes, names, p_vel, report)

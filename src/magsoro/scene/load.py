@@ -40,13 +40,23 @@ def _inner_model(ann):
     return None
 
 
-def _resolve(loc):
-    """Follow loc through Scene, dropping discriminator tags; return (clean loc, model class or None)."""
-    cls = Scene
+# tags of the callable discriminators in schema.py (vector or profile, library name or material table)
+_UNION_TAGS = {"magnetization": {"vector": None, "profile": "profile"}, "material": {"name": None, "table": "table"}}
+
+
+def _resolve(loc, root=None):
+    """Follow loc through the model (Scene by default), dropping discriminator tags; return (clean loc, model class or None)."""
+    from magsoro.scene.schema import AnyMagnetization, Material
+
+    cls = Scene if root is None else root
     clean = []
     for part in loc:
         if isinstance(part, int):
             clean.append(part)
+            continue
+        if clean and clean[-1] in _UNION_TAGS and part in _UNION_TAGS[clean[-1]]:
+            kind = _UNION_TAGS[clean[-1]][part]
+            cls = Material if kind == "table" else (_inner_model(AnyMagnetization) if kind == "profile" else None)
             continue
         if isinstance(cls, list):  # union: part is the tag
             match = [m for m in cls if getattr(m.model_fields.get("type"), "annotation", None) is not None and part in typing.get_args(m.model_fields["type"].annotation)]
@@ -62,15 +72,15 @@ def _resolve(loc):
     return clean, cls
 
 
-def format_validation_error(exc: ValidationError, source: str = "scene") -> str:
+def format_validation_error(exc: ValidationError, source: str = "scene", root=None) -> str:
     """One line: '<source>: <key>: <problem>' for the first error, plus how many more there are."""
     errors = exc.errors()
     first = errors[0]
-    loc, _ = _resolve(first["loc"])
+    loc, _ = _resolve(first["loc"], root)
     key = _loc_str(loc) or "(top level)"
     kind = first["type"]
     if kind == "extra_forbidden":
-        parent_loc, parent = _resolve(first["loc"][:-1])
+        parent_loc, parent = _resolve(first["loc"][:-1], root)
         allowed = sorted(parent.model_fields) if isinstance(parent, type) else []
         msg = f"unknown key '{loc[-1]}'" + (f"; allowed keys here: {', '.join(allowed)}" if allowed else "")
     elif kind == "missing":
@@ -94,9 +104,58 @@ def parse_scene(data: dict, source: str = "scene", base_dir: Path | None = None)
         scene = Scene.model_validate(data)
     except ValidationError as exc:
         raise SceneError(format_validation_error(exc, source)) from None
-    check_scene(scene, source, base_dir)
     scene._base_dir = base_dir  # where relative file names resolve
+    for i, b in enumerate(scene.bodies):
+        b._key, b._source, b._base_dir = f"bodies[{i}]", source, base_dir
+    scene._material_libraries = [_rel(base_dir, f) for f in scene.material_library]
+    for i, f in enumerate(scene.material_library):
+        if not scene._material_libraries[i].is_file():
+            raise SceneError(f"{source}: material_library[{i}]: file '{scene._material_libraries[i]}' not found")
+    _expand_robot(scene, source, base_dir)
+    check_scene(scene, source, base_dir)
     return scene
+
+
+def _rel(base_dir, name) -> Path:
+    return Path(name) if base_dir is None else Path(base_dir) / name
+
+
+def _expand_robot(scene: Scene, source: str, base_dir) -> None:
+    """Append the robot's parts (inline and from its file) to scene.bodies, remembering where each came from."""
+    from magsoro.scene.schema import Robot, RobotFile
+
+    robot = scene.robot
+    if robot is None:
+        return
+    if isinstance(robot, str):
+        robot = Robot(file=robot)
+    for j, part in enumerate(robot.parts):
+        part._key, part._source, part._base_dir = f"robot.parts[{j}]", source, base_dir
+        scene.bodies.append(part)
+    if robot.file is None:
+        if not robot.parts:
+            raise SceneError(f"{source}: robot: give a robot file or [[robot.parts]]")
+        return
+    path = _rel(base_dir, robot.file)
+    key = "robot" if isinstance(scene.robot, str) else "robot.file"
+    if not path.is_file():
+        raise SceneError(f"{source}: {key}: robot file '{path}' not found")
+    try:
+        data = tomllib.loads(path.read_text())
+    except tomllib.TOMLDecodeError as exc:
+        raise SceneError(f"{path}: not valid TOML: {exc}") from None
+    try:
+        rf = RobotFile.model_validate(data)
+    except ValidationError as exc:
+        raise SceneError(format_validation_error(exc, str(path), RobotFile)) from None
+    for i, f in enumerate(rf.material_library):
+        lib = _rel(path.parent, f)
+        if not lib.is_file():
+            raise SceneError(f"{path}: material_library[{i}]: file '{lib}' not found")
+        scene._material_libraries.append(lib)
+    for j, part in enumerate(rf.parts):
+        part._key, part._source, part._base_dir = f"parts[{j}]", str(path), path.parent
+        scene.bodies.append(part)
 
 
 def load_scene(path) -> Scene:
@@ -118,15 +177,39 @@ def _vec_len(value, n, key, source):
         raise SceneError(f"{source}: {key}: needs {n} components in a {n}D scene, got {len(value)}")
 
 
-def _check_shape(shape, dim, key, source):
+def _check_shape(shape, dim, key, source, base_dir=None):
     allowed = SHAPES_2D if dim == 2 else SHAPES_3D
     if shape.type not in allowed:
         raise SceneError(f"{source}: {key}.type: '{shape.type}' is not a {dim}D shape; allowed: {', '.join(allowed)}")
     for attr in ("center", "size"):
         if hasattr(shape, attr):
             _vec_len(getattr(shape, attr), dim, f"{key}.{attr}", source)
-    if shape.type == "cylinder":
+    if shape.type in ("cylinder", "tube"):
         _vec_len(shape.axis, 3, f"{key}.axis", source)
+    if shape.type == "tube" and shape.inner_radius >= shape.outer_radius:
+        raise SceneError(f"{source}: {key}.inner_radius: must be < outer_radius ({shape.outer_radius} m), got {shape.inner_radius}")
+    if shape.type in ("mesh", "extrusion"):
+        _vec_len(shape.position, 3, f"{key}.position", source)
+    if shape.type in ("mesh", "extrusion", "arc"):
+        _vec_len(shape.rotation, 3, f"{key}.rotation", source)
+    if shape.type == "mesh":
+        path = _rel(base_dir, shape.file)
+        if not path.is_file():
+            raise SceneError(f"{source}: {key}.file: mesh file '{path}' not found")
+    if shape.type == "extrusion":
+        for i, v in enumerate(shape.vertices):
+            _vec_len(v, 2, f"{key}.vertices[{i}]", source)
+        if len(shape.vertices) < 3:
+            raise SceneError(f"{source}: {key}.vertices: a polygon needs at least 3 vertices")
+    if shape.type == "arc":
+        if dim == 3 and shape.thickness is None:
+            raise SceneError(f"{source}: {key}.thickness: required for an arc in a 3D scene (m)")
+        if dim == 2 and shape.thickness is not None:
+            raise SceneError(f"{source}: {key}.thickness: not used in a 2D scene (the depth is simulation.depth)")
+        if shape.width > 2 * shape.radius:
+            raise SceneError(f"{source}: {key}.width: must be <= 2 x radius ({2 * shape.radius} m), got {shape.width}")
+        if not 0 < shape.end_angle - shape.start_angle <= 360:
+            raise SceneError(f"{source}: {key}.end_angle: must exceed start_angle by at most 360 degrees")
     if shape.type == "polygon":
         for i, v in enumerate(shape.vertices):
             _vec_len(v, 2, f"{key}.vertices[{i}]", source)
@@ -148,21 +231,29 @@ def check_scene(scene: Scene, source: str, base_dir: Path | None) -> None:
     if min(extent) < 6 * sim.dx:
         raise SceneError(f"{source}: simulation.dx: {sim.dx} m is too coarse for a domain of {min(extent)} m (need at least 6 cells per axis)")
     _vec_len(sim.gravity, dim, "simulation.gravity", source)
+    if not scene.bodies:
+        raise SceneError(f"{source}: bodies: a scene needs at least one body ([[bodies]]) or robot part")
     names = [b.name for b in scene.bodies]
     for i, b in enumerate(scene.bodies):
+        bsrc, bkey = b._source or source, b._key or f"bodies[{i}]"
         if b.name in names[:i]:
-            raise SceneError(f"{source}: bodies[{i}].name: duplicate body name '{b.name}'")
-        _check_shape(b.shape, dim, f"bodies[{i}].shape", source)
-        _vec_len(b.velocity, dim, f"bodies[{i}].velocity", source)
+            raise SceneError(f"{bsrc}: {bkey}.name: duplicate body name '{b.name}'")
+        _check_shape(b.shape, dim, f"{bkey}.shape", bsrc, b._base_dir)
+        _vec_len(b.velocity, dim, f"{bkey}.velocity", bsrc)
+        mag = b.magnetization
+        if b.magnetic and isinstance(mag, list) and all(c == 0 for c in mag):
+            raise SceneError(f"{bsrc}: {bkey}.magnetization: body '{b.name}' is marked magnetic but its magnetisation is zero; give a non-zero vector (T) or a profile")
+        if not isinstance(mag, list) and mag.type == "file" and not _rel(b._base_dir, mag.file).is_file():
+            raise SceneError(f"{bsrc}: {bkey}.magnetization.file: file '{_rel(b._base_dir, mag.file)}' not found")
     for i, c in enumerate(scene.clamps):
-        _check_shape(c.region, dim, f"clamps[{i}].region", source)
+        _check_shape(c.region, dim, f"clamps[{i}].region", source, base_dir)
         if c.body is not None and c.body not in names:
             raise SceneError(f"{source}: clamps[{i}].body: no body named '{c.body}'; bodies: {', '.join(names)}")
     for i, p in enumerate(scene.probes):
         if p.body not in names:
             raise SceneError(f"{source}: probes[{i}].body: no body named '{p.body}'; bodies: {', '.join(names)}")
         if p.type in ("tip", "point"):
-            _check_shape(p.region, dim, f"probes[{i}].region", source)
+            _check_shape(p.region, dim, f"probes[{i}].region", source, base_dir)
     probe_names = [p.name for p in scene.probes]
     for i, p in enumerate(scene.probes):
         if p.name in probe_names[:i]:

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from typing import Annotated, Literal, Union
 
-from pydantic import BaseModel, ConfigDict, Field, PrivateAttr, model_validator
+from pydantic import BaseModel, ConfigDict, Discriminator, Field, PrivateAttr, Tag, model_validator
 
 Vec = list[float]
 
@@ -67,10 +67,63 @@ class PolygonShape(Strict):
     vertices: list[Vec] = Field(description="Vertices [[x, y], ...] in m, either winding order.")
 
 
-Shape3D = Annotated[Union[BoxShape, CylinderShape, SphereShape], Field(discriminator="type")]
-AnyShape = Annotated[Union[BoxShape, CylinderShape, SphereShape, RectangleShape, PolygonShape], Field(discriminator="type")]
-SHAPES_3D = ("box", "cylinder", "sphere")
-SHAPES_2D = ("rectangle", "polygon")
+class MeshShape(Strict):
+    """Closed triangle mesh from a CAD file (STL, OBJ, PLY), filled on the grid-aligned lattice (3D).
+
+    world = R(rotation) (scale x file coordinates) + position. A mesh that is not watertight is repaired when
+    trimesh can (merged vertices, filled holes); otherwise the scene is refused naming the file.
+    """
+
+    type: Literal["mesh"]
+    file: str = Field(description="Mesh file, relative to the scene (or robot) file.")
+    scale: float = Field(default=1.0, gt=0, description="Metres per file unit (1e-3 for a file in mm).")
+    position: Vec = Field(default=[0.0, 0.0, 0.0], description="Translation applied after scaling and rotation, m.")
+    rotation: Vec = Field(default=[0.0, 0.0, 0.0], description="Rotation [rx, ry, rz] about the fixed x, y, z axes, degrees (R = Rz Ry Rx).")
+
+
+class TubeShape(Strict):
+    """Hollow cylinder (3D)."""
+
+    type: Literal["tube"]
+    center: Vec = Field(description="Centre, m.")
+    outer_radius: float = Field(gt=0, description="Outer radius, m.")
+    inner_radius: float = Field(ge=0, description="Inner radius, m (< outer_radius).")
+    length: float = Field(gt=0, description="Length along the axis, m.")
+    axis: Vec = Field(default=[0.0, 0.0, 1.0], description="Axis direction (any length).")
+
+
+class ExtrusionShape(Strict):
+    """2D polygon (local x-y) extruded along local z, centred on the local z = 0 plane, then placed (3D)."""
+
+    type: Literal["extrusion"]
+    vertices: list[Vec] = Field(description="Polygon vertices [[x, y], ...] in m, in the local frame, either winding order.")
+    thickness: float = Field(gt=0, description="Extrusion length along local z, m.")
+    position: Vec = Field(default=[0.0, 0.0, 0.0], description="Where the local origin goes, m.")
+    rotation: Vec = Field(default=[0.0, 0.0, 0.0], description="Rotation [rx, ry, rz] about the fixed x, y, z axes, degrees (R = Rz Ry Rx).")
+
+
+class ArcShape(Strict):
+    """Arc (arch) strip: an annular sector of mid radius ``radius`` and radial ``width`` about ``center``,
+    spanning polar angles start_angle..end_angle in the local x-y plane. In 3D it has ``thickness`` along local z
+    and is turned by ``rotation``; in 2D it lies in the scene plane."""
+
+    type: Literal["arc"]
+    center: Vec = Field(description="Centre of curvature, m.")
+    radius: float = Field(gt=0, description="Mid-line radius, m.")
+    width: float = Field(gt=0, description="Radial width of the strip, m (<= 2 radius).")
+    start_angle: float = Field(default=0.0, description="Start polar angle, degrees.")
+    end_angle: float = Field(default=180.0, description="End polar angle, degrees (> start_angle, span <= 360).")
+    thickness: float | None = Field(default=None, gt=0, description="3D only (required there): thickness along local z, m.")
+    rotation: Vec = Field(default=[0.0, 0.0, 0.0], description="3D only: rotation [rx, ry, rz] about the fixed x, y, z axes, degrees.")
+
+
+Shape3D = Annotated[Union[BoxShape, CylinderShape, SphereShape, MeshShape, TubeShape, ExtrusionShape, ArcShape], Field(discriminator="type")]
+AnyShape = Annotated[
+    Union[BoxShape, CylinderShape, SphereShape, RectangleShape, PolygonShape, MeshShape, TubeShape, ExtrusionShape, ArcShape],
+    Field(discriminator="type"),
+]
+SHAPES_3D = ("box", "cylinder", "sphere", "mesh", "tube", "extrusion", "arc")
+SHAPES_2D = ("rectangle", "polygon", "arc")
 
 
 # ---------------------------------------------------------------- bodies
@@ -82,6 +135,7 @@ class Material(Strict):
     by ``magsoro fit-material --save-material`` (keys given here override the file's).
     """
 
+    library: str | None = Field(default=None, description="Name of a material library entry (magsoro materials list); keys given here override it. A bare string `material = \"NAME\"` means the same.")
     file: str | None = Field(default=None, description="Material entry TOML (from magsoro fit-material), relative to the scene file.")
     model: Literal["neo-hookean", "mooney-rivlin", "yeoh"] | None = Field(default=None, description="Constitutive model. Default 'neo-hookean' (or the file's).")
     density: float | None = Field(default=None, gt=0, description="Mass density, kg/m^3 (required here or in the file).")
@@ -94,8 +148,10 @@ class Material(Strict):
 
     @model_validator(mode="after")
     def _complete(self):
-        if self.file is not None:
-            return self  # completed against the file when the scene is built
+        if self.file is not None and self.library is not None:
+            raise ValueError("give either library or file, not both")
+        if self.file is not None or self.library is not None:
+            return self  # completed against the file or library entry when the scene is built
         model = self.model or "neo-hookean"
         if self.density is None:
             raise ValueError("density is required (kg/m^3)")
@@ -112,22 +168,145 @@ class Material(Strict):
         return self
 
 
+class UniformMagnetization(Strict):
+    """The same remanence everywhere in the body: magnitude x unit(direction)."""
+
+    type: Literal["uniform"]
+    direction: Vec = Field(description="Direction of Br in the reference frame (any non-zero length).")
+    magnitude: float | None = Field(default=None, ge=0, description="|Br|, T. Default: the remanence of the body's library material.")
+
+    @model_validator(mode="after")
+    def _dir(self):
+        _check_len(self.direction, "direction", 3)
+        if all(c == 0 for c in self.direction):
+            raise ValueError("direction must be non-zero")
+        return self
+
+
+class RotatingMagnetization(Strict):
+    """Direction turning along an axis: Br(s) = magnitude [cos(2 pi s/period + phase) u + sin(2 pi s/period + phase) v],
+    s = (X - origin) . axis. With period = body length it is the sinusoidal profile of Hu et al.'s walker (seed 000 sec 4.5)."""
+
+    type: Literal["rotating"]
+    axis: Vec = Field(default=[1.0, 0.0, 0.0], description="Axis along which the direction turns.")
+    origin: Vec = Field(default=[0.0, 0.0, 0.0], description="Where s = 0, m (3 components).")
+    period: float = Field(gt=0, description="Length over which the direction turns once, m.")
+    u: Vec = Field(default=[1.0, 0.0, 0.0], description="Direction at phase 0.")
+    v: Vec = Field(default=[0.0, 0.0, 1.0], description="Direction a quarter period later (orthogonalised against u).")
+    phase: float = Field(default=0.0, description="Phase at s = 0, degrees.")
+    magnitude: float | None = Field(default=None, ge=0, description="|Br|, T. Default: the remanence of the body's library material.")
+
+    @model_validator(mode="after")
+    def _len(self):
+        for k in ("axis", "origin", "u", "v"):
+            _check_len(getattr(self, k), k, 3)
+        return self
+
+
+class TableMagnetization(Strict):
+    """Br tabulated along an axis (e.g. one vector per segment of a tentacle, Pittiglio et al., seed 000 sec 4.5)."""
+
+    type: Literal["table"]
+    axis: Vec = Field(default=[1.0, 0.0, 0.0], description="Axis along which s is measured.")
+    origin: Vec = Field(default=[0.0, 0.0, 0.0], description="Where s = 0, m (3 components).")
+    positions: list[float] = Field(min_length=1, description="Increasing s values, m ('step': where each row starts).")
+    vectors: list[Vec] = Field(min_length=1, description="Br at each position, T; with magnitude given, only their directions count.")
+    interpolation: Literal["step", "linear"] = Field(default="step", description="'step' (piecewise constant) or 'linear'.")
+    magnitude: float | None = Field(default=None, ge=0, description="If given, every vector is scaled to this |Br|, T (zero rows stay zero).")
+
+    @model_validator(mode="after")
+    def _rows(self):
+        for k in ("axis", "origin"):
+            _check_len(getattr(self, k), k, 3)
+        if len(self.positions) != len(self.vectors):
+            raise ValueError("positions and vectors must have the same length")
+        for v in self.vectors:
+            _check_len(v, "each vector", 3)
+        if any(b <= a for a, b in zip(self.positions, self.positions[1:])):
+            raise ValueError("positions must be strictly increasing")
+        return self
+
+
+class FileMagnetization(Strict):
+    """Br sampled at points in an array file (.csv or .npy, columns x, y, z, Brx, Bry, Brz in m and T); each
+    particle takes the nearest sample."""
+
+    type: Literal["file"]
+    file: str = Field(description="Array file, relative to the scene (or robot) file.")
+
+
+class ExpressionMagnetization(Strict):
+    """Br components as expressions in the reference position x, y, z (m), giving T. Allowed: numbers, x, y, z,
+    pi, e, + - * / ** %, comparisons (giving 0 or 1) and sin cos tan asin acos atan atan2 sinh cosh tanh exp log
+    log10 sqrt abs hypot floor ceil sign min max where. In 2D scenes z = 0."""
+
+    type: Literal["expression"]
+    x: str = Field(default="0", description="Brx(x, y, z), T.")
+    y: str = Field(default="0", description="Bry(x, y, z), T.")
+    z: str = Field(default="0", description="Brz(x, y, z), T.")
+
+
+AnyMagnetization = Annotated[
+    Union[UniformMagnetization, RotatingMagnetization, TableMagnetization, FileMagnetization, ExpressionMagnetization],
+    Field(discriminator="type"),
+]
+
+
+def _is_table(tag_if_dict, tag_else):
+    def pick(v):
+        return tag_if_dict if isinstance(v, (dict, BaseModel)) else tag_else
+
+    return pick
+
+
+# Callable discriminators: a vector or a profile table, a library name or a material table; each error then
+# comes from the one branch the user meant.
+MagnetizationSpec = Annotated[
+    Union[Annotated[Vec, Tag("vector")], Annotated[AnyMagnetization, Tag("profile")]], Discriminator(_is_table("profile", "vector"))
+]
+MaterialSpec = Annotated[Union[Annotated[str, Tag("name")], Annotated[Material, Tag("table")]], Discriminator(_is_table("table", "name"))]
+
+
 class Body(Strict):
-    """A body: a shape filled with particles of one material and one remanence vector."""
+    """A body (or a robot part): a shape filled with particles of one material, with a magnetisation profile."""
 
     name: str = Field(description="Unique name, used by clamps and probes.")
-    shape: AnyShape = Field(description="Geometry; 'box', 'cylinder', 'sphere' in 3D, 'rectangle', 'polygon' in 2D.")
-    material: Material
-    magnetization: Vec = Field(
+    shape: AnyShape = Field(description="Geometry; 'box', 'cylinder', 'sphere', 'mesh', 'tube', 'extrusion', 'arc' in 3D; 'rectangle', 'polygon', 'arc' in 2D.")
+    material: MaterialSpec = Field(description="A table [Material](#material), or the name of a library entry (magsoro materials list).")
+    magnetization: MagnetizationSpec = Field(
         default=[0.0, 0.0, 0.0],
-        description="Remanent flux density Br in the reference frame, T (3 components; in 2D only x, y act).",
+        description="Remanent flux density Br in the reference frame: a vector in T (3 components; in 2D only x, y act) or a profile table (uniform, rotating, table, file, expression).",
     )
+    magnetic: bool | None = Field(default=None, description="If true, a magnetisation that is zero everywhere is an error (catches a forgotten magnitude).")
+    clamped: bool = Field(default=False, description="Hold every particle of this body fixed.")
+    priority: int | None = Field(default=None, description="Where bodies overlap, the one with the higher priority keeps the shared particles; overlapping bodies without distinct priorities are refused.")
     velocity: Vec | None = Field(default=None, description="Initial velocity, m/s. Default at rest.")
+    _base_dir: object = PrivateAttr(default=None)
+    _key: object = PrivateAttr(default=None)
+    _source: object = PrivateAttr(default=None)
 
     @model_validator(mode="after")
     def _lengths(self):
-        _check_len(self.magnetization, "magnetization", 3)
+        if isinstance(self.magnetization, list):
+            _check_len(self.magnetization, "magnetization", 3)
         return self
+
+
+class Robot(Strict):
+    """A robot made of parts: inline ``[[robot.parts]]`` and/or a robot file. Parts are bodies; they join
+    ``[[bodies]]`` under their own names."""
+
+    file: str | None = Field(default=None, description="Robot file (TOML with [[parts]]), relative to the scene file.")
+    parts: list[Body] = Field(default_factory=list, description="Parts ([[robot.parts]] tables), as for bodies.")
+
+
+class RobotFile(Strict):
+    """A robot file: parts and optional user material libraries. Relative paths in it resolve against it."""
+
+    name: str | None = Field(default=None, description="Robot name.")
+    description: str | None = Field(default=None, description="Free text: origin of the design, sources of the dimensions.")
+    material_library: list[str] = Field(default_factory=list, description="User material library TOML files, relative to the robot file.")
+    parts: list[Body] = Field(min_length=1, description="Parts ([[parts]] tables), as for bodies.")
 
 
 # ---------------------------------------------------------------- clamps
@@ -405,7 +584,9 @@ class Scene(Strict):
     """A magsoro scene: bodies, clamps, colliders, fields, probes, numerical settings and output."""
 
     simulation: Simulation
-    bodies: list[Body] = Field(min_length=1, description="Bodies ([[bodies]] tables).")
+    bodies: list[Body] = Field(default_factory=list, description="Bodies ([[bodies]] tables). A scene needs at least one body or robot part.")
+    robot: Union[str, Robot, None] = Field(default=None, description="A robot file name (relative to the scene), or a [robot] table with file and/or [[robot.parts]]; its parts become bodies.")
+    material_library: list[str] = Field(default_factory=list, description="User material library TOML files ([[materials]] entries, as in magsoro/data/materials.toml), relative to the scene file.")
     clamps: list[Clamp] = Field(default_factory=list, description="Clamped regions ([[clamps]] tables).")
     colliders: list[AnyCollider] = Field(default_factory=list, description="Rigid colliders ([[colliders]] tables).")
     fields: list[AnyField] = Field(default_factory=list, description="Field sources ([[fields]] tables); they add up.")
@@ -414,3 +595,23 @@ class Scene(Strict):
     name: str | None = Field(default=None, description="Scene title.")
     _base_dir: object = PrivateAttr(default=None)
     _source_path: object = PrivateAttr(default=None)
+    _material_libraries: object = PrivateAttr(default_factory=list)
+    _magnetization: object = PrivateAttr(default_factory=dict)
+
+    def set_magnetization(self, fn, body: str | None = None) -> "Scene":
+        """Give a body (or, with ``body=None``, every body) a magnetisation computed by a Python callable.
+
+        ``fn(X)`` receives the reference positions X (N, 3) in m (z = 0 in 2D scenes) and returns Br (N, 3) in T.
+        It replaces the scene file's magnetisation of that body when the scene is built (e.g. by
+        ``magsoro.simulation.Simulation(scene)``). Returns the scene, for chaining.
+        """
+        if not callable(fn):
+            raise TypeError("fn must be callable: X (N, 3) m -> Br (N, 3) T")
+        names = [b.name for b in self.bodies]
+        if body is not None and body not in names:
+            from magsoro.errors import SceneError
+
+            raise SceneError(f"set_magnetization: no body named '{body}'; bodies: {', '.join(names)}")
+        for name in names if body is None else [body]:
+            self._magnetization[name] = fn
+        return self
