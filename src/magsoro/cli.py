@@ -16,6 +16,9 @@ COMMANDS = [
     "magsoro.commands.rod",
     "magsoro.commands.epm_pose",
     "magsoro.commands.evert",
+    "magsoro.commands.sense",
+    "magsoro.commands.materials",
+    "magsoro.commands.show",
 ]
 
 

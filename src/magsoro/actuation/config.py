@@ -145,6 +145,9 @@ class SensingCalibration(_Strict):
     bend_normal: tuple[float, float, float] = Field((1.0, 0.0, 0.0), description=(
         "In-plane normal towards which a positive bend (H_z > 0) turns the robot. Default [1, 0, 0] (eq 23)."))
     points_per_segment: int = Field(20, ge=2, le=10_000, description="Centreline samples per segment. Default 20.")
+    smoothing_time: float = Field(0.0, ge=0, description=(
+        "Time constant of a causal first-order low-pass applied to the bend angles (not to the readings, "
+        "whose sign flips at beta = 0), s. Default 0 (none)."))
     stations: list[StationConfig] = Field(..., min_length=1, description="Sensing stations, base to tip. Required.")
 
     @model_validator(mode="after")
