@@ -17,8 +17,6 @@ COMMANDS = [
     "magsoro.commands.epm_pose",
     "magsoro.commands.evert",
     "magsoro.commands.sense",
-    "magsoro.commands.materials",
-    "magsoro.commands.show",
 ]
 
 
