@@ -16,6 +16,9 @@ import warp as wp
 from magsoro import MU0
 from magsoro.mpm.colliders import COLLIDER_STRIDE, collider_sdf
 
+# Unroll the 3^dim-node stencil loops (27 in 3D): constant offsets let the compiler fold the weight selection.
+wp.set_module_options({"max_unroll": 32})
+
 # Collider boundary modes (also used by the scene schema)
 STICKY = 0
 SLIP = 1

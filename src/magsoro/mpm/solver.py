@@ -19,7 +19,7 @@ import warp as wp
 from magsoro import MU0
 from magsoro.errors import SimulationError
 from magsoro.fields.device import FieldEvaluator
-from magsoro.mpm.colliders import MODES, Collider, collider_table
+from magsoro.mpm.colliders import COLLIDER_STRIDE, MODES, Collider, collider_table
 from magsoro.mpm.kernels import make_kernels
 
 PRECISIONS = {"float32": (wp.float32, np.float32), "float64": (wp.float64, np.float64)}
@@ -196,6 +196,10 @@ class Solver:
         self.B_particle = wp.zeros(n, dtype=self.k["v3"], device=dev)
         self.G_particle = wp.zeros(n, dtype=self.k["m3"], device=dev)
         self._collider_array = None
+        self._launches = None
+        self._launch_key = None
+        self._grid_version = 0
+        self._grid_views = []
 
     # -- states -------------------------------------------------------------------------------------------
     def new_state(self, velocity=None) -> State:
@@ -242,6 +246,60 @@ class Solver:
             self.capacity = cap
         self.n_active = need
         self.refits += 1
+        self._grid_version += 1
+        self._grid_views = [self.grid_p[:need], self.grid_m[:need], self.grid_clamp[:need]]
+
+    def _record_launches(self, state_in: State, state_out: State, control: Control, has_gradient: bool) -> None:
+        """Pack every kernel's arguments once (Warp's recorded launches); a step then only updates what changes.
+        Packing all arguments on each launch costs more than the kernels themselves for small robots."""
+        m, k, st, dev, sc = self.model, self.k, self.settings, self.device, self.scalar
+        vec, ivec = k["vec"], k["ivec"]
+        shape = ivec(*[int(s) for s in self.shape])
+        org = ivec(*[int(o) for o in self.org])
+        grid_lo = vec(*[sc(m.domain_lo[a] + self.org[a] * m.dx) for a in range(self.dim)])
+        n_act = self.n_active
+        self._launches = {
+            "p2g": wp.launch(
+                k["p2g"],
+                dim=m.n_particles,
+                inputs=[
+                    state_in.x, state_in.v, state_in.C, state_in.F,
+                    m.vol0, m.mass, m.shear, m.bulk, m.material_model, m.material_params, m.Br, m.clamped,
+                    k["v3"](), 1 if has_gradient else 0, self.B_particle, self.G_particle,
+                    grid_lo, shape, sc(m.dx), sc(0.0),
+                    self.grid_p, self.grid_m, self.grid_clamp, self.error,
+                ],
+                device=dev,
+                record_cmd=True,
+            ),
+            "grid_update": wp.launch(
+                k["grid_update"],
+                dim=n_act,
+                inputs=[
+                    self.grid_p, self.grid_m, self.grid_clamp, org, shape,
+                    vec(*[sc(v) for v in m.domain_lo]), vec(*[sc(v) for v in m.domain_hi]),
+                    MODES[st.walls], sc(st.wall_friction), sc(m.dx), sc(0.0),
+                    sc(1.0), self.gravity,
+                    self._collider_array, len(control.colliders), wp.float64(st.plane_z),
+                    self.grid_v,
+                ],
+                device=dev,
+                record_cmd=True,
+            ),
+            "reset": wp.launch(k["reset_reductions"], dim=1, inputs=[self.bounds, self.max_speed, sc(1e30)], device=dev, record_cmd=True),
+            "g2p": wp.launch(
+                k["g2p"],
+                dim=m.n_particles,
+                inputs=[
+                    self.grid_v, m.clamped, grid_lo, shape, sc(m.dx), sc(0.0),
+                    state_in.x, state_in.F,
+                    state_out.x, state_out.v, state_out.C, state_out.F,
+                    self.bounds, self.max_speed, self.error,
+                ],
+                device=dev,
+                record_cmd=True,
+            ),
+        }
 
     def grid_info(self) -> dict:
         return {"origin": self.org.tolist(), "shape": self.shape.tolist(), "nodes": self.n_active, "capacity": self.capacity, "refits": self.refits}
@@ -304,57 +362,37 @@ class Solver:
         b0 = fields.uniform_value(t)
         if fields.has_gradient:
             fields.evaluate(state_in.x, self.B_particle, self.G_particle, t)
-        table = collider_table(control.colliders, t)
-        if self._collider_array is None or self._collider_array.shape[0] != len(table):
-            self._collider_array = wp.array(table, dtype=wp.float64, device=dev)
-        else:
-            self._collider_array.assign(table)
-        n_act = self.n_active
-        vec, ivec = k["vec"], k["ivec"]
-        shape = ivec(*[int(s) for s in self.shape])
-        org = ivec(*[int(o) for o in self.org])
-        grid_lo = vec(*[sc(m.domain_lo[a] + self.org[a] * m.dx) for a in range(self.dim)])
-        self.grid_p[:n_act].zero_()
-        self.grid_m[:n_act].zero_()
-        self.grid_clamp[:n_act].zero_()
+        if control.colliders:
+            table = collider_table(control.colliders, t)
+            if self._collider_array is None or self._collider_array.shape[0] != len(table):
+                self._collider_array = wp.array(table, dtype=wp.float64, device=dev)
+                self._launches = None
+            else:
+                self._collider_array.assign(table)
+        elif self._collider_array is None:
+            self._collider_array = wp.zeros(COLLIDER_STRIDE, dtype=wp.float64, device=dev)
+        key = (self._grid_version, len(control.colliders), fields.has_gradient)
+        if self._launches is None or self._launch_key != key:
+            self._record_launches(state_in, state_out, control, fields.has_gradient)
+            self._launch_key = key
+        L = self._launches
+        # per-step values: the state pair (ping-pong), field, time step
+        for name, arr in (("x", state_in.x), ("v", state_in.v), ("C", state_in.C), ("F", state_in.F)):
+            L["p2g"].set_param_by_name(name, arr)
+        L["p2g"].set_param_by_name("B_uniform", k["v3"](*[sc(b) for b in b0]))
+        L["p2g"].set_param_by_name("dt", sc(dt))
+        L["grid_update"].set_param_by_name("dt", sc(dt))
+        L["grid_update"].set_param_by_name("damping_factor", sc(math.exp(-st.damping * dt)))
+        for name, arr in (("x_in", state_in.x), ("F_in", state_in.F), ("x_out", state_out.x), ("v_out", state_out.v), ("C_out", state_out.C), ("F_out", state_out.F)):
+            L["g2p"].set_param_by_name(name, arr)
+        L["g2p"].set_param_by_name("dt", sc(dt))
+        for view in self._grid_views:
+            view.zero_()
         self.error.zero_()
-        wp.launch(
-            k["p2g"],
-            dim=m.n_particles,
-            inputs=[
-                state_in.x, state_in.v, state_in.C, state_in.F,
-                m.vol0, m.mass, m.shear, m.bulk, m.material_model, m.material_params, m.Br, m.clamped,
-                k["v3"](*[sc(b) for b in b0]), 1 if fields.has_gradient else 0, self.B_particle, self.G_particle,
-                grid_lo, shape, sc(m.dx), sc(dt),
-                self.grid_p, self.grid_m, self.grid_clamp, self.error,
-            ],
-            device=dev,
-        )
-        wp.launch(
-            k["grid_update"],
-            dim=n_act,
-            inputs=[
-                self.grid_p, self.grid_m, self.grid_clamp, org, shape,
-                vec(*[sc(v) for v in m.domain_lo]), vec(*[sc(v) for v in m.domain_hi]),
-                MODES[st.walls], sc(st.wall_friction), sc(m.dx), sc(dt),
-                sc(math.exp(-st.damping * dt)), self.gravity,
-                self._collider_array, len(control.colliders), wp.float64(st.plane_z),
-                self.grid_v,
-            ],
-            device=dev,
-        )
-        wp.launch(k["reset_reductions"], dim=1, inputs=[self.bounds, self.max_speed, sc(1e30)], device=dev)
-        wp.launch(
-            k["g2p"],
-            dim=m.n_particles,
-            inputs=[
-                self.grid_v, m.clamped, grid_lo, shape, sc(m.dx), sc(dt),
-                state_in.x, state_in.F,
-                state_out.x, state_out.v, state_out.C, state_out.F,
-                self.bounds, self.max_speed, self.error,
-            ],
-            device=dev,
-        )
+        L["p2g"].launch()
+        L["grid_update"].launch()
+        L["reset"].launch()
+        L["g2p"].launch()
         self._bounds_valid = True
         state_out.time = t + dt
         state_out.step = state_in.step + 1
