@@ -17,6 +17,8 @@ COMMANDS = [
     "magsoro.commands.epm_pose",
     "magsoro.commands.evert",
     "magsoro.commands.sense",
+    "magsoro.commands.sweep",
+    "magsoro.commands.report",
 ]
 
 

@@ -1,0 +1,84 @@
+"""``magsoro sweep SCENE.toml --param KEY=VALUES [...] --out DIR``: run a parameter sweep on dask.distributed."""
+
+import sys
+import time
+
+from magsoro.errors import MagsoroError
+
+EPILOG = """\
+VALUES: a:b:n (n points from a to b) or a comma list of numbers, words or JSON values such as [0,0.01,0].
+Several --param make a cartesian product; --zip pairs the i-th values instead.
+KEY: dotted scene path; list entries by name or index, e.g. bodies.beam.material.shear_modulus, fields.0.B.
+See docs/sweeps.md."""
+
+
+def register(sub):
+    import argparse
+
+    p = sub.add_parser(
+        "sweep",
+        help="run a parameter sweep of a scene on dask.distributed",
+        description="Run a scene once per parameter combination (a LocalCluster by default) and collect "
+        "DIR/summary.csv and DIR/summary.parquet: parameters, status, error, wall time, final probe values.",
+        epilog=EPILOG,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    p.add_argument("scene", help="scene file (TOML)")
+    p.add_argument("--param", action="append", default=[], metavar="KEY=VALUES", help="a swept scene key and its values (repeatable)")
+    p.add_argument("--zip", action="store_true", help="pair the i-th values of every --param instead of taking all combinations")
+    p.add_argument("--out", required=True, help="sweep directory (runs/, summary.csv, summary.parquet, sweep.json)")
+    p.add_argument("--scheduler", metavar="HOST:PORT", help="connect to a running dask.distributed scheduler instead of starting a LocalCluster")
+    p.add_argument("--workers", type=int, metavar="N", help="LocalCluster worker processes (default: one per core); 0 runs them in this process without Dask")
+    p.add_argument("--resume", action="store_true", help="continue a sweep in --out: skip runs whose run.json says completed or failed")
+    p.add_argument("--device", help="cpu, cuda or cuda:N for every run (overrides simulation.device); 'cuda' gives worker k GPU k")
+    p.add_argument("--no-particles", action="store_true", help="do not write the particle series of each run (saves disk)")
+    p.add_argument("--dry-run", action="store_true", help="validate and list the runs, run nothing")
+    p.add_argument("--quiet", action="store_true", help="no progress lines")
+    p.set_defaults(func=run)
+
+
+def _clock(epoch: float) -> str:
+    return time.strftime("%H:%M:%S", time.localtime(epoch))
+
+
+def run(args) -> int:
+    from magsoro.sweep import make_plan, run_sweep
+    from magsoro.sweep.params import format_value
+
+    if args.workers is not None and args.workers < 0:
+        raise MagsoroError(f"--workers: must be >= 0, got {args.workers}")
+    if args.workers is not None and args.scheduler:
+        raise MagsoroError("--workers sets the size of a LocalCluster; with --scheduler the cluster's own workers run the sweep")
+    if args.device is not None and not (args.device == "cpu" or args.device.startswith("cuda")):
+        raise MagsoroError(f"--device: '{args.device}' is not allowed; use cpu, cuda or cuda:N")
+    plan = make_plan(args.scene, args.param, zipped=args.zip)  # every scene validated before anything runs
+    if args.dry_run:
+        for r in plan.runs:
+            print(f"{r.name}: " + ", ".join(f"{k}={format_value(v)}" for k, v in r.params.items()))
+        print(f"{len(plan.runs)} runs; all scenes valid")
+        return 0
+
+    def progress(state):
+        if args.quiet:
+            return
+        rec = state.last
+        eta = state.eta
+        when = f", finish ~{_clock(eta)} (in {max(0.0, eta - time.time()):.0f} s)" if eta is not None and state.done < state.total else ""
+        tail = f": {rec['error']}" if rec["status"] == "failed" else ""
+        print(f"[{state.done}/{state.total} done, {state.failed} failed{when}] {rec['run']} {rec['status']}{tail}", file=sys.stderr, flush=True)
+
+    if not args.quiet:
+        where = (f"scheduler {args.scheduler}" if args.scheduler else "this process (--workers 0)" if args.workers == 0
+                 else f"a LocalCluster ({args.workers or 'one'} worker{'s' if args.workers != 1 else ''}{'' if args.workers else ' per core'})")
+        print(f"magsoro sweep: {len(plan.runs)} runs on {where}; results in {args.out}", file=sys.stderr, flush=True)
+    try:
+        result = run_sweep(
+            plan, args.out, scheduler=args.scheduler, workers=args.workers, resume=args.resume, device=args.device,
+            particles=False if args.no_particles else None, progress=progress,
+        )
+    except KeyboardInterrupt:
+        print(f"magsoro sweep: interrupted; finished runs are kept, continue with --resume --out {args.out}", file=sys.stderr)
+        return 130
+    n_failed = len(result.failed)
+    print(f"{len(result.completed)} completed, {n_failed} failed of {len(result.records)} runs in {result.wall_time:.1f} s; summary in {result.out_dir / 'summary.csv'}")
+    return 1 if n_failed else 0

@@ -1,0 +1,91 @@
+"""Turn a scene file and ``--param`` specifications into the list of runs, every scene validated up front."""
+
+from __future__ import annotations
+
+import copy
+import tomllib
+from dataclasses import dataclass
+from pathlib import Path
+
+from magsoro.errors import SceneError
+from magsoro.sweep.params import Param, RunSpec, SweepError, combine, format_value, parse_param, set_path, slug
+
+
+@dataclass
+class SweepPlan:
+    """Everything a sweep needs before its first run: the base scene, the parameters and the runs."""
+
+    scene_path: Path
+    base: dict
+    params: list[Param]
+    zipped: bool
+    runs: list[RunSpec]
+
+    @property
+    def base_dir(self) -> Path:
+        return self.scene_path.parent
+
+    def describe(self) -> dict:
+        """JSON-able record of the plan (sweep.json), enough to check a --resume against the same sweep."""
+        return {
+            "scene_file": str(self.scene_path),
+            "params": [{"key": p.key, "values": p.values, "spec": p.text} for p in self.params],
+            "mode": "zip" if self.zipped else "product",
+            "runs": [{"index": r.index, "name": r.name, "params": r.params} for r in self.runs],
+        }
+
+
+def _apply(base: dict, params: dict, specs: dict[str, str]) -> dict:
+    data = copy.deepcopy(base)
+    for key, value in params.items():
+        set_path(data, key, value, specs.get(key, key))
+    return data
+
+
+def _validate(data: dict, source: str, base_dir: Path) -> str | None:
+    """parse_scene's one-line message when ``data`` is not a valid scene, else None."""
+    from magsoro.scene import parse_scene
+
+    try:
+        parse_scene(copy.deepcopy(data), source, base_dir)
+    except SceneError as exc:
+        return str(exc)
+    return None
+
+
+def make_plan(scene_file, param_specs: list[str], zipped: bool = False) -> SweepPlan:
+    """Parse the --param specs, build every run's scene and validate all of them with parse_scene.
+
+    A bad key or value fails here, before any run starts, with one line that names the --param: a path that
+    does not exist is caught while setting it; a value the schema refuses is traced to the --param that,
+    applied alone to the base scene, already makes it invalid (or to the whole combination when only the
+    combination is invalid).
+    """
+    path = Path(scene_file).resolve()
+    if not path.is_file():
+        raise SceneError(f"{scene_file}: scene file not found")
+    try:
+        base = tomllib.loads(path.read_text())
+    except tomllib.TOMLDecodeError as exc:
+        raise SceneError(f"{scene_file}: not valid TOML: {exc}") from None
+    params = [parse_param(s) for s in param_specs]
+    specs = {p.key: p.text for p in params}
+    combos = combine(params, zipped)
+    width = max(3, len(str(len(combos) - 1)))
+    runs, checked = [], {}
+    for index, combo in enumerate(combos):
+        data = _apply(base, combo, specs)
+        summary = ", ".join(f"{k}={format_value(v)}" for k, v in combo.items())
+        problem = _validate(data, f"{scene_file} [{summary}]", path.parent)
+        if problem is not None:
+            # blame the single --param value that breaks the scene on its own, if there is one
+            for key, value in combo.items():
+                if (key, format_value(value)) not in checked:
+                    alone = _apply(base, {key: value}, specs)
+                    checked[(key, format_value(value))] = _validate(alone, str(scene_file), path.parent)
+                single = checked[(key, format_value(value))]
+                if single is not None:
+                    raise SweepError(f"--param {specs[key]}: value {format_value(value)} makes the scene invalid: {single}")
+            raise SweepError(f"--param combination {summary} makes the scene invalid: {problem}")
+        runs.append(RunSpec(index, combo, f"{index:0{width}d}-{slug(combo)}", data))
+    return SweepPlan(path, base, params, zipped, runs)

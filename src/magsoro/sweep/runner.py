@@ -1,0 +1,195 @@
+"""Run a sweep plan on dask.distributed and keep DIR/summary.csv (and .parquet) current as runs finish.
+
+Layout of DIR::
+
+    sweep.json            the plan (scene file, params, runs); a --resume must match it
+    summary.csv/.parquet  one row per planned run (see magsoro.sweep.summary)
+    runs/<index>-<slug>/  the outputs of ``magsoro run`` for that run
+
+A run counts as finished only when its run.json (written atomically by the run) says 'completed' or
+'failed'; --resume skips those and runs everything else again from the start in the same directory.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Callable
+
+from magsoro.io.files import atomic_write_json
+from magsoro.sweep.params import SweepError
+from magsoro.sweep.plan import SweepPlan
+from magsoro.sweep.summary import write_summary
+from magsoro.sweep.worker import FINISHED, SINGLE_THREAD_ENV, execute_run, read_record, record_failure, run_status
+
+
+@dataclass
+class Progress:
+    """Where a sweep stands; passed to the progress callback after every finished run."""
+
+    total: int
+    done: int = 0  # finished runs, completed or failed, including those skipped by --resume
+    failed: int = 0
+    skipped: int = 0  # finished before this invocation (--resume)
+    started: float = field(default_factory=time.time)
+    last: dict | None = None  # the record of the run that just finished
+
+    @property
+    def eta(self) -> float | None:
+        """Estimated wall-clock time (epoch s) when the sweep finishes: this invocation's rate so far."""
+        ran = self.done - self.skipped
+        if ran <= 0:
+            return None
+        elapsed = time.time() - self.started
+        return time.time() + elapsed / ran * (self.total - self.done)
+
+
+@dataclass
+class SweepResult:
+    out_dir: Path
+    records: list[dict]
+    workers: int
+    wall_time: float
+
+    @property
+    def failed(self) -> list[dict]:
+        return [r for r in self.records if r["status"] == "failed"]
+
+    @property
+    def completed(self) -> list[dict]:
+        return [r for r in self.records if r["status"] == "completed"]
+
+
+def default_workers() -> int:
+    """One worker per core this process may use."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except AttributeError:
+        return max(1, os.cpu_count() or 1)
+
+
+def _prepare(plan: SweepPlan, out: Path, resume: bool) -> None:
+    description = plan.describe()
+    sweep_json = out / "sweep.json"
+    if sweep_json.is_file():
+        if not resume:
+            raise SweepError(f"--out {out}: already holds a sweep (sweep.json); add --resume to finish it, or choose another --out")
+        try:
+            previous = json.loads(sweep_json.read_text())
+        except ValueError:
+            previous = None
+        # compare through JSON so tuples/lists and ints/floats read back the same way
+        if previous is None or json.loads(json.dumps(description["runs"])) != previous.get("runs"):
+            raise SweepError(f"--resume: the runs planned now differ from those in {sweep_json}; resume with the same scene and --param values, or choose another --out")
+    elif (out / "runs").is_dir() and any((out / "runs").iterdir()):
+        raise SweepError(f"--out {out}: holds runs/ but no sweep.json; choose another --out")
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "runs").mkdir(exist_ok=True)
+    description["created"] = time.strftime("%Y-%m-%dT%H:%M:%S%z")
+    if not sweep_json.is_file():
+        atomic_write_json(sweep_json, description)
+
+
+def run_sweep(
+    plan: SweepPlan,
+    out_dir,
+    *,
+    scheduler: str | None = None,
+    workers: int | None = None,
+    resume: bool = False,
+    device: str | None = None,
+    particles: bool | None = None,
+    progress: Callable[[Progress], None] | None = None,
+) -> SweepResult:
+    """Run every run of ``plan`` not yet finished in ``out_dir``.
+
+    ``scheduler`` ('HOST:PORT' or a full address) connects to a running dask.distributed cluster whose
+    workers have magsoro installed and see ``out_dir`` and the scene's files at the same paths; otherwise a
+    LocalCluster with ``workers`` single-threaded worker processes (default: one per core) is started and
+    closed; ``workers=0`` runs them one after the other in this process, without Dask. Ctrl-C cancels the runs in flight and raises KeyboardInterrupt; their run.json stays 'running',
+    so a later ``resume=True`` runs them again.
+    """
+    wall0 = time.perf_counter()
+    out = Path(out_dir).resolve()
+    _prepare(plan, out, resume)
+    param_keys = [p.key for p in plan.params]
+    specs = {r.index: {"index": r.index, "name": r.name, "params": r.params, "scene": r.scene} for r in plan.runs}
+    run_dirs = {r.index: out / "runs" / r.name for r in plan.runs}
+    records = {i: read_record(run_dirs[i], specs[i]) for i in specs}
+    pending = [i for i in specs if run_status(run_dirs[i]) not in FINISHED]
+    state = Progress(total=len(specs))
+    state.skipped = state.done = len(specs) - len(pending)
+    state.failed = sum(1 for r in records.values() if r["status"] == "failed")
+    write_summary(out, list(records.values()), param_keys)
+    if not pending:
+        return SweepResult(out, [records[i] for i in sorted(records)], 0, time.perf_counter() - wall0)
+
+    def finished(i: int, rec: dict) -> None:
+        records[i] = rec
+        state.done += 1
+        state.failed += rec["status"] == "failed"
+        state.last = rec
+        write_summary(out, list(records.values()), param_keys)
+        if progress is not None:
+            progress(state)
+
+    if workers == 0 and not scheduler:
+        # in this process, one run after the other, no Dask: for debugging (pdb, profilers) and small sweeps
+        for i in pending:
+            rec = execute_run(specs[i], str(run_dirs[i]), str(plan.scene_path), device, particles)
+            if rec["status"] == "interrupted":  # Simulation.run turned Ctrl-C into a status; stop the sweep
+                records[i] = rec
+                write_summary(out, list(records.values()), param_keys)
+                raise KeyboardInterrupt
+            finished(i, rec)
+        return SweepResult(out, [records[i] for i in sorted(records)], 0, time.perf_counter() - wall0)
+
+    from distributed import Client, LocalCluster, as_completed
+
+    cluster = None
+    if scheduler:
+        address = scheduler if "://" in scheduler else f"tcp://{scheduler}"
+        try:
+            client = Client(address, timeout=30)
+        except (OSError, TimeoutError) as exc:
+            raise SweepError(f"--scheduler {scheduler}: cannot connect ({exc})") from None
+        n_workers = len(client.scheduler_info().get("workers", {}))
+    else:
+        n_workers = max(1, min(workers or default_workers(), len(pending)))
+        # processes, not threads: a run holds the GIL in its Python stepping loop
+        cluster = LocalCluster(
+            n_workers=n_workers,
+            threads_per_worker=1,
+            processes=True,
+            dashboard_address=None,
+            env=dict(SINGLE_THREAD_ENV),
+        )
+        client = Client(cluster)
+    futures = {}
+    try:
+        for i in pending:
+            # a unique key per submission, so a resumed sweep never picks up a stale result of the same name
+            fut = client.submit(
+                execute_run, specs[i], str(run_dirs[i]), str(plan.scene_path), device, particles,
+                key=f"magsoro-run-{i}-{time.time_ns()}", pure=False, retries=0,
+            )
+            futures[fut] = i
+        for fut in as_completed(list(futures)):
+            i = futures[fut]
+            try:
+                rec = fut.result()
+            except Exception as exc:  # noqa: BLE001 - the worker died or Dask gave up: this run failed
+                rec = record_failure(run_dirs[i], specs[i], f"worker error: {type(exc).__name__}: {exc}")
+            finished(i, rec)
+    except BaseException:
+        for fut in futures:
+            fut.cancel()
+        raise
+    finally:
+        client.close()
+        if cluster is not None:
+            cluster.close()
+    return SweepResult(out, [records[i] for i in sorted(records)], n_workers, time.perf_counter() - wall0)

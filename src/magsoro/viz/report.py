@@ -1,0 +1,397 @@
+"""Self-contained HTML reports of a run or a sweep (``magsoro report DIR``).
+
+One file, no network: the data is embedded as JSON (particle positions as base64 of 16-bit integers quantised
+over the bounding box of the run), and the page's small plotting and 3D-viewer code is inlined
+(:mod:`magsoro.viz.report_assets`). The page writes ``<div id="status">ok: N curves, viewer ready</div>``
+when everything has rendered, or ``error: ...`` otherwise, so a headless browser can check it.
+"""
+
+from __future__ import annotations
+
+import base64
+import csv
+import html
+import json
+import math
+import time
+from pathlib import Path
+
+import numpy as np
+
+from magsoro import __version__
+from magsoro.errors import MagsoroError
+from magsoro.io.files import atomic_write_text
+
+
+class ReportError(MagsoroError):
+    """The directory is not a run or a sweep, or its files cannot be read."""
+
+
+# Viewer size limits: enough frames for a smooth slider and enough particles to see the shape, while keeping
+# a report of a 10^5-particle run around a megabyte or two.
+MAX_FRAMES = 60
+MAX_PARTICLES = 4000
+MAX_SWEEP_CURVES = 200  # runs overlaid per probe column in a sweep report
+
+
+# ---------------------------------------------------------------------------------------------------- reading
+def _finite_or_none(v):
+    try:
+        f = float(v)
+    except (TypeError, ValueError):
+        return None
+    return f if math.isfinite(f) else None
+
+
+def read_metrics(run_dir) -> tuple[list[str], list[list[float | None]]]:
+    """metrics.csv as (columns, column-major values with None for non-finite)."""
+    path = Path(run_dir) / "metrics.csv"
+    if not path.is_file():
+        return [], []
+    with path.open(newline="") as fh:
+        rows = list(csv.reader(fh))
+    if not rows:
+        return [], []
+    header = rows[0]
+    cols = [[_finite_or_none(r[j]) if j < len(r) else None for r in rows[1:]] for j in range(len(header))]
+    return header, cols
+
+
+def read_frames(run_dir) -> list[tuple[float, Path]]:
+    """(time, file) of every particle frame listed in particles.pvd."""
+    import xml.etree.ElementTree as ET
+
+    pvd = Path(run_dir) / "particles.pvd"
+    if not pvd.is_file():
+        return []
+    try:
+        root = ET.parse(pvd).getroot()
+    except ET.ParseError as exc:
+        raise ReportError(f"{pvd}: not a readable .pvd file ({exc})") from None
+    out = []
+    for ds in root.iter("DataSet"):
+        f = Path(run_dir) / ds.get("file", "")
+        if f.is_file():
+            out.append((float(ds.get("timestep", "nan")), f))
+    return out
+
+
+def _pick(n: int, limit: int) -> np.ndarray:
+    """At most ``limit`` indices spread evenly over range(n), first and last included."""
+    if n <= limit:
+        return np.arange(n)
+    return np.unique(np.round(np.linspace(0, n - 1, limit)).astype(int))
+
+
+def viewer_data(run_dir, max_frames: int = MAX_FRAMES, max_particles: int = MAX_PARTICLES) -> dict | None:
+    """Particle frames for the 3D viewer: a fixed subset of particles, positions quantised to uint16 per axis."""
+    from magsoro.io.vtk import read_vtp
+
+    frames = read_frames(run_dir)
+    if not frames:
+        return None
+    chosen = [frames[k] for k in _pick(len(frames), max_frames)]
+    pts0, data0 = read_vtp(chosen[0][1])
+    n_all = len(pts0)
+    # a random but reproducible subset keeps every region of the body represented, unlike a stride
+    rng = np.random.default_rng(0)
+    keep = np.sort(rng.choice(n_all, size=max_particles, replace=False)) if n_all > max_particles else np.arange(n_all)
+    positions, jacobians, times = [], [], []
+    for t, f in chosen:
+        pts, data = read_vtp(f)
+        if len(pts) != n_all:
+            raise ReportError(f"{f}: {len(pts)} particles, but the first frame has {n_all}")
+        positions.append(np.asarray(pts, dtype=np.float64)[keep])
+        jacobians.append(np.asarray(data.get("J", np.ones(n_all)), dtype=np.float64)[keep])
+        times.append(t)
+    pos = np.stack(positions)  # frames x n x 3
+    finite = np.isfinite(pos).all(axis=2)
+    lo = np.where(finite[..., None], pos, np.inf).min(axis=(0, 1))
+    hi = np.where(finite[..., None], pos, -np.inf).max(axis=(0, 1))
+    lo = np.where(np.isfinite(lo), lo, 0.0)
+    hi = np.where(np.isfinite(hi), hi, 0.0)
+    span = np.maximum(hi - lo, 1e-12)
+    q = np.clip(np.round((np.nan_to_num(pos, nan=0.0) - lo) / span * 65535), 0, 65535).astype("<u2")
+    J = np.stack(jacobians)
+    Jf = J[np.isfinite(J)]
+    j_lo, j_hi = (float(Jf.min()), float(Jf.max())) if Jf.size else (1.0, 1.0)
+    # a symmetric range about J = 1 keeps white at 'no volume change'
+    half = max(abs(j_lo - 1.0), abs(j_hi - 1.0), 1e-6)
+    j_lo, j_hi = 1.0 - half, 1.0 + half
+    jq = np.clip(np.round((np.nan_to_num(J, nan=1.0) - j_lo) / (j_hi - j_lo) * 255), 0, 255).astype(np.uint8)
+    body = np.asarray(data0.get("body", np.zeros(n_all)), dtype=np.int64)[keep]
+    return {
+        "n": int(len(keep)),
+        "n_total": int(n_all),
+        "frames": len(chosen),
+        "frames_total": len(frames),
+        "times": [float(t) for t in times],
+        "lo": lo.tolist(),
+        "span": span.tolist(),
+        "flat_z": bool(span[2] <= 1e-11),
+        "pos": base64.b64encode(q.tobytes()).decode("ascii"),
+        "body": base64.b64encode(np.clip(body, 0, 255).astype(np.uint8).tobytes()).decode("ascii"),
+        "J": base64.b64encode(jq.tobytes()).decode("ascii"),
+        "J_range": [j_lo, j_hi],
+    }
+
+
+def _probe_groups(columns: list[str], scene: dict) -> list[tuple[str, list[str]]]:
+    """Metrics columns grouped by probe (tip_x, tip_y -> 'tip'), in file order; unknown columns alone."""
+    names = [p.get("name") for p in scene.get("probes", []) if isinstance(p, dict) and p.get("name")]
+    groups: dict[str, list[str]] = {}
+    for c in columns:
+        owner = next((n for n in sorted(names, key=len, reverse=True) if c.startswith(n + "_")), c)
+        groups.setdefault(owner, []).append(c)
+    return list(groups.items())
+
+
+def _series(name: str, x: list, y: list) -> dict | None:
+    pts = [(a, b) for a, b in zip(x, y) if a is not None and b is not None]
+    if not pts:
+        return None
+    return {"name": name, "x": [a for a, _ in pts], "y": [b for _, b in pts]}
+
+
+def _fmt(v) -> str:
+    """Fact text: numbers to 6 significant digits, the rest as JSON or as is."""
+    if isinstance(v, float):
+        return f"{v:.6g}"
+    return v if isinstance(v, str) else json.dumps(v)
+
+
+def _flatten(obj, prefix: str = "") -> list[tuple[str, str]]:
+    """Scene echo as (dotted key, value text) rows; list entries by name when they have one (sweep paths)."""
+    rows = []
+    if isinstance(obj, dict):
+        for k, v in obj.items():
+            rows.extend(_flatten(v, f"{prefix}.{k}" if prefix else str(k)))
+    elif isinstance(obj, list) and obj and all(isinstance(e, dict) for e in obj):
+        for i, e in enumerate(obj):
+            label = e.get("name") if isinstance(e.get("name"), str) else str(i)
+            rows.extend(_flatten(e, f"{prefix}.{label}"))
+    else:
+        rows.append((prefix, json.dumps(obj, separators=(", ", ": ")) if not isinstance(obj, str) else obj))
+    return rows
+
+
+# ------------------------------------------------------------------------------------------- page content
+def run_content(run_dir, max_frames: int = MAX_FRAMES, max_particles: int = MAX_PARTICLES) -> dict:
+    run_dir = Path(run_dir)
+    try:
+        info = json.loads((run_dir / "run.json").read_text())
+    except (OSError, ValueError) as exc:
+        raise ReportError(f"{run_dir / 'run.json'}: cannot read ({exc})") from None
+    scene = info.get("scene") or {}
+    columns, values = read_metrics(run_dir)
+    charts = []
+    if columns and columns[0] == "time":
+        t = values[0]
+        for probe, cols in _probe_groups(columns[1:], scene):
+            series = [s for c in cols if (s := _series(c, t, values[columns.index(c)])) is not None]
+            if series:
+                charts.append({"title": f"probe {probe}", "xlabel": "time (s)", "ylabel": "position (m)", "series": series})
+    facts = [
+        ("status", info.get("status", "?")),
+        ("message", info.get("message", "")),
+        ("steps", info.get("steps")),
+        ("simulated time (s)", info.get("time")),
+        ("wall time (s)", info.get("wall_time_total", info.get("wall_time"))),
+        ("steps per second", info.get("steps_per_second")),
+        ("time step (s)", info.get("dt")),
+        ("particles", info.get("n_particles")),
+        ("dimension", info.get("dim")),
+        ("device", f"{info.get('device', '?')} ({info.get('device_name', '?')})"),
+        ("precision", info.get("precision")),
+        ("magsoro / warp", f"{info.get('magsoro_version', '?')} / {info.get('warp_version', '?')}"),
+        ("machine", info.get("machine")),
+        ("started / finished", f"{info.get('started', '?')} / {info.get('finished', '?')}"),
+    ]
+    dt = info.get("dt")
+    if isinstance(dt, dict):
+        facts[6] = ("time step (s)", ("fixed " if dt.get("fixed") else "automatic, ") + ", ".join(
+            f"{k} {_fmt(dt[k])}" for k in ("min", "max", "mean") if dt.get(k) is not None))
+    sweep = info.get("sweep") or {}
+    return {
+        "kind": "run",
+        "title": f"Run {sweep.get('name') or scene.get('name') or run_dir.name}",
+        "subtitle": str(run_dir),
+        "status": info.get("status", "?"),
+        "facts": [(k, _fmt(v)) for k, v in facts if v not in (None, "")],
+        "sweep_params": [(k, json.dumps(v)) for k, v in (sweep.get("params") or {}).items()],
+        "scene_rows": _flatten(scene),
+        "charts": charts,
+        "viewer": viewer_data(run_dir, max_frames, max_particles),
+    }
+
+
+def _is_num(v) -> bool:
+    return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+
+
+def sweep_content(sweep_dir) -> dict:
+    from magsoro.sweep.params import format_value
+    from magsoro.sweep.summary import read_summary
+    from magsoro.sweep.worker import read_record
+
+    sweep_dir = Path(sweep_dir)
+    try:
+        plan = json.loads((sweep_dir / "sweep.json").read_text())
+    except (OSError, ValueError) as exc:
+        raise ReportError(f"{sweep_dir / 'sweep.json'}: cannot read ({exc})") from None
+    keys = [p["key"] for p in plan.get("params", [])]
+    # the run directories are the truth (summary.csv may lag a run that just finished); read them directly
+    records = [read_record(sweep_dir / "runs" / r["name"], {**r, "scene": None}) for r in plan.get("runs", [])]
+    done = [r for r in records if r["status"] == "completed"]
+    probe_cols: list[str] = []
+    for r in done:
+        probe_cols += [c for c in r["probes"] if c not in probe_cols]
+    charts = []
+    for key in keys:
+        values = [r["params"][key] for r in records]
+        numeric = all(_is_num(v) for v in values)
+        cats = None if numeric else list(dict.fromkeys(format_value(v) for v in values))
+        others = [k for k in keys if k != key]
+        for col in probe_cols:
+            groups: dict[str, list] = {}
+            for r in done:
+                label = ", ".join(f"{k.split('.')[-1]}={format_value(r['params'][k])}" for k in others) or col
+                x = r["params"][key] if numeric else cats.index(format_value(r["params"][key]))
+                groups.setdefault(label, []).append((x, r["probes"].get(col)))
+            series = []
+            for label, pts in groups.items():
+                pts.sort(key=lambda p: p[0])
+                s = _series(label, [p[0] for p in pts], [_finite_or_none(p[1]) for p in pts])
+                if s is not None:
+                    series.append(s)
+            if series:
+                charts.append({"title": f"final {col} vs {key}", "xlabel": key, "ylabel": f"{col} (m)", "series": series,
+                               "markers": True, "xcats": cats})
+    curves = []
+    overlay = done[:MAX_SWEEP_CURVES]
+    metrics = {r["run"]: read_metrics(sweep_dir / "runs" / r["run"]) for r in overlay}
+    for col in probe_cols:
+        series = []
+        for r in overlay:
+            columns, values = metrics[r["run"]]
+            if col in columns and columns and columns[0] == "time":
+                s = _series(r["run"], values[0], values[columns.index(col)])
+                if s is not None:
+                    series.append(s)
+        if series:
+            curves.append({"title": f"{col} over time, every completed run", "xlabel": "time (s)", "ylabel": f"{col} (m)", "series": series})
+    table_cols = ["index", "run", *keys, "status", "error", "wall_time_s", *probe_cols]
+    table = []
+    summary_path = sweep_dir / "summary.csv"
+    for r in records:
+        row = {"index": r["index"], "run": r["run"], **{k: format_value(r["params"][k]) for k in keys}, "status": r["status"],
+               "error": r["error"], "wall_time_s": r["wall_time_s"], **r["probes"]}
+        table.append([("" if row.get(c) is None else (f"{row[c]:.6g}" if isinstance(row[c], float) else str(row[c]))) for c in table_cols])
+    n_failed = sum(r["status"] == "failed" for r in records)
+    facts = [
+        ("scene file", plan.get("scene_file", "?")),
+        ("runs", f"{len(records)} planned, {len(done)} completed, {n_failed} failed, {len(records) - len(done) - n_failed} not finished"),
+        ("combination", "paired (--zip)" if plan.get("mode") == "zip" else "cartesian product"),
+        ("created", plan.get("created", "?")),
+        ("summary table", str(summary_path) + ("" if summary_path.is_file() else " (missing)")),
+    ]
+    if summary_path.is_file():
+        cols, _rows = read_summary(summary_path)
+        facts.append(("summary columns", ", ".join(cols)))
+    return {
+        "kind": "sweep",
+        "title": f"Sweep {sweep_dir.name}",
+        "subtitle": str(sweep_dir),
+        "status": "failed" if n_failed else ("completed" if len(done) == len(records) else "incomplete"),
+        "facts": facts,
+        "sweep_params": [(p["key"], ", ".join(format_value(v) for v in p["values"])) for p in plan.get("params", [])],
+        "charts": charts + curves,
+        "table": {"columns": table_cols, "rows": table},
+        "scene_rows": [],
+        "viewer": None,
+    }
+
+
+# ------------------------------------------------------------------------------------------------- output
+def _esc(v) -> str:
+    return html.escape(str(v), quote=True)
+
+
+def _kv_table(rows, cls="kv") -> str:
+    body = "".join(f"<tr><th>{_esc(k)}</th><td>{_esc(v)}</td></tr>" for k, v in rows)
+    return f'<table class="{cls}">{body}</table>'
+
+
+def render_html(content: dict) -> str:
+    """The page: static HTML for the tables, JSON for the plots and the viewer, inline CSS and JS."""
+    from magsoro.viz.report_assets import CSS, JS
+
+    expected = sum(len(c["series"]) for c in content["charts"])
+    payload = {
+        "kind": content["kind"],
+        "charts": content["charts"],
+        "viewer": content["viewer"],
+        "expected_curves": expected,
+    }
+    # '</' inside a <script> would end it early; JSON allows the escaped form
+    data = json.dumps(payload, separators=(",", ":"), allow_nan=False).replace("</", "<\\/")
+    parts = [
+        "<!DOCTYPE html>",
+        '<html lang="en"><head><meta charset="utf-8">',
+        '<meta name="viewport" content="width=device-width, initial-scale=1">',
+        f"<title>{_esc(content['title'])} - magsoro report</title>",
+        f"<style>{CSS}</style></head><body>",
+        f'<header><h1>{_esc(content["title"])} <span class="badge {_esc(content["status"])}">{_esc(content["status"])}</span></h1>',
+        f'<p class="sub">{_esc(content["subtitle"])} &middot; magsoro {_esc(__version__)} report, {_esc(time.strftime("%Y-%m-%d %H:%M"))}</p>',
+        '<div id="status" class="pending">rendering...</div></header>',
+        "<section><h2>Overview</h2>" + _kv_table(content["facts"]) + "</section>",
+    ]
+    if content["sweep_params"]:
+        parts.append("<section><h2>Swept parameters</h2>" + _kv_table(content["sweep_params"]) + "</section>")
+    if content["charts"]:
+        heading = "Final probe values and probe curves" if content["kind"] == "sweep" else "Probe curves"
+        parts.append(f'<section><h2>{heading}</h2><p class="hint">Hover a plot for values.</p><div id="charts" class="charts"></div></section>')
+    else:
+        parts.append('<section><h2>Probe curves</h2><p class="hint">No probe data (no completed run with probes).</p><div id="charts"></div></section>')
+    if content["viewer"] is not None:
+        v = content["viewer"]
+        note = f"{v['n']} of {v['n_total']} particles, {v['frames']} of {v['frames_total']} frames"
+        parts.append(
+            '<section><h2>Particles</h2>'
+            f'<p class="hint">{_esc(note)}. Drag to rotate, wheel to zoom, double-click to reset.</p>'
+            '<div id="viewer"></div></section>'
+        )
+    if content.get("table"):
+        t = content["table"]
+        head = "".join(f"<th>{_esc(c)}</th>" for c in t["columns"])
+        status_col = t["columns"].index("status")
+        body = "".join(
+            f'<tr class="{_esc(r[status_col])}">' + "".join(f"<td>{_esc(c)}</td>" for c in r) + "</tr>" for r in t["rows"]
+        )
+        parts.append(f'<section><h2>Runs</h2><div class="scroll"><table class="runs"><thead><tr>{head}</tr></thead><tbody>{body}</tbody></table></div></section>')
+    if content["scene_rows"]:
+        parts.append('<section><h2>Scene parameters</h2><details><summary>every key of the scene as run</summary>'
+                     + _kv_table(content["scene_rows"]) + "</details></section>")
+    parts.append(f'<script type="application/json" id="report-data">{data}</script>')
+    parts.append(f"<script>{JS}</script></body></html>")
+    return "\n".join(parts) + "\n"
+
+
+def build_report(directory, out=None, max_frames: int = MAX_FRAMES, max_particles: int = MAX_PARTICLES) -> Path:
+    """Write the report of a run directory (run.json) or a sweep directory (sweep.json); return its path.
+
+    Default output: DIRECTORY/report.html.
+    """
+    directory = Path(directory)
+    if not directory.is_dir():
+        raise ReportError(f"{directory}: no such directory")
+    if (directory / "sweep.json").is_file():
+        content = sweep_content(directory)
+    elif (directory / "run.json").is_file():
+        content = run_content(directory, max_frames, max_particles)
+    else:
+        raise ReportError(f"{directory}: neither a run (run.json) nor a sweep (sweep.json) directory")
+    out = Path(out) if out is not None else directory / "report.html"
+    out.parent.mkdir(parents=True, exist_ok=True)
+    atomic_write_text(out, render_html(content))
+    return out

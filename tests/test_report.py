@@ -1,0 +1,172 @@
+"""``magsoro report``: the HTML page's content for a run and for a sweep (the browser checks are in
+test_report_browser.py)."""
+
+from __future__ import annotations
+
+import base64
+import json
+import re
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+# A 2D clamped strip in a uniform field: 176 particles, 1 ms of simulated time, about half a second of CPU.
+TINY_SCENE = """\
+name = "tiny"
+[simulation]
+dim = 2
+dx = 5.0e-4
+domain_lo = [0.0, -0.006]
+domain_hi = [0.014, 0.006]
+duration = 0.001
+damping = 100.0
+depth = 5.0e-3
+
+[[bodies]]
+name = "beam"
+shape = { type = "rectangle", center = [0.0065, 0.0], size = [0.011, 0.001] }
+material = { density = 1030.0, shear_modulus = 3.0e5 }
+magnetization = [0.1, 0.0, 0.0]
+
+[[clamps]]
+region = { type = "rectangle", center = [0.0012, 0.0], size = [0.0014, 0.003] }
+
+[[fields]]
+type = "uniform"
+B = [0.0, 0.02, 0.0]
+
+[[probes]]
+type = "tip"
+name = "tip"
+body = "beam"
+region = { type = "rectangle", center = [0.0115, 0.0], size = [0.001, 0.003] }
+
+[output]
+every = 0.0002
+"""
+
+
+def write_scene(folder: Path, text: str = TINY_SCENE) -> Path:
+    folder.mkdir(parents=True, exist_ok=True)
+    path = folder / "tiny.toml"
+    path.write_text(text)
+    return path
+
+
+def make_run_dir(out: Path) -> Path:
+    """A run directory as ``magsoro run`` writes it (in this process)."""
+    from magsoro.commands.run import run as run_command
+
+    scene = write_scene(out.parent / "scene")
+
+    class Args:
+        pass
+
+    args = Args()
+    args.scene, args.out, args.device, args.duration, args.quiet = str(scene), str(out), None, None, True
+    assert run_command(args) == 0
+    return out
+
+
+def make_sweep_dir(out: Path) -> Path:
+    """A 3-run sweep run in this process (workers=0): two completed time steps and one too large to be stable."""
+    from magsoro.sweep import make_plan, run_sweep
+
+    scene = write_scene(out.parent / "scene")
+    plan = make_plan(scene, ["simulation.dt=2e-6,3e-6,4e-4"])
+    result = run_sweep(plan, out, workers=0)
+    assert [r["status"] for r in result.records] == ["completed", "completed", "failed"]
+    return out
+
+
+def embedded(page: Path) -> dict:
+    text = page.read_text()
+    return json.loads(text.split('id="report-data">', 1)[1].split("</script>", 1)[0])
+
+
+@pytest.fixture(scope="module")
+def run_dir(tmp_path_factory):
+    return make_run_dir(tmp_path_factory.mktemp("report") / "run")
+
+
+def test_run_report_embeds_curves_and_frames(run_dir, tmp_path):
+    from magsoro.io.vtk import read_vtp
+    from magsoro.viz import build_report
+
+    page = build_report(run_dir, tmp_path / "r.html")
+    text = page.read_text()
+    data = embedded(page)
+    assert data["kind"] == "run"
+    # one chart for the tip probe with its x and y columns, values equal to metrics.csv
+    (chart,) = data["charts"]
+    assert [s["name"] for s in chart["series"]] == ["tip_x", "tip_y"]
+    rows = np.loadtxt(run_dir / "metrics.csv", delimiter=",", skiprows=1)
+    assert np.allclose(chart["series"][1]["x"], rows[:, 0]) and np.allclose(chart["series"][1]["y"], rows[:, 2])
+    assert data["expected_curves"] == 2
+    # viewer: every frame (6 at 0.2 ms over 1 ms), every particle, positions within the 16-bit quantum
+    v = data["viewer"]
+    frames = sorted((run_dir / "frames").glob("frame_*.vtp"))
+    assert v["frames"] == len(frames) == 6 and v["times"][0] == 0.0 and v["times"][-1] == pytest.approx(0.001)
+    pts, fields = read_vtp(frames[-1])
+    assert v["n"] == len(pts) == 176
+    q = np.frombuffer(base64.b64decode(v["pos"]), dtype="<u2").reshape(v["frames"], v["n"], 3)
+    decoded = np.asarray(v["lo"]) + q[-1] / 65535.0 * np.asarray(v["span"])
+    assert np.abs(decoded - pts).max() <= 0.51 * max(v["span"]) / 65535
+    assert v["flat_z"] is True
+    body = np.frombuffer(base64.b64decode(v["body"]), dtype=np.uint8)
+    assert np.array_equal(body, fields["body"])
+    # self-contained: no script, style, image or link fetched from anywhere
+    assert not re.search(r"""(src|href)\s*=\s*["']?(https?:)?//""", text)
+    assert "url(http" not in text and "@import" not in text
+    assert '<div id="status"' in text
+    # the scene table lists swept-style dotted keys
+    assert "bodies.beam.material.shear_modulus" in text
+
+
+def test_run_report_subsamples_particles_and_frames(run_dir, tmp_path):
+    from magsoro.viz import build_report
+
+    data = embedded(build_report(run_dir, tmp_path / "small.html", max_frames=3, max_particles=50))
+    v = data["viewer"]
+    assert v["n"] == 50 and v["n_total"] == 176
+    assert v["frames"] == 3 and v["frames_total"] == 6
+    assert v["times"][0] == 0.0 and v["times"][-1] == pytest.approx(0.001)  # first and last frame kept
+    assert len(base64.b64decode(v["pos"])) == 3 * 50 * 3 * 2
+
+
+def test_sweep_report_plots_final_values_against_the_parameter(tmp_path):
+    from magsoro.sweep.summary import read_summary
+    from magsoro.viz import build_report
+
+    sweep = make_sweep_dir(tmp_path / "sweep")
+    page = build_report(sweep)
+    assert page == sweep / "report.html"
+    data = embedded(page)
+    titles = [c["title"] for c in data["charts"]]
+    assert titles[:2] == ["final tip_x vs simulation.dt", "final tip_y vs simulation.dt"]
+    _, rows = read_summary(sweep / "summary.csv")
+    done = [r for r in rows if r["status"] == "completed"]
+    final_y = data["charts"][1]["series"][0]
+    assert final_y["x"] == [float(r["simulation.dt"]) for r in done]
+    assert np.allclose(final_y["y"], [float(r["tip_y"]) for r in done])
+    # the overlays hold every completed run's curve, not the failed one
+    overlay = data["charts"][3]
+    assert [s["name"] for s in overlay["series"]] == [r["run"] for r in done]
+    assert data["expected_curves"] == 6 and data["viewer"] is None
+    text = page.read_text()
+    assert "failed" in text and "simulation.dt" in text
+    failed = [r for r in rows if r["status"] == "failed"][0]
+    assert failed["error"][:40] in text.replace("&#x27;", "'")
+
+
+def test_report_cli(run_dir, tmp_path, capsys):
+    from magsoro.cli import main
+
+    out = tmp_path / "x" / "page.html"
+    assert main(["report", str(run_dir), "--out", str(out)]) == 0
+    assert out.is_file() and "report written to" in capsys.readouterr().out
+    assert main(["report", str(tmp_path)]) == 2
+    err = capsys.readouterr().err
+    assert "neither a run (run.json) nor a sweep (sweep.json) directory" in err
+    assert main(["report", str(run_dir), "--max-frames", "0"]) == 2
