@@ -12,11 +12,14 @@ from magsoro.errors import MagsoroError
 COMMANDS = [
     "magsoro.commands.run",
     "magsoro.commands.docs",
+    "magsoro.commands.bench",
     "magsoro.commands.characterization",
     "magsoro.commands.rod",
     "magsoro.commands.epm_pose",
     "magsoro.commands.evert",
     "magsoro.commands.sense",
+    "magsoro.commands.materials",
+    "magsoro.commands.show",
     "magsoro.commands.sweep",
     "magsoro.commands.report",
 ]

@@ -93,7 +93,7 @@ def _entries_from(data: dict, origin: str, known: dict) -> dict[str, MaterialEnt
     pending.sort(key=lambda we: "remanence_relative_to" in we[1])
     for where, e in pending:
         out[e["name"]] = _make_entry(e, where, origin, rho_p, br_p, {**known, **out})
-    return out
+    return {e["name"]: out[e["name"]] for _, e in sorted(pending, key=lambda we: raw.index(we[1]))}  # file order
 
 
 def _num(e, key, where, positive=True):

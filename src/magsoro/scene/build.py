@@ -400,11 +400,13 @@ def _resolve_overlaps(scene, per_body, report, lo, h, source):
             if not shared.any():
                 continue
             pa, pb_ = bodies[a].priority, bodies[b].priority
-            if pa is None or pb_ is None or pa == pb_:
+            if pa == pb_:  # both unset, or the same: the file does not say which wins
                 raise SceneError(
                     f"{per_body[b]['src']}: {per_body[b]['key']}.priority: bodies '{bodies[a].name}' and '{bodies[b].name}' overlap "
                     f"({int(shared.sum())} particles); give them different priorities (the higher one keeps the overlap) or move them apart"
                 )
+            lowest = -float("inf")  # an unset priority loses against any set one
+            pa, pb_ = lowest if pa is None else pa, lowest if pb_ is None else pb_
             loser, lose_mask = (b, np.isin(codes[b], codes[a])) if pa > pb_ else (a, shared)
             keep = ~lose_mask
             for k in ("pts", "Br"):

@@ -279,7 +279,7 @@ class Body(Strict):
     )
     magnetic: bool | None = Field(default=None, description="If true, a magnetisation that is zero everywhere is an error (catches a forgotten magnitude).")
     clamped: bool = Field(default=False, description="Hold every particle of this body fixed.")
-    priority: int | None = Field(default=None, description="Where bodies overlap, the one with the higher priority keeps the shared particles; overlapping bodies without distinct priorities are refused.")
+    priority: int | None = Field(default=None, description="Where bodies overlap, the one with the higher priority keeps the shared particles (unset loses to any set value); overlapping bodies with equal or no priorities are refused.")
     velocity: Vec | None = Field(default=None, description="Initial velocity, m/s. Default at rest.")
     _base_dir: object = PrivateAttr(default=None)
     _key: object = PrivateAttr(default=None)

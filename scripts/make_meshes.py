@@ -1,0 +1,66 @@
+"""Generate the meshes used by scenes/*.toml (our own geometry, no third-party CAD files).
+
+    python scripts/make_meshes.py            # writes scenes/meshes/gripper_six_arm.stl
+
+gripper_six_arm.stl: the six-arm gripper of Xu et al. (seed 000 sec 4.5) as a flat star, in millimetres (the
+scene loads it with scale = 1e-3). Seed 000 gives no dimensions; the ones below are representative of
+millimetre-scale grippers of that family and are stated in docs/robots.md: arms 1.0 mm wide reaching 4.5 mm
+from the centre, a hexagonal hub, 0.4 mm thick.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+ARMS = 6
+ARM_WIDTH_MM = 1.0
+ARM_REACH_MM = 4.5  # centre to arm tip
+HUB_MM = 1.2  # centre to where neighbouring arm edges meet the hub
+THICKNESS_MM = 0.4
+
+
+def star_outline(arms=ARMS, width=ARM_WIDTH_MM, reach=ARM_REACH_MM, hub=HUB_MM) -> np.ndarray:
+    """Counter-clockwise outline (K, 2) in mm: for each arm its base and tip corners."""
+    pts = []
+    for k in range(arms):
+        t = 2 * np.pi * k / arms
+        along, side = np.array([np.cos(t), np.sin(t)]), np.array([-np.sin(t), np.cos(t)])
+        pts += [hub * along - 0.5 * width * side, reach * along - 0.5 * width * side, reach * along + 0.5 * width * side, hub * along + 0.5 * width * side]
+    return np.array(pts)
+
+
+def extrude_star_shaped(outline: np.ndarray, thickness: float):
+    """Closed triangle mesh of a polygon that is star-shaped about the origin, extruded over z in
+    [-thickness/2, thickness/2]: fan triangles on the caps, two triangles per side. Outward normals."""
+    K = len(outline)
+    h = 0.5 * thickness
+    verts = np.concatenate([[[0.0, 0.0, -h]], np.c_[outline, np.full(K, -h)], [[0.0, 0.0, h]], np.c_[outline, np.full(K, h)]])
+    bc, b0, tc, t0 = 0, 1, K + 1, K + 2
+    faces = []
+    for i in range(K):
+        j = (i + 1) % K
+        faces.append([bc, b0 + j, b0 + i])  # bottom cap, normal -z
+        faces.append([tc, t0 + i, t0 + j])  # top cap, normal +z
+        faces.append([b0 + i, b0 + j, t0 + j])  # side, outward for a counter-clockwise outline
+        faces.append([b0 + i, t0 + j, t0 + i])
+    return verts, np.array(faces)
+
+
+def main(out_dir=None) -> list[Path]:
+    import trimesh
+
+    out_dir = Path(out_dir) if out_dir else Path(__file__).resolve().parents[1] / "scenes" / "meshes"
+    out_dir.mkdir(parents=True, exist_ok=True)
+    v, f = extrude_star_shaped(star_outline(), THICKNESS_MM)
+    mesh = trimesh.Trimesh(v, f, process=True)
+    assert mesh.is_watertight and mesh.volume > 0, "generated gripper mesh must be closed with outward normals"
+    path = out_dir / "gripper_six_arm.stl"
+    path.write_bytes(trimesh.exchange.stl.export_stl_ascii(mesh).encode())
+    print(f"{path}: {len(mesh.faces)} faces, volume {mesh.volume:.4f} mm^3")
+    return [path]
+
+
+if __name__ == "__main__":
+    main()
