@@ -473,8 +473,14 @@ def build(scene: Scene, device: str | None = None, source: str = "scene", magnet
     X, body_id, clamped = p.positions, p.body, p.clamped.copy()
     names = p.body_names
     base_dir = getattr(scene, "_base_dir", None)
+    def region_shape(spec, key):
+        try:
+            return make_shape(spec, base_dir, dim)
+        except ValueError as exc:  # MeshError included
+            raise SceneError(f"{source}: {key}: {exc}") from None
+
     for i, c in enumerate(scene.clamps):
-        region = make_shape(c.region, base_dir, dim)
+        region = region_shape(c.region, f"clamps[{i}].region")
         inside = region.contains(X)
         if c.body is not None:
             inside &= body_id == names.index(c.body)
@@ -508,7 +514,7 @@ def build(scene: Scene, device: str | None = None, source: str = "scene", magnet
     for i, p in enumerate(scene.probes):
         sel = np.flatnonzero(body_id == names.index(p.body))
         if p.type in ("tip", "point"):
-            region = make_shape(p.region, base_dir, dim)
+            region = region_shape(p.region, f"probes[{i}].region")
             sel = sel[region.contains(X[sel])]
             if len(sel) == 0:
                 raise SceneError(f"{source}: probes[{i}].region: holds no particle of body '{p.body}'")
