@@ -11,6 +11,7 @@ move near its edge, so memory and per-step grid work follow the occupied region,
 """
 
 import math
+import time
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -200,6 +201,7 @@ class Solver:
         self._launch_key = None
         self._grid_version = 0
         self._grid_views = []
+        self.phase_times = None
 
     # -- states -------------------------------------------------------------------------------------------
     def new_state(self, velocity=None) -> State:
@@ -248,6 +250,19 @@ class Solver:
         self.refits += 1
         self._grid_version += 1
         self._grid_views = [self.grid_p[:need], self.grid_m[:need], self.grid_clamp[:need]]
+
+    def enable_phase_timing(self, on: bool = True) -> None:
+        """Time the phases of each step (p2g, grid, g2p, other) into ``phase_times`` (seconds, summed).
+        Synchronises the device between phases, so use it for profiling only."""
+        self.phase_times = {"p2g": 0.0, "grid": 0.0, "g2p": 0.0, "other": 0.0} if on else None
+
+    def _phase(self, name: str, since: float) -> float:
+        if self.phase_times is None:
+            return since
+        wp.synchronize_device(self.device)
+        now = time.perf_counter()
+        self.phase_times[name] += now - since
+        return now
 
     def _record_launches(self, state_in: State, state_out: State, control: Control, has_gradient: bool) -> None:
         """Pack every kernel's arguments once (Warp's recorded launches); a step then only updates what changes.
@@ -346,6 +361,7 @@ class Solver:
         """Advance ``state_in`` by ``dt`` seconds into ``state_out``. Raises SimulationError on a bad state."""
         m, k, st, dev, sc = self.model, self.k, self.settings, self.device, self.scalar
         t = state_in.time
+        tick = time.perf_counter() if self.phase_times is not None else 0.0
         lo, hi = self._particle_bounds(state_in)
         if not (np.all(np.isfinite(lo)) and np.all(np.isfinite(hi))):
             raise SimulationError("particle positions are not finite", state_in.step, t)
@@ -389,14 +405,19 @@ class Solver:
         for view in self._grid_views:
             view.zero_()
         self.error.zero_()
+        tick = self._phase("other", tick)
         L["p2g"].launch()
+        tick = self._phase("p2g", tick)
         L["grid_update"].launch()
         L["reset"].launch()
+        tick = self._phase("grid", tick)
         L["g2p"].launch()
+        tick = self._phase("g2p", tick)
         self._bounds_valid = True
         state_out.time = t + dt
         state_out.step = state_in.step + 1
         err = self.error.numpy()
+        self._phase("other", tick)
         if err[0]:
             # cannot happen while the margin exceeds the per-step motion; a refit at the next step would hide
             # lost mass, so stop instead

@@ -1,0 +1,95 @@
+"""Run benchmark scenes and report steps per second, particle-steps per second, phases and the reference ratio."""
+
+import datetime
+import platform
+import resource
+import subprocess
+import time
+from pathlib import Path
+
+import numpy as np
+import warp as wp
+
+from magsoro.bench.reference import time_reference
+from magsoro.bench.scenes import SCENES, build
+from magsoro.mpm.solver import Solver
+
+DEFAULT_STEPS = {"walker": 300, "walker_1m": 300, "beam2d": 1000, "block1m": 3}
+
+
+def run_scene(name: str, device: str = "cpu", steps: int | None = None) -> dict:
+    steps = steps or DEFAULT_STEPS[name]
+    model, control, settings = build(name, device)
+    solver = Solver(model, settings)
+    a, b = solver.new_state(), solver.new_state()
+    dt = solver.stable_dt(control)
+    for _ in range(5):  # kernel load and first grid fit
+        solver.step(a, b, control, dt)
+        a, b = b, a
+    wp.synchronize_device(device)
+    t0 = time.perf_counter()
+    for _ in range(steps):
+        solver.step(a, b, control, dt)
+        a, b = b, a
+    wp.synchronize_device(device)
+    wall = time.perf_counter() - t0
+    # phase split from a separate, synchronised pass (timing each phase adds synchronisation)
+    solver.enable_phase_timing(True)
+    n_phase = max(1, steps // 4)
+    for _ in range(n_phase):
+        solver.step(a, b, control, dt)
+        a, b = b, a
+    phases = {k: 1e3 * v / n_phase for k, v in solver.phase_times.items()}
+    h = model.host
+    ref = time_reference(h["positions"], h["volumes"], h["mass"], float(h["shear_modulus"][0]), float(h["bulk_modulus"][0]), model.dx, dt, steps, device)
+    n = model.n_particles
+    pps = n * steps / wall
+    return {
+        "name": name,
+        "n_particles": n,
+        "dim": model.dim,
+        "steps": steps,
+        "dt": dt,
+        "ms_per_step": 1e3 * wall / steps,
+        "steps_per_s": steps / wall,
+        "particle_steps_per_s": pps,
+        "reference_particle_steps_per_s": ref["particle_steps_per_s"],
+        "ratio_to_reference": pps / ref["particle_steps_per_s"],
+        "phases_ms": phases,
+        "grid": solver.grid_info(),
+    }
+
+
+def run(names, device: str = "cpu", steps: int | None = None) -> dict:
+    scenes = [run_scene(n, device, steps) for n in names]
+    if device == "cpu":
+        peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
+    else:
+        peak = None
+    return {
+        "device": device,
+        "device_name": wp.get_device(device).name,
+        "machine": {"node": platform.node(), "processor": platform.processor() or platform.machine(), "cpu_count": __import__("os").cpu_count()},
+        "warp_version": wp.config.version,
+        "commit": _commit(),
+        "date": datetime.datetime.now().isoformat(timespec="seconds"),
+        "peak_memory_bytes": peak,
+        "scenes": scenes,
+    }
+
+
+def _commit() -> str:
+    try:
+        out = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True, cwd=Path(__file__).parent, timeout=10)
+        return out.stdout.strip() or "unknown"
+    except (OSError, subprocess.SubprocessError):
+        return "unknown"
+
+
+def names_or_all(names):
+    unknown = [n for n in names if n not in SCENES]
+    if unknown:
+        from magsoro.errors import MagsoroError
+
+        raise MagsoroError(f"unknown benchmark scene(s) {unknown}; available: {', '.join(SCENES)}")
+    return list(names) or ["walker", "walker_1m", "beam2d", "block1m"]
