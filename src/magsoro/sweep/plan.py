@@ -42,12 +42,30 @@ def _apply(base: dict, params: dict, specs: dict[str, str]) -> dict:
     return data
 
 
+def _check_materials(scene, source: str) -> None:
+    """Resolve every body's material as the build will (library names, material files), host-only and cheap:
+    a misspelt library name is the likeliest error of a material sweep, and parse_scene leaves it to the build."""
+    from magsoro.materials.library import MaterialLibraryError, load_library
+    from magsoro.scene.build import resolve_material
+
+    libs = getattr(scene, "_material_libraries", None) or []
+    try:
+        library = load_library(libs) if libs else None
+    except MaterialLibraryError as exc:
+        raise SceneError(f"{source}: material_library: {exc}") from None
+    for i, b in enumerate(scene.bodies):
+        base_dir = getattr(b, "_base_dir", None) or getattr(scene, "_base_dir", None)
+        key = getattr(b, "_key", None) or f"bodies[{i}]"
+        resolve_material(b.material, base_dir, f"{getattr(b, '_source', None) or source}: {key}.material", library)
+
+
 def _validate(data: dict, source: str, base_dir: Path) -> str | None:
-    """parse_scene's one-line message when ``data`` is not a valid scene, else None."""
+    """One-line message when ``data`` is not a valid scene (parse_scene, then the materials), else None."""
     from magsoro.scene import parse_scene
 
     try:
-        parse_scene(copy.deepcopy(data), source, base_dir)
+        scene = parse_scene(copy.deepcopy(data), source, base_dir)
+        _check_materials(scene, source)
     except SceneError as exc:
         return str(exc)
     return None
