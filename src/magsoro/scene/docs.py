@@ -14,7 +14,8 @@ a test fails when this file and the models disagree. Units are SI. Unknown keys 
 that names the key and lists the allowed ones. In 2D scenes (`simulation.dim = 2`, plane strain in x-y) every
 position, size and velocity has 2 components; field vectors, magnetisation and dipole positions always have 3.
 
-Top level: `[simulation]`, `[[bodies]]`, `[[clamps]]`, `[[colliders]]`, `[[fields]]`, `[[probes]]`, `[output]`, `name`.
+Top level: `[simulation]`, `[[bodies]]`, `robot` (a robot file whose parts become bodies), `material_library`,
+`[[clamps]]`, `[[colliders]]`, `[[fields]]`, `[[probes]]`, `[output]`, `name`.
 """
 
 
