@@ -22,6 +22,7 @@ COMMANDS = [
     "magsoro.commands.show",
     "magsoro.commands.sweep",
     "magsoro.commands.report",
+    "magsoro.commands.validate",
 ]
 
 
