@@ -254,6 +254,10 @@ def check_scene(scene: Scene, source: str, base_dir: Path | None) -> None:
             raise SceneError(f"{source}: probes[{i}].body: no body named '{p.body}'; bodies: {', '.join(names)}")
         if p.type in ("tip", "point"):
             _check_shape(p.region, dim, f"probes[{i}].region", source, base_dir)
+    field_names = [f.name for f in scene.fields]
+    for i, f in enumerate(scene.fields):
+        if f.name is not None and f.name in field_names[:i]:
+            raise SceneError(f"{source}: fields[{i}].name: duplicate field name '{f.name}'")
     probe_names = [p.name for p in scene.probes]
     for i, p in enumerate(scene.probes):
         if p.name in probe_names[:i]:

@@ -377,6 +377,10 @@ AnyCollider = Annotated[Union[HalfSpaceCollider, BoxCollider, SphereCollider, Cy
 
 
 # ---------------------------------------------------------------- fields
+class FieldBase(Strict):
+    name: str | None = Field(default=None, description="Optional name, so sweeps can address the source (fields.NAME.key).")
+
+
 class RampProfile(Strict):
     """Linear ramp from zero to the full field over ``duration``, starting at ``start``."""
 
@@ -397,7 +401,7 @@ class SineProfile(Strict):
 Profile = Annotated[Union[RampProfile, SineProfile], Field(discriminator="type")]
 
 
-class UniformField(Strict):
+class UniformField(FieldBase):
     """Spatially uniform field, constant or scaled by a time profile."""
 
     type: Literal["uniform"]
@@ -410,7 +414,7 @@ class UniformField(Strict):
         return self
 
 
-class RotatingField(Strict):
+class RotatingField(FieldBase):
     """Uniform field of constant magnitude rotating in the plane spanned by u and v (from u towards v)."""
 
     type: Literal["rotating"]
@@ -428,7 +432,7 @@ class RotatingField(Strict):
         return self
 
 
-class KeyframedField(Strict):
+class KeyframedField(FieldBase):
     """Uniform field interpolated linearly between keyframes, given inline or as a CSV file (t,Bx,By,Bz)."""
 
     type: Literal["keyframes"]
@@ -446,7 +450,7 @@ class KeyframedField(Strict):
         return self
 
 
-class DipoleField(Strict):
+class DipoleField(FieldBase):
     """Point dipole (a small permanent magnet), optionally moving along a path."""
 
     type: Literal["dipole"]
@@ -461,7 +465,7 @@ class DipoleField(Strict):
         return self
 
 
-class CylinderMagnetField(Strict):
+class CylinderMagnetField(FieldBase):
     """Axially magnetised cylindrical permanent magnet: exact closed form or the multipole expansion of seed 001."""
 
     type: Literal["cylinder_magnet"]
@@ -481,7 +485,7 @@ class CylinderMagnetField(Strict):
         return self
 
 
-class CuboidMagnetField(Strict):
+class CuboidMagnetField(FieldBase):
     """Homogeneously magnetised cuboid permanent magnet (closed form)."""
 
     type: Literal["cuboid_magnet"]
@@ -499,7 +503,7 @@ class CuboidMagnetField(Strict):
         return self
 
 
-class CoilField(Strict):
+class CoilField(FieldBase):
     """Circular current loop, or a Helmholtz (uniform) or Maxwell (gradient) pair of loops."""
 
     type: Literal["loop", "helmholtz", "maxwell"]
