@@ -72,8 +72,11 @@ def one_sweep(scene: Path, runs: int, workers: int, work: Path) -> dict:
     if bad:
         raise SystemExit(f"run {bad[0]['run']} {bad[0]['status']}: {bad[0]['error']}")
     per_run = [r["wall_time_s"] for r in result.records]
+    cpu = [r["cpu_time_s"] for r in result.records]
+    # runs' wall time well above their CPU time means they waited for a core (other processes on the machine)
     return {"workers": workers, "wall_s": wall, "load_average_1min_before": load,
-            "run_wall_s_sum": sum(per_run), "run_wall_s_mean": sum(per_run) / len(per_run)}
+            "run_wall_s_sum": sum(per_run), "run_wall_s_mean": sum(per_run) / len(per_run),
+            "run_cpu_s_sum": sum(cpu), "run_cpu_over_wall": sum(cpu) / sum(per_run)}
 
 
 def main():

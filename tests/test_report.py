@@ -170,3 +170,16 @@ def test_report_cli(run_dir, tmp_path, capsys):
     err = capsys.readouterr().err
     assert "neither a run (run.json) nor a sweep (sweep.json) directory" in err
     assert main(["report", str(run_dir), "--max-frames", "0"]) == 2
+
+
+def test_embedded_data_cannot_close_its_script_tag():
+    from magsoro.viz.report import render_html
+
+    evil = "</script><!--<script>"
+    content = {"kind": "run", "title": evil, "subtitle": "s", "status": "completed", "facts": [("a", evil)], "sweep_params": [],
+               "scene_rows": [], "viewer": None,
+               "charts": [{"title": evil, "xlabel": "t", "ylabel": "y", "series": [{"name": evil, "x": [0.0, 1.0], "y": [1.0, 2.0]}]}]}
+    page = render_html(content)
+    assert page.count("</script>") == 2 and page.count("<script") == 2  # the data block and the code, nothing else
+    data = json.loads(page.split('id="report-data">', 1)[1].split("</script>", 1)[0])
+    assert data["charts"][0]["series"][0]["name"] == evil and data["expected_curves"] == 1

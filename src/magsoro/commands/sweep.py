@@ -28,7 +28,7 @@ def register(sub):
     p.add_argument("--zip", action="store_true", help="pair the i-th values of every --param instead of taking all combinations")
     p.add_argument("--out", required=True, help="sweep directory (runs/, summary.csv, summary.parquet, sweep.json)")
     p.add_argument("--scheduler", metavar="HOST:PORT", help="connect to a running dask.distributed scheduler instead of starting a LocalCluster")
-    p.add_argument("--workers", type=int, metavar="N", help="LocalCluster worker processes (default: one per core); 0 runs them in this process without Dask")
+    p.add_argument("--workers", type=int, metavar="N", help="LocalCluster worker processes (default: one per core, or one per GPU with --device cuda); 0 runs them in this process without Dask")
     p.add_argument("--resume", action="store_true", help="continue a sweep in --out: skip runs whose run.json says completed or failed")
     p.add_argument("--device", help="cpu, cuda or cuda:N for every run (overrides simulation.device); 'cuda' gives worker k GPU k")
     p.add_argument("--no-particles", action="store_true", help="do not write the particle series of each run (saves disk)")
@@ -80,5 +80,7 @@ def run(args) -> int:
         print(f"magsoro sweep: interrupted; finished runs are kept, continue with --resume --out {args.out}", file=sys.stderr)
         return 130
     n_failed = len(result.failed)
-    print(f"{len(result.completed)} completed, {n_failed} failed of {len(result.records)} runs in {result.wall_time:.1f} s; summary in {result.out_dir / 'summary.csv'}")
-    return 1 if n_failed else 0
+    unfinished = len(result.records) - len(result.completed) - n_failed
+    rest = f", {unfinished} not finished (run again with --resume)" if unfinished else ""
+    print(f"{len(result.completed)} completed, {n_failed} failed{rest} of {len(result.records)} runs in {result.wall_time:.1f} s; summary in {result.out_dir / 'summary.csv'}")
+    return 1 if n_failed or unfinished else 0

@@ -63,8 +63,14 @@ class SweepResult:
         return [r for r in self.records if r["status"] == "completed"]
 
 
-def default_workers() -> int:
-    """One worker per core this process may use."""
+def default_workers(device: str | None = None) -> int:
+    """One worker per GPU for ``device='cuda'`` (one for 'cuda:N'), else one per core this process may use."""
+    if device is not None and device.startswith("cuda"):
+        if device != "cuda":
+            return 1
+        import warp as wp
+
+        return max(1, wp.get_cuda_device_count())
     try:
         return max(1, len(os.sched_getaffinity(0)))
     except AttributeError:
@@ -158,7 +164,7 @@ def run_sweep(
             raise SweepError(f"--scheduler {scheduler}: cannot connect ({exc})") from None
         n_workers = len(client.scheduler_info().get("workers", {}))
     else:
-        n_workers = max(1, min(workers or default_workers(), len(pending)))
+        n_workers = max(1, min(workers or default_workers(device), len(pending)))
         # processes, not threads: a run holds the GIL in its Python stepping loop
         cluster = LocalCluster(
             n_workers=n_workers,

@@ -1,7 +1,7 @@
 """The sweep's table: one row per planned run, written as CSV and Parquet, atomically, after every finished run.
 
 Columns: index, run (directory name under runs/), one column per --param key (as given, e.g.
-``fields.0.B``), status (pending, running, interrupted, completed, failed), error, wall_time_s, steps,
+``fields.0.B``), status (pending, running, interrupted, completed, failed), error, wall_time_s, cpu_time_s, steps,
 sim_time_s, then the final value of every probe column (metrics.csv names, m).
 """
 
@@ -17,7 +17,7 @@ from pathlib import Path
 from magsoro.io.files import atomic_write_text
 from magsoro.sweep.params import format_value
 
-FIXED = ["status", "error", "wall_time_s", "steps", "sim_time_s"]
+FIXED = ["status", "error", "wall_time_s", "cpu_time_s", "steps", "sim_time_s"]
 
 
 def columns(records: list[dict], param_keys: list[str]) -> list[str]:

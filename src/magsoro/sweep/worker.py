@@ -81,7 +81,7 @@ def execute_run(run: dict, run_dir: str, scene_file: str, device: str | None = N
 
         # a worker's first run pays the imports and Warp's start-up; the run's own wall time starts after them
         wp.init()
-        wall0 = time.perf_counter()
+        wall0, cpu0 = time.perf_counter(), time.process_time()
         source = f"{scene_file} [run {run['name']}]"
         scene = parse_scene(json.loads(json.dumps(run["scene"])), source, Path(scene_file).parent)
         sim = Simulation(scene, device=_worker_device(device), source=source)
@@ -90,6 +90,9 @@ def execute_run(run: dict, run_dir: str, scene_file: str, device: str | None = N
         atomic_write_json(out / "run.json", writer.info)
         result = sim.run(record=writer.record, record_every=scene.output.every)
         writer.finish(result, time.perf_counter() - wall0)
+        # CPU time next to wall time tells a slow run from a run starved by other processes on the machine
+        writer.info["sweep"]["cpu_time_s"] = time.process_time() - cpu0
+        atomic_write_json(out / "run.json", writer.info)
     except Exception as exc:  # noqa: BLE001 - any error of one run is that run's result, not the sweep's
         _write_failure(out, run, sweep_info, exc, time.perf_counter() - wall0, writer)
     return read_record(out, run)
@@ -176,6 +179,7 @@ def read_record(run_dir, run: dict) -> dict:
         "status": status,
         "error": info.get("message", "") if status != "completed" else "",
         "wall_time_s": float(wall) if isinstance(wall, (int, float)) and math.isfinite(wall) else None,
+        "cpu_time_s": (info.get("sweep") or {}).get("cpu_time_s"),
         "steps": info.get("steps"),
         "sim_time_s": info.get("time"),
         "probes": final_probes(out) if status == "completed" else {},

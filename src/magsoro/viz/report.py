@@ -333,8 +333,8 @@ def render_html(content: dict) -> str:
         "viewer": content["viewer"],
         "expected_curves": expected,
     }
-    # '</' inside a <script> would end it early; JSON allows the escaped form
-    data = json.dumps(payload, separators=(",", ":"), allow_nan=False).replace("</", "<\\/")
+    # '</script>' or '<!--' inside a <script> would end or confuse it; JSON's \u003c is the same character
+    data = json.dumps(payload, separators=(",", ":"), allow_nan=False).replace("<", "\\u003c")
     parts = [
         "<!DOCTYPE html>",
         '<html lang="en"><head><meta charset="utf-8">',
