@@ -146,10 +146,18 @@ def test_worker_records_an_error_outside_the_stepping_loop(tmp_path):
 
 # ------------------------------------------------------------------------------------------- running on Dask
 def test_sweep_on_local_cluster_records_the_failing_run(tmp_path):
+    """6 runs on a 2-worker LocalCluster reached through its scheduler address (the --scheduler path; the
+    sweep's own LocalCluster is exercised by the --resume test below), one of them failing."""
+    from distributed import LocalCluster
+
+    from magsoro.sweep.worker import SINGLE_THREAD_ENV
+
     scene = write_scene(tmp_path)
     plan = make_plan(scene, [f"fields.0.B={B_VALUES}", f"simulation.dt={DT_VALUES}"], zipped=True)
     seen = []
-    result = run_sweep(plan, tmp_path / "sweep", workers=2, progress=lambda s: seen.append((s.done, s.failed, s.eta)))
+    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None, env=SINGLE_THREAD_ENV) as cluster:
+        result = run_sweep(plan, tmp_path / "sweep", scheduler=cluster.scheduler_address,
+                           progress=lambda s: seen.append((s.done, s.failed, s.eta)))
     assert result.workers == 2
     rows = read_csv(tmp_path / "sweep" / "summary.csv")
     assert [int(r["index"]) for r in rows] == list(range(6))
