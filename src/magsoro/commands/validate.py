@@ -4,7 +4,10 @@ tolerance and pass for every compared quantity (docs/validation.md)."""
 from __future__ import annotations
 
 import json
+import subprocess
 import sys
+import time
+from datetime import datetime, timezone
 from pathlib import Path
 
 
@@ -46,11 +49,19 @@ def run_validate(args) -> int:
     out = Path(args.out) if args.out else None
     if out is not None:
         out.mkdir(parents=True, exist_ok=True)
+    t0 = time.perf_counter()
     results = run_validation(args.cases, quick=args.quick, out=out)
+    wall = time.perf_counter() - t0
     rows = [r for res in results for r in res.rows]
     if out is not None:
+        commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True,
+                                cwd=Path(__file__).resolve().parent).stdout.strip()
         summary = {
             "quick": bool(args.quick),
+            "argv": sys.argv[1:],
+            "wall_s": round(wall, 1),
+            "date": datetime.now(timezone.utc).strftime("%Y-%m-%d %H:%M UTC"),
+            "commit": commit,
             "cases": [{"case": res.case, "wall_s": round(res.wall_s, 1), "passed": res.passed, "info": res.info,
                        "figures": [str(f) for f in res.figures]} for res in results],
             "rows": [r.as_dict() for r in rows],
@@ -62,5 +73,5 @@ def run_validate(args) -> int:
         print(text_table(rows))
         failed = sum(not r.passed for r in rows)
         print(f"\n{len(rows) - failed}/{len(rows)} rows pass; "
-              + ", ".join(f"{res.case} {res.wall_s:.0f} s" for res in results))
+              + ", ".join(f"{res.case} {res.wall_s:.0f} s" for res in results) + f"; {wall:.0f} s in all")
     return 0 if rows and all(r.passed for r in rows) else 1
