@@ -6,7 +6,7 @@ included. The configurations alternate for ``--rounds`` rounds and each keeps it
 from other users of the machine does not land on one side only. The machine load average before each round
 is recorded next to the times. Writes benchmarks/results/sweep_scaling-<date>-cpu-<commit>.json.
 
-    python benchmarks/sweep_scaling.py [--runs 8] [--duration 0.008] [--rounds 2]
+    python benchmarks/sweep_scaling.py [--runs 8] [--duration 0.06] [--rounds 2]
 """
 
 import argparse
@@ -82,7 +82,7 @@ def one_sweep(scene: Path, runs: int, workers: int, work: Path) -> dict:
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--runs", type=int, default=8)
-    ap.add_argument("--duration", type=float, default=0.008, help="simulated time per run, s (0.008: about 5 s of CPU)")
+    ap.add_argument("--duration", type=float, default=0.06, help="simulated time per run, s (0.06: about 4 s of CPU per run here)")
     ap.add_argument("--rounds", type=int, default=2)
     args = ap.parse_args()
     commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=ROOT, capture_output=True, text=True).stdout.strip() or "unknown"
