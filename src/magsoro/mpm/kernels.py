@@ -344,9 +344,10 @@ def make_kernels(dim: int, scalar):
                 for a in range(dim):
                     weight = weight * pick(w0, w1, w2, o[a], a)
                     dpos[a] = (scalar(o[a]) - fx[a]) * dx
-                gv = grid_v[flat_index(base + o, shape)]
-                new_v = new_v + weight * gv
-                new_C = new_C + (weight * scalar(4.0) * inv_dx * inv_dx) * wp.outer(gv, dpos)
+                wgv = weight * grid_v[flat_index(base + o, shape)]
+                new_v = new_v + wgv
+                new_C = new_C + wp.outer(wgv, dpos)
+            new_C = (scalar(4.0) * inv_dx * inv_dx) * new_C  # scaled once, not per node
             Fn = (wp.identity(n=dim, dtype=scalar) + dt * new_C) * F_in[p]
             xp = xp + dt * new_v
             x_out[p] = xp
