@@ -182,12 +182,13 @@ The straight beam in an opposite field buckles at Br B/(mu0 G) = (pi/2)^2 (E/G)/
 
 **Fields.** Perpendicular: Br B/(mu0 G) = 0.0005, 0.001, 0.002, 0.004. Opposite: 0.004, 0.008, 0.012, 0.02 in
 2D (the part of seed 000's 0-0.02 sweep at least twice the critical field; just above it the tip moves like
-sqrt(B - B_crit) and any 1 % stiffness error is magnified without bound), 0.004 and 0.008 in 3D.
+sqrt(B - B_crit) and any 1 % stiffness error is magnified without bound); 3D runs the perpendicular sweep only
+(its cost).
 
 **How the engine is run.** One simulation per field direction follows the sweep by continuation: a keyframed
 uniform field ramps to the next value over 1.5/omega_1 and holds it for 6/omega_1 (omega_1 = 3.516
 sqrt(E t^2/(12 rho))/L^2, the first bending mode without field); the tip is read at the end of each hold. Grid
-damping c = 1.5 omega_1. In the opposite field a transverse component of 5 % of B is added while the field
+damping c = 1.5 omega_1; float64 kernels (see "Engine findings"). In the opposite field a transverse component of 5 % of B is added while the field
 first rises and removed over the next 1.5/omega_1, which picks the branch bending towards +y; the rod gets the
 same perturbation (removed at the end of its continuation). The step count per field scales as
 (L/t)^2 (t/dx) sqrt(K/G), which makes this benchmark (L/t = 20.5) about 6.5 times as long per field as the

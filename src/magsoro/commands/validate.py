@@ -3,6 +3,7 @@ tolerance and pass for every compared quantity (docs/validation.md)."""
 
 from __future__ import annotations
 
+import contextlib
 import json
 import subprocess
 import sys
@@ -50,7 +51,10 @@ def run_validate(args) -> int:
     if out is not None:
         out.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
-    results = run_validation(args.cases, quick=args.quick, out=out)
+    # stdout carries only the table or the JSON: anything the engine or Warp prints while the cases run
+    # (kernel compilation notices) goes to stderr
+    with contextlib.redirect_stdout(sys.stderr):
+        results = run_validation(args.cases, quick=args.quick, out=out)
     wall = time.perf_counter() - t0
     rows = [r for res in results for r in res.rows]
     if out is not None:

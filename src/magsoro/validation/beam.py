@@ -53,7 +53,8 @@ class BeamSetup:
     ``t_over_dx``: grid cells through the thickness; ``ppc``: particles per cell per axis; ``damping``: grid
     damping in units of the first bending frequency omega_1 (1/s); ``ramp``, ``hold``: field step and hold
     durations in units of 1 / omega_1; ``perturbation``: transverse field used to choose the buckling branch, as
-    a fraction of |B|; ``clamp_cells``: length of the clamped stub behind x = 0, in cells.
+    a fraction of |B|; ``clamp_cells``: length of the clamped stub behind x = 0, in cells; ``precision``:
+    the kernels' floating-point type.
     """
 
     length: float = 17.2e-3
@@ -71,7 +72,10 @@ class BeamSetup:
     hold: float = 6.0
     perturbation: float = 0.05
     clamp_cells: int = 4
-    precision: str = "float32"
+    # float64: with float32 positions a particle that creeps onto the edge of the engine's grid block can be
+    # inside the block by the host's float64 test and outside by the kernel's float32 one, which stops the run
+    # ("a particle moved outside the active grid block"); seen at t/dx = 4 after ~130k steps. Costs ~20 %.
+    precision: str = "float64"
 
     # -- derived quantities ----------------------------------------------------------------------------------
     @property
@@ -328,10 +332,18 @@ class Comparison:
         return float(np.mean(np.abs(self.run.tip_dy - self.ref_dy) / np.abs(self.ref_dy)))
 
 
+_RUNS: dict = {}
+
+
 def compare(setup: BeamSetup, fields, psi_deg: float, log=None) -> Comparison:
-    run = run_sweep(setup, fields, psi_deg, log)
-    ref_dx, ref_dy = rod_reference(setup, fields, psi_deg, run.tip_s, run.free_length)
-    return Comparison(run, ref_dx, ref_dy)
+    """Engine sweep and rod reference. A sweep already run in this process with the same setup is reused
+    (the convergence study shares its default-resolution run with the ``beam`` case)."""
+    key = (setup, tuple(fields), float(psi_deg))
+    if key not in _RUNS:
+        run = run_sweep(setup, fields, psi_deg, log)
+        ref_dx, ref_dy = rod_reference(setup, fields, psi_deg, run.tip_s, run.free_length)
+        _RUNS[key] = Comparison(run, ref_dx, ref_dy)
+    return _RUNS[key]
 
 
 def comparison_rows(case: str, comp: Comparison, mape_tol: float, point_tol: float) -> list[Row]:
@@ -437,12 +449,14 @@ def beam_case(ctx: Context) -> CaseResult:
     return CaseResult("beam", rows, figures, {"runs": [_run_info(c) for c in comps]})
 
 
-@register("beam_3d", "Zhao beam, 3D MPM (2 cells through the thickness) vs Kirchhoff rod (E)", quick=False,
-          cost="~20-40 min")
+@register("beam_3d", "Zhao beam, 3D MPM (2 cells through the thickness) vs Kirchhoff rod (E), perpendicular field",
+          quick=False, cost="~25 min")
 def beam_3d_case(ctx: Context) -> CaseResult:
     setup = BeamSetup(dim=3, t_over_dx=DEFAULT_T_OVER_DX_3D)
     comps, rows = [], []
-    for psi, fields in ((90.0, PERPENDICULAR_FIELDS), (180.0, OPPOSITE_FIELDS[:2])):
+    # perpendicular sweep only: one 3D step costs ~20x a 2D one per particle, and the opposite sweep would
+    # double the ~25 min of this case on two CPU cores
+    for psi, fields in ((90.0, PERPENDICULAR_FIELDS),):
         comp = compare(setup, fields, psi, ctx.log)
         comps.append(comp)
         tol = MAPE_TOL[(3, int(psi))]
