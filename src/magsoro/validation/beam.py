@@ -54,7 +54,7 @@ class BeamSetup:
     damping in units of the first bending frequency omega_1 (1/s); ``ramp``, ``hold``: field step and hold
     durations in units of 1 / omega_1; ``perturbation``: transverse field used to choose the buckling branch, as
     a fraction of |B|; ``clamp_cells``: length of the clamped stub behind x = 0, in cells; ``precision``:
-    the kernels' floating-point type.
+    the kernels' floating-point type; ``cfl``: safety factor of the automatic time step.
     """
 
     length: float = 17.2e-3
@@ -76,6 +76,7 @@ class BeamSetup:
     # inside the block by the host's float64 test and outside by the kernel's float32 one, which stops the run
     # ("a particle moved outside the active grid block"); seen at t/dx = 4 after ~130k steps. Costs ~20 %.
     precision: str = "float64"
+    cfl: float = 0.4  # the engine's default safety factor of the automatic time step
 
     # -- derived quantities ----------------------------------------------------------------------------------
     @property
@@ -190,7 +191,8 @@ def beam_scene(setup: BeamSetup, schedule: Schedule) -> dict:
         "name": f"Zhao beam {s.dim}D (seed 000 sec 4.2), t/dx = {s.t_over_dx}",
         "simulation": {
             "dim": s.dim, "dx": dx, "particles_per_cell": s.ppc, "domain_lo": lo, "domain_hi": hi,
-            "duration": schedule.duration, "damping": s.damping * s.omega1, "precision": s.precision, **extra,
+            "duration": schedule.duration, "damping": s.damping * s.omega1, "precision": s.precision, "cfl": s.cfl,
+            **extra,
         },
         "bodies": [{
             "name": "beam", "shape": body,
@@ -418,7 +420,8 @@ def plot_convergence(table: list[dict], path: Path) -> Path:
 
 def _run_info(comp: Comparison) -> dict:
     r = comp.run
-    return {"dim": r.setup.dim, "psi_deg": r.psi_deg, "t_over_dx": r.setup.t_over_dx, "particles": r.particles,
+    return {"dim": r.setup.dim, "psi_deg": r.psi_deg, "t_over_dx": r.setup.t_over_dx, "cfl": r.setup.cfl,
+            "particles": r.particles,
             "steps": r.steps, "wall_s": round(r.wall_s, 1), "mape": comp.mape,
             "max_drift_last_tau": float(np.nanmax(r.drift)) if len(r.drift) else float("nan")}
 
@@ -501,6 +504,100 @@ def beam_convergence_case(ctx: Context) -> CaseResult:
     if ctx.out is not None:
         figures.append(plot_convergence(table, Path(ctx.out) / "beam_convergence.png"))
     return CaseResult("beam_convergence", rows, figures, {"table": table})
+
+
+#: CFL factors of the time-step study (the engine's default is 0.4).
+TIMESTEP_CFL = (0.4, 0.2, 0.1)
+
+
+@register("beam_timestep", "2D beam at Br B/(mu0 G) = 0.0005: the settled tip must not depend on the time step "
+          "(CFL factor 0.4, 0.2, 0.1; t/dx = 2)", quick=False, cost="~5 min")
+def beam_timestep_case(ctx: Context) -> CaseResult:
+    fields = (PERPENDICULAR_FIELDS[0],)
+    comps = [compare(BeamSetup(dim=2, t_over_dx=2, cfl=c), fields, 90.0, ctx.log) for c in TIMESTEP_CFL]
+    rows = []
+    for comp in comps:
+        rows += [r for r in comparison_rows("beam_timestep", comp, MAPE_TOL[(2, 90)], 2 * MAPE_TOL[(2, 90)])
+                 if r.quantity == "tip_dy_over_L"]
+        rows[-1].inputs["cfl"] = comp.run.setup.cfl
+        rows[-1].inputs["steps"] = comp.run.steps
+    # a static equilibrium is a property of the equations, not of the step: the settled tip may move by 1 % of
+    # itself from the largest to the smallest step
+    first, last = comps[0], comps[-1]
+    change = float((first.run.tip_dy[0] - last.run.tip_dy[0]) / last.ref_dy[0])
+    rows.append(Row("beam_timestep", "tip_dy_over_L_change_with_dt",
+                    {"bn": fields[0], "psi_deg": 90.0, "dim": 2, "t_over_dx": 2,
+                     "cfl": [TIMESTEP_CFL[0], TIMESTEP_CFL[-1]]}, 0.0, change, abs(change), 0.01))
+    figures = []
+    if ctx.out is not None:
+        import matplotlib
+
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+
+        fig, ax = plt.subplots(figsize=(5.2, 4.0))
+        steps = [c.run.steps for c in comps]
+        ax.semilogx(steps, [c.run.tip_dy[0] for c in comps], "o-", label="MPM 2D, t/dx = 2")
+        ax.axhline(last.ref_dy[0], color="k", ls="--", label="Kirchhoff rod (E')")
+        for c in comps:
+            ax.annotate(f"cfl={c.run.setup.cfl:g}", (c.run.steps, c.run.tip_dy[0]), fontsize=8,
+                        textcoords="offset points", xytext=(4, 4))
+        ax.set_xlabel("steps for the same simulated time")
+        ax.set_ylabel("settled tip dy/L")
+        ax.set_title(f"Br B/(mu0 G) = {fields[0]:g}, field perpendicular to Br", fontsize=9)
+        ax.legend(fontsize=8)
+        fig.tight_layout()
+        path = Path(ctx.out) / "beam_timestep.png"
+        fig.savefig(path, dpi=110)
+        plt.close(fig)
+        figures.append(path)
+    info = {"runs": [_run_info(c) for c in comps]}
+    return CaseResult("beam_timestep", rows, figures, info)
+
+
+def run_gravity(setup: BeamSetup, sag: float = 0.05, duration: float = 10.0):
+    """The beam under its own weight, no field: tip dy/L of the engine after ``duration`` / omega_1 and of the
+    rod. Gravity is set so that the linear (Euler-Bernoulli) sag q L^4/(8 E I) is ``sag`` L. Separates the
+    elastic bending and the clamp from the magnetic loading."""
+    from magsoro.rod import CrossSection, Rod
+    from magsoro.scene import parse_scene
+    from magsoro.simulation import Simulation
+
+    s = setup
+    g = sag * s.bending_modulus * s.thickness**2 / (1.5 * s.density * s.length**3)  # m/s^2
+    tau = 1.0 / s.omega1
+    sched = Schedule([0.0, duration * tau], [[0.0, 0.0, 0.0], [0.0, 0.0, 0.0]], [duration * tau])
+    scene = beam_scene(s, sched)
+    scene["simulation"]["gravity"] = [0.0, -g] if s.dim == 2 else [0.0, -g, 0.0]
+    t0 = time.perf_counter()
+    sim = Simulation(parse_scene(scene))
+    probe = sim.probes[0]
+    X = sim.model.host["positions"]
+    tip_ref = probe.evaluate(X)
+    free_length = float(X[X[:, 0] > 0, 0].max() + s.dx / s.ppc / 2)
+    sim.advance_to(duration * tau)
+    tip = probe.evaluate(sim.state.x.numpy())
+    value = float((tip[1] - tip_ref[1]) / free_length)
+    rod = Rod(free_length, CrossSection.rectangle(s.width, s.thickness), youngs_modulus=s.bending_modulus,
+              density=s.density, gravity=(0.0, 0.0, -g), magnetisation=(0.0, 0.0, 0.0))
+    sol = rod.solve((0.0, 0.0, 0.0))
+    reference = float(np.interp(tip_ref[0], sol.s, sol.positions[:, 2]) / free_length)
+    info = {"dim": s.dim, "t_over_dx": s.t_over_dx, "particles": int(sim.model.n_particles), "steps": int(sim.steps),
+            "wall_s": round(time.perf_counter() - t0, 1), "gravity_m_s2": g}
+    return value, reference, info
+
+
+@register("beam_gravity", "the 2D beam under its weight, no field, vs the rod: elastic bending and clamp "
+          "without magnetic loading", quick=False, cost="~2 min")
+def beam_gravity_case(ctx: Context) -> CaseResult:
+    setup = BeamSetup(dim=2, t_over_dx=DEFAULT_T_OVER_DX_2D)
+    value, reference, info = run_gravity(setup)
+    ctx.log(f"  beam under gravity: tip dy/L = {value:.5f}, rod {reference:.5f} ({info['wall_s']} s)")
+    inputs = {"load": "gravity", "linear_sag_over_L": 0.05, "L_over_t": round(setup.slenderness, 4), "dim": 2,
+              "t_over_dx": setup.t_over_dx, "particles": info["particles"]}
+    rows = [Row("beam_gravity", "tip_dy_over_L", inputs, reference, value, abs(value - reference) / abs(reference),
+                MAPE_TOL[(2, 90)])]
+    return CaseResult("beam_gravity", rows, info=info)
 
 
 def scaled_setup(setup: BeamSetup, factor: float) -> BeamSetup:
