@@ -63,6 +63,11 @@ class SweepResult:
         return [r for r in self.records if r["status"] == "completed"]
 
 
+# LocalCluster worker environment: single-threaded numerics, and no statistical profiler (it samples every
+# worker's stack every 10 ms, CPU the runs can use; a sweep's tasks are opaque to it anyway).
+WORKER_ENV = {**SINGLE_THREAD_ENV, "DASK_DISTRIBUTED__WORKER__PROFILE__ENABLED": "False"}
+
+
 def default_workers(device: str | None = None) -> int:
     """One worker per GPU for ``device='cuda'`` (one for 'cuda:N'), else one per core this process may use."""
     if device is not None and device.startswith("cuda"):
@@ -171,7 +176,7 @@ def run_sweep(
             threads_per_worker=1,
             processes=True,
             dashboard_address=None,
-            env=dict(SINGLE_THREAD_ENV),
+            env=WORKER_ENV,
         )
         client = Client(cluster)
     futures = {}
