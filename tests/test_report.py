@@ -115,7 +115,7 @@ def test_run_report_embeds_curves_and_frames(run_dir, tmp_path):
     assert np.abs(decoded - pts).max() <= 0.51 * max(v["span"]) / 65535
     assert v["flat_z"] is True
     body = np.frombuffer(base64.b64decode(v["body"]), dtype=np.uint8)
-    assert np.array_equal(body, fields["body"])
+    assert np.array_equal(body, fields["body"]) and v["body_names"] == ["beam"]
     # self-contained: no script, style, image or link fetched from anywhere
     assert not re.search(r"""(src|href)\s*=\s*["']?(https?:)?//""", text)
     assert "url(http" not in text and "@import" not in text

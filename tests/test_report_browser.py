@@ -10,6 +10,7 @@ Debian's ``chromium``).
 from __future__ import annotations
 
 import base64
+import fcntl
 import json
 import os
 import queue
@@ -45,8 +46,12 @@ class DevTools:
         self._out_r, out_w = os.pipe()  # Chromium writes replies and events on its fd 4
 
         def child_fds():
-            os.dup2(cmd_r, 3)
-            os.dup2(out_w, 4)
+            # move both ends above 3 and 4 first: either may itself be fd 3 or 4, and dup2 onto itself would
+            # keep its close-on-exec flag
+            hi_r = fcntl.fcntl(cmd_r, fcntl.F_DUPFD, 10)
+            hi_w = fcntl.fcntl(out_w, fcntl.F_DUPFD, 10)
+            os.dup2(hi_r, 3)
+            os.dup2(hi_w, 4)
 
         self.proc = subprocess.Popen(
             [binary, *CHROMIUM_FLAGS, "--remote-debugging-pipe", f"--user-data-dir={user_data_dir}", "about:blank"],
@@ -163,6 +168,7 @@ def load_page(binary: str, html_file: Path, tmp: Path, screenshot: Path) -> dict
                 var label = document.querySelector('#viewer .controls div').textContent;
                 var s = document.getElementById('frame-slider'); s.value = 0; s.dispatchEvent(new Event('input'));
                 out.viewer = {ink: ink, background: bg, ready: c.getAttribute('data-ready'), label_last: label,
+                              legend: document.querySelector('#viewer .legend').textContent,
                               label_first: document.querySelector('#viewer .controls div').textContent};
                 c.dispatchEvent(new PointerEvent('pointerdown', {clientX: 100, clientY: 100, pointerId: 1}));
                 c.dispatchEvent(new PointerEvent('pointermove', {clientX: 160, clientY: 130, pointerId: 1}));
@@ -234,7 +240,7 @@ def test_run_report_renders_in_chromium(chromium, tmp_path):
     assert res["status"] == f"ok: {expected} curves, viewer ready", res["status"]
     assert res["checks"]["curves"] == expected
     viewer = res["checks"]["viewer"]
-    assert viewer["ready"] == "1"
+    assert viewer["ready"] == "1" and viewer["legend"] == "beam"
     assert viewer["ink"] > 200, "the particle canvas is blank"
     assert viewer["label_last"] != viewer["label_first"] and viewer["label_first"].startswith("t = 0 s")
     assert "tip" in res["checks"]["tooltip"] and "time (s)" in res["checks"]["tooltip"]

@@ -221,8 +221,15 @@ def run_content(run_dir, max_frames: int = MAX_FRAMES, max_particles: int = MAX_
         "sweep_params": [(k, json.dumps(v)) for k, v in (sweep.get("params") or {}).items()],
         "scene_rows": _flatten(scene),
         "charts": charts,
-        "viewer": viewer_data(run_dir, max_frames, max_particles),
+        "viewer": _with_body_names(viewer_data(run_dir, max_frames, max_particles), info),
     }
+
+
+def _with_body_names(viewer: dict | None, info: dict) -> dict | None:
+    """Body names for the viewer's legend, in body-id order (run.json's fill report lists the bodies in order)."""
+    if viewer is not None:
+        viewer["body_names"] = [b.get("body", str(i)) for i, b in enumerate(info.get("bodies") or []) if isinstance(b, dict)]
+    return viewer
 
 
 def _is_num(v) -> bool:

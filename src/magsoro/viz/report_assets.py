@@ -198,7 +198,7 @@ JS = r"""
       if (mode === "body") {
         var seen = {};
         for (var i = 0; i < n; i++) seen[body[i]] = true;
-        Object.keys(seen).forEach(function (b) { var s = html("span", "", legend); html("i", "", s).style.background = PALETTE[b % PALETTE.length]; s.appendChild(document.createTextNode("body " + b)); });
+        Object.keys(seen).forEach(function (b) { var s = html("span", "", legend); html("i", "", s).style.background = PALETTE[b % PALETTE.length]; s.appendChild(document.createTextNode((V.body_names || [])[b] || "body " + b)); });
       } else {
         legend.textContent = "J from " + fmt(V.J_range[0]) + " (blue) through 1 (white) to " + fmt(V.J_range[1]) + " (red)";
       }
