@@ -120,8 +120,9 @@ def run_sweep(
     ``scheduler`` ('HOST:PORT' or a full address) connects to a running dask.distributed cluster whose
     workers have magsoro installed and see ``out_dir`` and the scene's files at the same paths; otherwise a
     LocalCluster with ``workers`` single-threaded worker processes (default: one per core) is started and
-    closed; ``workers=0`` runs them one after the other in this process, without Dask. Ctrl-C cancels the runs in flight and raises KeyboardInterrupt; their run.json stays 'running',
-    so a later ``resume=True`` runs them again.
+    closed; ``workers=0`` runs them one after the other in this process, without Dask. Ctrl-C cancels the runs
+    in flight and raises KeyboardInterrupt; their run.json stays 'running', so a later ``resume=True`` runs
+    them again.
     """
     wall0 = time.perf_counter()
     out = Path(out_dir).resolve()
@@ -167,7 +168,12 @@ def run_sweep(
             client = Client(address, timeout=30)
         except (OSError, TimeoutError) as exc:
             raise SweepError(f"--scheduler {scheduler}: cannot connect ({exc})") from None
-        n_workers = len(client.scheduler_info().get("workers", {}))
+        try:
+            client.wait_for_workers(1, timeout=60)  # a scheduler without workers would leave the sweep waiting
+        except TimeoutError:
+            client.close()
+            raise SweepError(f"--scheduler {scheduler}: no worker joined the cluster within 60 s") from None
+        n_workers = len(client.nthreads())
     else:
         n_workers = max(1, min(workers or default_workers(device), len(pending)))
         # processes, not threads: a run holds the GIL in its Python stepping loop
