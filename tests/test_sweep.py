@@ -40,6 +40,7 @@ def test_param_grammar():
     assert parse_param("fields.0.B=[0,0.01,0],[0, 0.02, 0]").values == [[0, 0.01, 0], [0, 0.02, 0]]
     assert parse_param('x.y="a,b",c,true,.5,{"type":"ramp","duration":0.1}').values == [
         "a,b", "c", True, 0.5, {"type": "ramp", "duration": 0.1}]
+    assert parse_param('x.y="a:b:c",cuda:0').values == ["a:b:c", "cuda:0"]
     assert parse_param("x.y=7").values == [7] and isinstance(parse_param("x.y=7").values[0], int)
     bad = {
         "x.y=0:1:0": "range count must be a whole number >= 1",

@@ -45,7 +45,7 @@ class Param:
         return self.key.split(".")
 
 
-_RANGE = re.compile(r"^\s*([^:,\[\]]+):([^:,\[\]]+):([^:,\[\]]+)\s*$")
+_RANGE = re.compile(r'^\s*([^:,\[\]{}"]+):([^:,\[\]{}"]+):([^:,\[\]{}"]+)\s*$')  # no quotes: "a:b:c" is a string
 
 
 def _number(text: str, what: str, spec: str) -> float:
