@@ -382,6 +382,7 @@ def plot_beam(comps: list[Comparison], path: Path, title: str) -> Path:
         ax.plot(run.fields, run.tip_dy, "o", color="C0", label=f"MPM {run.setup.dim}D, dy/L")
         ax.plot(run.fields, run.tip_dx, "s", color="C1", mfc="none", label=f"MPM {run.setup.dim}D, dx/L")
         ax.axhline(0.0, color="0.7", lw=0.6)
+        ax.xaxis.set_major_locator(plt.MaxNLocator(5))
         ax.set_xlabel("Br B / (mu0 G)")
         ax.set_ylabel("tip displacement / L")
         ax.set_title(f"field at {run.psi_deg:g} deg to Br: MAPE(dy) = {100 * comp.mape:.1f} %", fontsize=9)
