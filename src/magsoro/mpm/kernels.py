@@ -159,6 +159,17 @@ def make_kernels(dim: int, scalar):
             fx[a] = xg[a] - scalar(b)
         return base, fx
 
+    @wp.func
+    def stencil_node(q: int, base: ivec, fx: vec, w0: vec, w1: vec, w2: vec, dx: scalar, shape: ivec):
+        """Weight, offset x_i - x_p and flat grid index of the q-th node of a particle's 3^dim stencil."""
+        o = stencil_offset(q)
+        weight = scalar(1.0)
+        dpos = vec()
+        for a in range(dim):
+            weight = weight * pick(w0, w1, w2, o[a], a)
+            dpos[a] = (scalar(o[a]) - fx[a]) * dx
+        return weight, dpos, flat_index(base + o, shape)
+
     @wp.kernel
     def p2g(
         x: wp.array(dtype=vec),
@@ -221,13 +232,7 @@ def make_kernels(dim: int, scalar):
             mv = mv + dt * inplane(f3)
         is_clamped = clamped[p]
         for q in range(NS):
-            o = stencil_offset(q)
-            weight = scalar(1.0)
-            dpos = vec()
-            for a in range(dim):
-                weight = weight * pick(w0, w1, w2, o[a], a)
-                dpos[a] = (scalar(o[a]) - fx[a]) * dx
-            idx = flat_index(base + o, shape)
+            weight, dpos, idx = stencil_node(q, base, fx, w0, w1, w2, dx, shape)
             wp.atomic_add(grid_p, idx, weight * (mv + affine * dpos))
             wp.atomic_add(grid_m, idx, weight * mp)
             if is_clamped != 0:
@@ -338,13 +343,8 @@ def make_kernels(dim: int, scalar):
             new_v = vec()
             new_C = mat()
             for q in range(NS):
-                o = stencil_offset(q)
-                weight = scalar(1.0)
-                dpos = vec()
-                for a in range(dim):
-                    weight = weight * pick(w0, w1, w2, o[a], a)
-                    dpos[a] = (scalar(o[a]) - fx[a]) * dx
-                wgv = weight * grid_v[flat_index(base + o, shape)]
+                weight, dpos, idx = stencil_node(q, base, fx, w0, w1, w2, dx, shape)
+                wgv = weight * grid_v[idx]
                 new_v = new_v + wgv
                 new_C = new_C + wp.outer(wgv, dpos)
             new_C = (scalar(4.0) * inv_dx * inv_dx) * new_C  # scaled once, not per node
