@@ -517,11 +517,11 @@ def beam_convergence_case(ctx: Context) -> CaseResult:
 
 
 #: CFL factors of the time-step study (the engine's default is 0.4).
-TIMESTEP_CFL = (0.4, 0.2, 0.1)
+TIMESTEP_CFL = (0.4, 0.2, 0.1, 0.05)
 
 
 @register("beam_timestep", "2D beam at Br B/(mu0 G) = 0.0005: the settled tip must not depend on the time step "
-          "(CFL factor 0.4, 0.2, 0.1; t/dx = 2)", quick=False, cost="~5 min")
+          "(CFL factor 0.4, 0.2, 0.1, 0.05; t/dx = 2)", quick=False, cost="~8 CPU-min")
 def beam_timestep_case(ctx: Context) -> CaseResult:
     fields = (PERPENDICULAR_FIELDS[0],)
     comps = [compare(BeamSetup(dim=2, t_over_dx=2, cfl=c), fields, 90.0, ctx.log) for c in TIMESTEP_CFL]
