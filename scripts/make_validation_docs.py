@@ -256,8 +256,10 @@ Found while building these cases (engine code is not part of this validation; mi
    error follows the CFL number, not dx. The same beam loaded by its weight instead (`beam_gravity`, no field) settles close to the rod, on the
    stiff side (the held grid nodes reach about one cell past the clamp face), without the creep, so the
    time-step dependence comes with the magnetic (stress) loading. This is what
-   keeps the 2D `beam` rows at small fields outside their tolerances; at large fields the field aligns the beam
-   and the error shrinks. Reproduce:
+   keeps the 2D `beam` rows at small fields outside their tolerances; at large perpendicular fields the field
+   aligns the beam and the error shrinks. In the opposite field the engine's beam curls further than the rod's:
+   the tip's shortening dx/L agrees closely once the tip has turned past 90 degrees, while dy/L, now the
+   smaller and more sensitive component, comes out low. Reproduce:
    `python -c "from magsoro.validation.beam import *; print([run_sweep(BeamSetup(t_over_dx=2, cfl=c), (0.0005,), 90.0).tip_dy for c in (0.4, 0.1)])"`
    (about 2 minutes; compare with `rod_reference(BeamSetup(), (0.0005,), 90.0, ...)`).
 2. **float32 runs can stop with "a particle moved outside the active grid block within one step"** when a

@@ -437,7 +437,7 @@ MAPE_TOL = {(2, 90): 0.05, (2, 180): 0.08, (3, 90): 0.08, (3, 180): 0.08}
 
 
 @register("beam", "Zhao beam (seed 000 Fig 2b), 2D plane strain MPM vs Kirchhoff rod, field perpendicular "
-          "and opposite to Br", cost="~5 min (2 sweeps at t/dx = 4)")
+          "and opposite to Br", cost="~4 CPU-min")
 def beam_case(ctx: Context) -> CaseResult:
     setup = BeamSetup(dim=2, t_over_dx=DEFAULT_T_OVER_DX_2D)
     comps, rows = [], []
@@ -486,7 +486,7 @@ CONVERGENCE_HOLD = 4.0
 
 
 @register("beam_convergence", "MAPE of the 2D beam's tip deflection vs particles per mm^2 (seed 000 Fig 2c)",
-          quick=False, cost="~20 min")
+          quick=False, cost="~7 CPU-min")
 def beam_convergence_case(ctx: Context) -> CaseResult:
     table, rows = [], []
     comps = []
@@ -598,7 +598,7 @@ def run_gravity(setup: BeamSetup, sag: float = 0.05, duration: float = 10.0):
 
 
 @register("beam_gravity", "the 2D beam under its weight, no field, vs the rod: elastic bending and clamp "
-          "without magnetic loading", quick=False, cost="~2 min")
+          "without magnetic loading", quick=False, cost="~1 CPU-min")
 def beam_gravity_case(ctx: Context) -> CaseResult:
     setup = BeamSetup(dim=2, t_over_dx=DEFAULT_T_OVER_DX_2D)
     value, reference, info = run_gravity(setup)

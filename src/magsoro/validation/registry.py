@@ -58,8 +58,9 @@ def relative_error(value: float, reference: float) -> float:
 
 @dataclass
 class Context:
-    """What a case gets: ``quick`` (the cheaper settings of ``--quick``), ``out`` (folder for plots and data, or
-    None for no files) and ``log`` (progress lines, to stderr)."""
+    """What a case gets: ``quick`` (set by ``--quick``; a case may use it to cut its cost, the current cases run
+    the same either way), ``out`` (folder for plots and data, or None for no files) and ``log`` (progress lines,
+    to stderr)."""
 
     quick: bool = False
     out: Path | None = None
