@@ -1,0 +1,401 @@
+"""A differentiable MLS-MPM rollout on Warp's autodiff (``wp.Tape``) with checkpointed segments.
+
+The physics is the engine's own: the kernels come from :func:`magsoro.mpm.kernels.make_kernels`, launched with
+plain ``wp.launch`` (the engine's recorded launches are not taped) over one fixed grid block chosen for the whole
+rollout. Inside a segment of ``segment`` steps every step has its own State, field and grid arrays, so the tape
+can replay it backwards; across segments only the segment start states are stored (checkpoints), and the
+backward pass recomputes each segment under a tape and carries the adjoint of its end state into its start state.
+Memory is then O(n_steps / segment + segment) states instead of O(n_steps).
+
+Design variables enter through arrays with ``requires_grad=True``:
+
+- ``model.Br`` (per-particle remanence), ``model.shear``, ``model.bulk``, ``model.material_params``;
+- ``B_uniform`` (n_steps, 3): the uniform field of every step. The engine's p2g kernel takes the uniform field as a
+  plain kernel argument (whose adjoint Warp does not return), so the rollout passes zero there and feeds the field
+  per particle through ``B_particle`` (has_gradient = 1, grad B = 0 for uniform-only scenes), which gives the same
+  forces bit for bit and makes dL/dB(t_k) the adjoint of ``B_uniform[k]``;
+- ``source_params[s]`` (n_steps * L_s) float64: the device parameters (pose, moment ...) of every non-uniform
+  source at every step, read by the accumulate kernel of :mod:`magsoro.fields.device`.
+
+The error / bounds / max_speed outputs of the kernels are scratch arrays without gradients.
+"""
+
+import math
+
+import numpy as np
+import warp as wp
+
+from magsoro.errors import MagsoroError
+from magsoro.fields.device import accumulate_kernel
+from magsoro.mpm.colliders import COLLIDER_STRIDE, MODES, collider_table
+
+
+class DiffError(MagsoroError):
+    """A differentiable rollout cannot go on (particles left the fixed grid block, invalid state ...)."""
+
+
+@wp.kernel
+def _fill_uniform_f32(Bu: wp.array(dtype=wp.vec3f), k: int, B: wp.array(dtype=wp.vec3f)):
+    i = wp.tid()
+    B[i] = Bu[k]
+
+
+@wp.kernel
+def _fill_uniform_f64(Bu: wp.array(dtype=wp.vec3d), k: int, B: wp.array(dtype=wp.vec3d)):
+    i = wp.tid()
+    B[i] = Bu[k]
+
+
+@wp.kernel
+def _add_field_f32(
+    B_a: wp.array(dtype=wp.vec3f), G_a: wp.array(dtype=wp.mat33f), B_b: wp.array(dtype=wp.vec3f), G_b: wp.array(dtype=wp.mat33f),
+    B_out: wp.array(dtype=wp.vec3f), G_out: wp.array(dtype=wp.mat33f),
+):
+    i = wp.tid()
+    B_out[i] = B_a[i] + B_b[i]
+    G_out[i] = G_a[i] + G_b[i]
+
+
+@wp.kernel
+def _add_field_f64(
+    B_a: wp.array(dtype=wp.vec3d), G_a: wp.array(dtype=wp.mat33d), B_b: wp.array(dtype=wp.vec3d), G_b: wp.array(dtype=wp.mat33d),
+    B_out: wp.array(dtype=wp.vec3d), G_out: wp.array(dtype=wp.mat33d),
+):
+    i = wp.tid()
+    B_out[i] = B_a[i] + B_b[i]
+    G_out[i] = G_a[i] + G_b[i]
+
+
+class _Slot:
+    """Arrays of one step inside a segment: its output state and its field / grid scratch."""
+
+    def __init__(self, n, n_nodes, k, sc, dev, n_point):
+        g = dict(dtype=k["vec"], device=dev, requires_grad=True)
+        self.x = wp.zeros(n, **g)
+        self.v = wp.zeros(n, **g)
+        self.C = wp.zeros(n, dtype=k["mat"], device=dev, requires_grad=True)
+        self.F = wp.zeros(n, dtype=k["mat"], device=dev, requires_grad=True)
+        self.B = wp.zeros(n, dtype=k["v3"], device=dev, requires_grad=True)
+        self.G = wp.zeros(n, dtype=k["m3"], device=dev, requires_grad=True) if n_point else None
+        self.Btot = wp.zeros(n, dtype=k["v3"], device=dev, requires_grad=True) if n_point else None
+        # per point source: its own (B, G) and the running sums
+        self.Bs = [wp.zeros(n, dtype=k["v3"], device=dev, requires_grad=True) for _ in range(n_point)]
+        self.Gs = [wp.zeros(n, dtype=k["m3"], device=dev, requires_grad=True) for _ in range(n_point)]
+        self.Bsum = [wp.zeros(n, dtype=k["v3"], device=dev, requires_grad=True) for _ in range(max(n_point - 1, 0))]
+        self.Gsum = [wp.zeros(n, dtype=k["m3"], device=dev, requires_grad=True) for _ in range(max(n_point - 1, 0))]
+        self.grid_p = wp.zeros(n_nodes, dtype=k["vec"], device=dev, requires_grad=True)
+        self.grid_m = wp.zeros(n_nodes, dtype=sc, device=dev, requires_grad=True)
+        self.grid_v = wp.zeros(n_nodes, dtype=k["vec"], device=dev, requires_grad=True)
+        self.grid_clamp = wp.zeros(n_nodes, dtype=wp.int32, device=dev)
+
+    def state_arrays(self):
+        return (self.x, self.v, self.C, self.F)
+
+    def grad_arrays(self):
+        out = [self.x, self.v, self.C, self.F, self.B, self.grid_p, self.grid_m, self.grid_v]
+        out += self.Bs + self.Gs + self.Bsum + self.Gsum
+        if self.G is not None:
+            out += [self.G, self.Btot]
+        return out
+
+
+class Rollout:
+    """Differentiable fixed-step rollout of a built scene (:class:`magsoro.scene.build.Built`).
+
+    Parameters
+    ----------
+    built : the scene's Model, Control and settings (``magsoro.scene.build.build``).
+    dt : time step, s (fixed for the whole rollout, so it does not depend on the design).
+    n_steps : number of steps; the horizon is n_steps * dt.
+    segment : steps per checkpoint segment (default: all steps in one segment, no recomputation).
+    margin : free space around the reference bounding box covered by the fixed grid block, m (default: the
+        largest extent of the bodies, enough for any rigid rotation about a point of the body).
+
+    ``run(loss)`` returns the loss and, with ``grad=True``, the gradients as numpy arrays: ``Br`` (N, 3),
+    ``shear`` (N,), ``bulk`` (N,), ``material_params`` (N, 3), ``B_uniform`` (n_steps, 3), ``source_params``
+    (a list, one (n_steps, L_s) array per non-uniform source).
+    """
+
+    def __init__(self, built, dt: float, n_steps: int, segment: int | None = None, margin: float | None = None):
+        self.built = built
+        m = self.model = built.model
+        self.control = built.control
+        st = self.settings = built.settings
+        self.k = k = m.kernels
+        self.dim, self.dev, self.sc = m.dim, m.device, m.scalar
+        self.dt = float(dt)
+        self.n_steps = int(n_steps)
+        if self.n_steps < 1:
+            raise DiffError("a rollout needs at least one step")
+        if not self.dt > 0:
+            raise DiffError(f"dt must be > 0 s, got {dt}")
+        self.segment = self.n_steps if segment is None else max(1, min(int(segment), self.n_steps))
+        n, dim, sc, dev = m.n_particles, m.dim, m.scalar, m.device
+        for a in (m.Br, m.shear, m.bulk, m.material_params):
+            a.requires_grad = True
+        # fixed grid block: reference bounding box + margin, clipped to the domain
+        X = m.host["positions"]
+        lo, hi = X.min(axis=0), X.max(axis=0)
+        if margin is None:
+            margin = float(np.max(hi - lo)) + 4 * m.dx
+        self.margin = float(margin)
+        blo = np.maximum(lo - margin, m.domain_lo)
+        bhi = np.minimum(hi + margin, m.domain_hi)
+        first = np.floor((blo - m.domain_lo) / m.dx - 0.5).astype(np.int64) - 1
+        last = np.floor((bhi - m.domain_lo) / m.dx - 0.5).astype(np.int64) + 3
+        self.org, self.shape = first, last - first + 1
+        self.n_nodes = int(np.prod(self.shape))
+        self.block_lo = m.domain_lo + first * m.dx
+        self.block_hi = m.domain_lo + last * m.dx
+        ivec, vec = k["ivec"], k["vec"]
+        self._shape_v = ivec(*[int(s) for s in self.shape])
+        self._org_v = ivec(*[int(o) for o in self.org])
+        self._grid_lo = vec(*[sc(m.domain_lo[a] + self.org[a] * m.dx) for a in range(dim)])
+        self._domain_lo = vec(*[sc(v) for v in m.domain_lo])
+        self._domain_hi = vec(*[sc(v) for v in m.domain_hi])
+        g = np.zeros(dim)
+        gin = np.asarray(st.gravity, dtype=np.float64).ravel()
+        g[: min(dim, len(gin))] = gin[:dim]
+        self._gravity = vec(*[sc(v) for v in g])
+        self._damping = sc(math.exp(-st.damping * self.dt))
+        if st.walls not in MODES:
+            raise DiffError(f"walls must be one of {sorted(MODES)}, got {st.walls!r}")
+        # sources: uniform ones tabulated per step, the others as per-step device parameters
+        flat = []
+        for s in self.control.sources:
+            flat.extend(s.sources())
+        self.uniform_sources = [s for s in flat if s.uniform]
+        self.point_sources = [s for s in flat if not s.uniform]
+        times = self.dt * np.arange(self.n_steps)
+        self.times = times
+        Bu = np.zeros((self.n_steps, 3))
+        for s in self.uniform_sources:
+            Bu += np.array([s.uniform_value(t) for t in times])
+        self.B_uniform = wp.array(Bu.astype(m.np_scalar), dtype=k["v3"], device=dev, requires_grad=True)
+        self._point_kernels = [accumulate_kernel(s.device_func(), dim, sc) for s in self.point_sources]
+        self.source_params = []
+        self._param_views = []
+        for s in self.point_sources:
+            rows = np.array([np.asarray(s.device_params(t), dtype=np.float64) for t in times])
+            arr = wp.array(rows.ravel(), dtype=wp.float64, device=dev, requires_grad=True)
+            L = rows.shape[1]
+            self.source_params.append(arr)
+            self._param_views.append([arr[i * L : (i + 1) * L] for i in range(self.n_steps)])
+        # colliders: one table per step (moving colliders follow their paths)
+        self.n_colliders = len(self.control.colliders)
+        if self.n_colliders:
+            tables = np.array([collider_table(self.control.colliders, t) for t in times])
+            width = tables.shape[1]
+            self._collider_all = wp.array(tables.ravel(), dtype=wp.float64, device=dev)
+            self._collider_views = [self._collider_all[i * width : (i + 1) * width] for i in range(self.n_steps)]
+        else:
+            empty = wp.zeros(COLLIDER_STRIDE, dtype=wp.float64, device=dev)
+            self._collider_views = [empty] * self.n_steps
+        # scratch without gradients
+        self.error = wp.zeros(2, dtype=wp.int32, device=dev)
+        self.bounds = wp.zeros(2 * dim, dtype=sc, device=dev)
+        self.max_speed = wp.zeros(1, dtype=sc, device=dev)
+        self.G_zero = wp.zeros(n, dtype=k["m3"], device=dev)
+        f64 = sc == wp.float64
+        self._fill = _fill_uniform_f64 if f64 else _fill_uniform_f32
+        self._add = _add_field_f64 if f64 else _add_field_f32
+        # segment pool: slot 0 holds the segment start state, slot j the state after j steps
+        n_point = len(self.point_sources)
+        self.slots = [_Slot(n, self.n_nodes, k, sc, dev, n_point) for _ in range(self.segment + 1)]
+        self.n_segments = -(-self.n_steps // self.segment)
+        self.checkpoints = []
+        self.initial_velocity = np.zeros((n, dim)) if built.initial_velocity is None else np.asarray(built.initial_velocity, dtype=np.float64)
+
+    # -- helpers ---------------------------------------------------------------------------------------------
+    def _initial_state(self, slot):
+        m, s = self.model, self.model.np_scalar
+        n, dim = m.n_particles, m.dim
+        slot.x.assign(m.host["positions"].astype(s))
+        slot.v.assign(np.ascontiguousarray(np.broadcast_to(self.initial_velocity, (n, dim)), dtype=s))
+        slot.C.zero_()
+        slot.F.assign(np.ascontiguousarray(np.broadcast_to(np.eye(dim), (n, dim, dim)), dtype=s))
+
+    def _step(self, step: int, src, dst) -> None:
+        """Launch one step ``step`` from slot ``src`` into slot ``dst`` (recorded by an active tape)."""
+        m, k, sc, dev, st = self.model, self.k, self.sc, self.dev, self.settings
+        n = m.n_particles
+        dst.grid_p.zero_()
+        dst.grid_m.zero_()
+        dst.grid_clamp.zero_()
+        dt = sc(self.dt)
+        if self.point_sources:
+            for i, (kern, views) in enumerate(zip(self._point_kernels, self._param_views)):
+                wp.launch(kern, dim=n, inputs=[src.x, views[step], wp.float64(st.plane_z), 1, dst.Bs[i], dst.Gs[i]], device=dev)
+            wp.launch(self._fill, dim=n, inputs=[self.B_uniform, step, dst.B], device=dev)
+            # B = uniform + sum of point sources; G = sum of point sources (out of place for the tape)
+            b_acc, g_acc = dst.B, self.G_zero
+            n_point = len(self.point_sources)
+            for i in range(n_point):
+                last = i == n_point - 1
+                b_out = dst.Btot if last else dst.Bsum[i]
+                g_out = dst.G if last else dst.Gsum[i]
+                wp.launch(self._add, dim=n, inputs=[b_acc, g_acc, dst.Bs[i], dst.Gs[i], b_out, g_out], device=dev)
+                b_acc, g_acc = b_out, g_out
+            B_particle, G_particle = b_acc, g_acc
+        else:
+            wp.launch(self._fill, dim=n, inputs=[self.B_uniform, step, dst.B], device=dev)
+            B_particle, G_particle = dst.B, self.G_zero
+        wp.launch(
+            k["p2g"], dim=n,
+            inputs=[
+                src.x, src.v, src.C, src.F,
+                m.vol0, m.mass, m.shear, m.bulk, m.material_model, m.material_params, m.Br, m.clamped,
+                k["v3"](), 1, B_particle, G_particle,
+                self._grid_lo, self._shape_v, sc(m.dx), dt,
+                dst.grid_p, dst.grid_m, dst.grid_clamp, self.error,
+            ],
+            device=dev,
+        )
+        wp.launch(
+            k["grid_update"], dim=self.n_nodes,
+            inputs=[
+                dst.grid_p, dst.grid_m, dst.grid_clamp, self._org_v, self._shape_v,
+                self._domain_lo, self._domain_hi, MODES[st.walls], sc(st.wall_friction), sc(m.dx), dt,
+                self._damping, self._gravity, self._collider_views[step], self.n_colliders, wp.float64(st.plane_z),
+                dst.grid_v,
+            ],
+            device=dev,
+        )
+        wp.launch(
+            k["g2p"], dim=n,
+            inputs=[
+                dst.grid_v, m.clamped, self._grid_lo, self._shape_v, sc(m.dx), dt,
+                src.x, src.F, dst.x, dst.v, dst.C, dst.F,
+                self.bounds, self.max_speed, self.error,
+            ],
+            device=dev,
+        )
+
+    def _run_segment(self, seg: int) -> int:
+        """Run segment ``seg`` from slot 0 (already holding its start state); returns its number of steps."""
+        k0 = seg * self.segment
+        k1 = min(k0 + self.segment, self.n_steps)
+        for j in range(k1 - k0):
+            self._step(k0 + j, self.slots[j], self.slots[j + 1])
+        return k1 - k0
+
+    def _check(self, seg: int) -> None:
+        err = self.error.numpy()
+        if err[0]:
+            raise DiffError(
+                f"a particle left the fixed grid block [{self.block_lo.tolist()}, {self.block_hi.tolist()}] m in segment {seg} "
+                f"(steps {seg * self.segment} to {min((seg + 1) * self.segment, self.n_steps)}); give a larger margin "
+                f"(now {self.margin:g} m) or a shorter horizon"
+            )
+        if err[1]:
+            raise DiffError(
+                f"the state became invalid (non-finite values or det F <= 0) in segment {seg}; lower dt or the field"
+            )
+
+    @staticmethod
+    def _copy_state(dst, src) -> None:
+        for a, b in zip(dst.state_arrays(), src.state_arrays()):
+            wp.copy(a, b)
+
+    def _load_checkpoint(self, seg: int) -> None:
+        for a, b in zip(self.slots[0].state_arrays(), self.checkpoints[seg]):
+            wp.copy(a, b)
+
+    # -- public ----------------------------------------------------------------------------------------------
+    def forward(self, observe=None, steps=None) -> dict:
+        """Plain forward run storing the checkpoints. ``observe(step, slot)`` is called for every step in
+        ``steps`` (indices 1..n_steps) with the slot holding that state; returns the final state as numpy."""
+        steps = set(steps or ())
+        self.error.zero_()
+        self._initial_state(self.slots[0])
+        self.checkpoints = []
+        for seg in range(self.n_segments):
+            self.checkpoints.append(tuple(wp.clone(a) for a in self.slots[0].state_arrays()))
+            count = self._run_segment(seg)
+            self._check(seg)
+            k0 = seg * self.segment
+            for j in range(1, count + 1):
+                if k0 + j in steps and observe is not None:
+                    observe(k0 + j, self.slots[j])
+            if seg < self.n_segments - 1:
+                self._copy_state(self.slots[0], self.slots[count])
+        end = self.slots[self.n_steps - (self.n_segments - 1) * self.segment]
+        return {"x": end.x.numpy().astype(np.float64), "F": end.F.numpy().astype(np.float64), "v": end.v.numpy().astype(np.float64)}
+
+    def run(self, loss, grad: bool = True, loss_steps=None):
+        """Loss (and gradients) of a rollout. ``loss(x, F)`` takes the state (numpy float64, (N, dim) and
+        (N, dim, dim)) and returns ``(L, dL/dx, dL/dF)``; it is evaluated at ``loss_steps`` (default: the final
+        step only) and averaged, so a list of steps gives a time-integrated loss. Returns ``(L, grads)``."""
+        loss_steps = sorted(set(loss_steps or [self.n_steps]))
+        if loss_steps[0] < 1 or loss_steps[-1] > self.n_steps:
+            raise DiffError(f"loss steps must lie in 1..{self.n_steps}")
+        w = 1.0 / len(loss_steps)
+        seeds = {}
+        total = [0.0]
+
+        def observe(step, slot):
+            L, gx, gF = loss(slot.x.numpy().astype(np.float64), slot.F.numpy().astype(np.float64))
+            total[0] += w * float(L)
+            seeds[step] = (w * np.asarray(gx), None if gF is None else w * np.asarray(gF))
+
+        self.forward(observe, loss_steps)
+        if not grad:
+            return total[0], None
+        return total[0], self.backward(seeds)
+
+    def backward(self, seeds: dict) -> dict:
+        """Gradients from ``seeds`` {step: (dL/dx, dL/dF)} after :meth:`forward` stored the checkpoints."""
+        m, s = self.model, self.model.np_scalar
+        for a in (m.Br, m.shear, m.bulk, m.material_params, self.B_uniform, *self.source_params):
+            a.grad.zero_()
+        carry = None
+        for seg in reversed(range(self.n_segments)):
+            k0 = seg * self.segment
+            self._load_checkpoint(seg)
+            for slot in self.slots:
+                for a in slot.grad_arrays():
+                    a.grad.zero_()
+            tape = wp.Tape()
+            with tape:
+                count = self._run_segment(seg)
+            end = self.slots[count]
+            if carry is not None:
+                for a, g in zip(end.state_arrays(), carry):
+                    wp.copy(a.grad, g)
+            for j in range(1, count + 1):
+                if k0 + j in seeds:
+                    gx, gF = seeds[k0 + j]
+                    slot = self.slots[j]
+                    slot.x.grad.assign(slot.x.grad.numpy() + gx.astype(s))
+                    if gF is not None:
+                        slot.F.grad.assign(slot.F.grad.numpy() + gF.astype(s))
+            tape.backward()
+            carry = tuple(wp.clone(a.grad) for a in self.slots[0].state_arrays())
+            del tape  # not tape.reset(): it would zero the accumulated design gradients too
+        return {
+            "Br": m.Br.grad.numpy().astype(np.float64),
+            "shear": m.shear.grad.numpy().astype(np.float64),
+            "bulk": m.bulk.grad.numpy().astype(np.float64),
+            "material_params": m.material_params.grad.numpy().astype(np.float64),
+            "B_uniform": self.B_uniform.grad.numpy().astype(np.float64),
+            "source_params": [a.grad.numpy().reshape(self.n_steps, -1) for a in self.source_params],
+        }
+
+    # -- design inputs ---------------------------------------------------------------------------------------
+    def set_particle_arrays(self, Br=None, shear=None, bulk=None, material_params=None) -> None:
+        """Replace per-particle inputs (SI numpy arrays)."""
+        m, s = self.model, self.model.np_scalar
+        for arr, val, key in ((m.Br, Br, "remanence"), (m.shear, shear, "shear_modulus"), (m.bulk, bulk, "bulk_modulus"), (m.material_params, material_params, "material_params")):
+            if val is not None:
+                val = np.asarray(val, dtype=np.float64)
+                arr.assign(val.astype(s))
+                m.host[key] = val.copy()
+
+    def set_uniform_field(self, table) -> None:
+        """Replace the uniform field of every step, (n_steps, 3) T."""
+        self.B_uniform.assign(np.asarray(table, dtype=np.float64).astype(self.model.np_scalar))
+
+    def set_source_params(self, index: int, rows) -> None:
+        """Replace the device parameters of non-uniform source ``index`` for every step, (n_steps, L)."""
+        rows = np.asarray(rows, dtype=np.float64)
+        self.source_params[index].assign(rows.ravel())
