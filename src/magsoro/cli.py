@@ -23,6 +23,7 @@ COMMANDS = [
     "magsoro.commands.sweep",
     "magsoro.commands.report",
     "magsoro.commands.validate",
+    "magsoro.commands.optimize",
 ]
 
 
