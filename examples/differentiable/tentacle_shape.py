@@ -44,4 +44,4 @@ if __name__ == "__main__":
     out.mkdir(parents=True, exist_ok=True)
     target = make_target(out)
     sys.exit(main(["optimize", str(SCENE), "--target", str(target), "--vars", "magnetisation", "--bodies", ",".join(SEGMENTS),
-                   "--method", "adam", "--iterations", "60", "--lr", "0.1", "--out", str(out)]))
+                   "--method", "lbfgs", "--iterations", "60", "--out", str(out)]))
