@@ -150,6 +150,8 @@ def write_page():
                      f"{q.get('cpu_s', float('nan')):.0f} s{' (' + q['cpu_s_source'] + ')' if q.get('cpu_s_source') else ''} "
                      f"({sum(r.passed for r in qrows)}/{len(qrows)} rows pass, exit status "
                      f"{0 if all(r.passed for r in qrows) else 1}).\n\n")
+        if q.get("note"):
+            parts.append(f"Note: {q['note']}.\n\n")
         if q.get("cpu_s") and q.get("wall_s"):
             parts.append(f"The command had {100 * q['cpu_s'] / q['wall_s']:.0f} % of one core on average: the two cores were "
                          f"shared with other jobs, so its CPU time is the better measure of what it costs on an idle "
@@ -250,24 +252,25 @@ Found while building these cases (engine code is not part of this validation; mi
 
 1. **The settled tip of a magnetically loaded slender beam depends on the time step** (`beam_timestep`): with
    the automatic step (CFL 0.4) the 2D beam at Br B/(mu0 G) = 0.0005 settles well above the rod and keeps
-   creeping during the hold; halving the step twice brings it down towards the rod, by less than half each
-   time (`beam_timestep`). At a fixed CFL factor, refining the grid does not reduce the error
-   (`beam_convergence`: t/dx = 2, 3, 4 give about the same MAPE), since the step shrinks with dx and the
+   creeping during the hold; halving the step three times brings it down towards the rod, by less than half
+   each time. At a fixed CFL factor, refining the grid does not reduce the error
+   (`beam_convergence`: t/dx = 2 to 6 give about the same MAPE), since the step shrinks with dx and the
    error follows the CFL number, not dx. The same beam loaded by its weight instead (`beam_gravity`, no field) settles close to the rod, on the
-   stiff side (the held grid nodes reach about one cell past the clamp face), without the creep, so the
+   stiff side (likely because the held grid nodes reach about one cell past the clamp face), without the creep, so the
    time-step dependence comes with the magnetic (stress) loading. This is what
    keeps the 2D `beam` rows at small fields outside their tolerances; at large perpendicular fields the field
    aligns the beam and the error shrinks. In the opposite field the engine's beam curls further than the rod's:
    the tip's shortening dx/L agrees closely once the tip has turned past 90 degrees, while dy/L, now the
    smaller and more sensitive component, comes out low. Reproduce:
-   `python -c "from magsoro.validation.beam import *; print([run_sweep(BeamSetup(t_over_dx=2, cfl=c), (0.0005,), 90.0).tip_dy for c in (0.4, 0.1)])"`
-   (about 2 minutes; compare with `rod_reference(BeamSetup(), (0.0005,), 90.0, ...)`).
+   `python -c "from magsoro.validation.beam import *; rs = [run_sweep(BeamSetup(t_over_dx=2, cfl=c), (0.0005,), 90.0) for c in (0.4, 0.1)]; print([r.tip_dy[0] for r in rs], rod_reference(rs[0].setup, (0.0005,), 90.0, rs[0].tip_s, rs[0].free_length)[1])"`
+   (engine tip dy/L at CFL 0.4 and 0.1, then the rod's; about a minute on an idle core).
 2. **float32 runs can stop with "a particle moved outside the active grid block within one step"** when a
    particle creeps onto the edge of the grid block: the solver's fit test (`Solver._fits`, float64 on the host)
    accepts a particle that the P2G kernel, locating it in float32 relative to the block origin, puts one node
    further out. Seen in the 2D beam at t/dx = 4, psi = 90 deg, float32, at step 129912 (t = 0.1356 s, during
    the hold at Br B/(mu0 G) = 0.001). Refitting when fewer than one spare cell is left would avoid it. The
-   beam cases run in float64, where the two tests agree.
+   beam cases run in float64, where the two tests agree. Reproduce (a few CPU-minutes):
+   `python -c "from magsoro.validation.beam import *; run_sweep(BeamSetup(t_over_dx=4, precision='float32'), PERPENDICULAR_FIELDS, 90.0)"`.
 
 ## Reproduce
 
