@@ -230,7 +230,9 @@ class Solver:
         if self.n_active == 0:
             return False
         first, last = self._node_range(lo, hi)
-        return bool(np.all(first >= self.org) and np.all(last < self.org + self.shape))
+        # one spare node on each side: the kernels locate particles in the run's precision (float32 by default),
+        # which can round a particle on the block edge one node further out than this float64 test
+        return bool(np.all(first >= self.org + 1) and np.all(last < self.org + self.shape - 1))
 
     def _refit(self, lo, hi) -> None:
         first, last = self._node_range(lo, hi)
