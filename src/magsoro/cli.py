@@ -18,6 +18,7 @@ COMMANDS = [
     "magsoro.commands.epm_pose",
     "magsoro.commands.evert",
     "magsoro.commands.sense",
+    "magsoro.commands.plan",
     "magsoro.commands.materials",
     "magsoro.commands.show",
     "magsoro.commands.sweep",

@@ -174,30 +174,51 @@ class PlanRobotConfig(_Strict):
     length: float = Field(..., gt=0, description="Fully everted length L, m. Required.")
     n_links: int = Field(..., ge=2, le=200, description="Pseudo-rigid-body links. Required.")
     thickness: float = Field(..., gt=0, description="In-plane thickness t of the strip, m. Required.")
-    depth: float = Field(..., gt=0, description="Out-of-plane depth of the strip (particle volumes in the replay), m. Required.")
+    depth: float = Field(..., gt=0, description="Out-of-plane depth of the strip, m. Required.")
     shear_modulus: float = Field(..., gt=0, description="Shear modulus G, Pa. Required.")
     bulk_modulus: float | None = Field(None, gt=0, description="Bulk modulus K, Pa. Default 3 G.")
     density: float = Field(1000.0, gt=0, description="Density, kg/m^3 (replay only). Default 1000.")
-    remanence: float = Field(..., gt=0, description="Remanent flux density magnitude Br of every link, T. Required.")
+    remanence: float | list[float] = Field(..., description=(
+        "Remanent flux density magnitude Br, T: one value for every link or one per link (0 = unmagnetised). "
+        "Required."))
     magnetisation_angles: list[float] | None = Field(None, description=(
         "Direction of each link's remanence in the link frame (0 = along the link towards the tip, positive "
-        "counter-clockwise), rad, one per link. Default all 0 (axial)."))
+        "counter-clockwise), rad, one per link. Default all 0 (axial); chosen by the plan with "
+        "target.design_profile."))
     base_position: tuple[float, float] = Field((0.0, 0.0), description="Clamp point, m. Default origin.")
-    base_angle: float = Field(0.0, description="Direction of the robot at the clamp, rad from +x. Default 0.")
 
     @model_validator(mode="after")
-    def _angles(self):
+    def _lists(self):
         if self.magnetisation_angles is not None and len(self.magnetisation_angles) != self.n_links:
             raise ValueError(f"magnetisation_angles has {len(self.magnetisation_angles)} values, n_links = {self.n_links}")
+        if isinstance(self.remanence, list):
+            if len(self.remanence) != self.n_links:
+                raise ValueError(f"remanence has {len(self.remanence)} values, n_links = {self.n_links}")
+            values = self.remanence
+        else:
+            values = [self.remanence]
+        if any(v < 0 for v in values) or not any(v > 0 for v in values):
+            raise ValueError("remanence must be >= 0 T with at least one magnetised link")
         return self
+
+    @property
+    def bulk(self) -> float:
+        return self.bulk_modulus if self.bulk_modulus is not None else 3.0 * self.shear_modulus
 
 
 class PlanTargetConfig(_Strict):
-    """``[target]``: follow-the-leader growth into a constant-curvature arc (retroflexion-like)."""
+    """``[target]``: the retroflexion-like shape sequence (seed 004 sec III-D)."""
 
-    tip_angle: float = Field(..., description="Final tip-tangent angle relative to the base direction, rad (pi: retroflexion). Required.")
+    kind: Literal["follow-the-leader", "grow-then-bend"] = Field("follow-the-leader", description=(
+        '"follow-the-leader": grow into a constant-curvature arc, every everted link on the final arc at every '
+        'step; "grow-then-bend": grow straight, then curl the full length into arcs. Default "follow-the-leader".'))
+    tip_angle: float = Field(..., description="Final tip-tangent angle from the base direction, rad (pi: retroflexion). Required.")
     initial_links: int = Field(2, ge=1, description="Links everted at the first step. Default 2.")
-    links_per_step: int = Field(1, ge=1, description="Links added per step (growth). Default 1.")
+    links_per_step: int = Field(1, ge=1, description="Links added per growth step. Default 1.")
+    bend_steps: int = Field(3, ge=1, description='Bending steps after growth (kind "grow-then-bend"). Default 3.')
+    design_profile: bool = Field(False, description=(
+        "Choose each link's magnetisation direction when it everts, with that step's pose (seed 004 sec II-C). "
+        "Default false (use robot.magnetisation_angles)."))
 
 
 class PlanMagnetConfig(_Strict):
@@ -208,32 +229,42 @@ class PlanMagnetConfig(_Strict):
     min_distance: float = Field(0.08, gt=0, description="Smallest magnet-to-robot distance allowed, m. Default 0.08.")
     max_distance: float = Field(0.5, gt=0, description="Largest magnet distance from the robot base, m. Default 0.5.")
     fixed_direction: tuple[float, float, float] | None = Field(None, description=(
-        "Keep the moment along this direction (only the position moves; the plan then loads as a scene "
+        "Keep the moment along this direction (only the position moves; the plan then also loads as a scene "
         "dipole field with a path). Default free."))
+    approach_factor: float = Field(3.0, ge=1, description=(
+        "The magnet reaches its first pose from this many times as far along the same line. Default 3."))
 
     @model_validator(mode="after")
     def _range(self):
         if not self.min_distance < self.max_distance:
             raise ValueError(f"min_distance ({self.min_distance} m) must be < max_distance ({self.max_distance} m)")
+        if self.fixed_direction is not None and not any(self.fixed_direction):
+            raise ValueError("fixed_direction must be a non-zero vector")
         return self
 
 
 class PlanWeightsConfig(_Strict):
-    """``[weights]``: terms of the per-step least-squares cost (dimensionless)."""
+    """``[weights]``: terms of the per-step least-squares cost (dimensionless; see docs/actuation.md)."""
 
-    shape: float = Field(1.0, ge=0, description="Link-angle error, per rad. Default 1.")
+    shape: float = Field(1.0, ge=0, description="Link-angle error, per rad (RMS over links). Default 1.")
     tip: float = Field(3.0, ge=0, description="Tip-angle error, per rad. Default 3.")
     out_of_plane: float = Field(0.3, ge=0, description="B_z at the links relative to field_scale. Default 0.3.")
-    smoothness: float = Field(0.05, ge=0, description="Pose change between steps relative to the magnet distance. Default 0.05.")
+    smoothness: float = Field(0.3, ge=0, description="Pose change between steps relative to the magnet distance. Default 0.3.")
+    profile: float = Field(0.1, ge=0, description="Direction change between neighbouring links, per rad (design_profile). Default 0.1.")
+    stability: float = Field(1.0, ge=0, description="Penalty below the stiffness margin. Default 1.")
+    stability_margin: float = Field(0.5, ge=0, description="Smallest Hessian eigenvalue wanted, in units of EI / l. Default 0.5.")
+    path: float = Field(1.0, ge=0, description="Angle error of the already everted links during the magnet's move, per rad. Default 1.")
+    robustness: float = Field(1.0, ge=0, description="Tip displacement per robot length for a stiffness error. Default 1.")
+    stiffness_uncertainty: float = Field(0.1, ge=0, lt=1, description="Relative bending-stiffness error of the robustness term. Default 0.1.")
 
 
 class PlanReplayConfig(_Strict):
     """``[replay]``: the MPM replay (2D plane strain) of the plan."""
 
-    dx: float = Field(..., gt=0, description="Grid spacing, m; link length and thickness should be multiples of dx / 2. Required.")
-    step_duration: float | None = Field(None, gt=0, description="Simulated time per plan step, s. Default 0.8 x the first bending period.")
-    move_fraction: float = Field(0.5, gt=0, lt=1, description="Part of a step during which the magnet moves, dimensionless. Default 0.5.")
-    damping_ratio: float = Field(0.7, ge=0, description="Grid damping as a fraction of critical for the first bending mode. Default 0.7.")
+    dx: float = Field(..., gt=0, description="Grid spacing, m; link length and thickness must be multiples of dx / 2. Required.")
+    step_duration: float | None = Field(None, gt=0, description="Simulated time per plan step, s. Default one first bending period of the full strip.")
+    move_fraction: float = Field(0.5, gt=0, lt=1, description="Part of a step during which the magnet moves. Default 0.5.")
+    damping_ratio: float = Field(1.0, ge=0, description="Grid damping as a fraction of critical for the first bending mode. Default 1.")
 
 
 class PlanConfig(_Strict):
@@ -251,6 +282,28 @@ class PlanConfig(_Strict):
         if self.target.initial_links > self.robot.n_links:
             raise ValueError(f"target.initial_links ({self.target.initial_links}) exceeds robot.n_links ({self.robot.n_links})")
         return self
+
+    def build(self):
+        """(robot, target, planner, strip) for this plan: :class:`~magsoro.actuation.planning.PlanarPRB`,
+        :class:`~magsoro.actuation.planning.GrowthTarget`, :class:`~magsoro.actuation.planning.MagnetPlanner`
+        and the :class:`~magsoro.actuation.replay.StripSpec` of the replay."""
+        from magsoro.actuation.planning import GrowthTarget, MagnetPlanner, PlanarPRB, PlanWeights
+        from magsoro.actuation.replay import StripSpec
+
+        r = self.robot
+        robot = PlanarPRB.strip(r.length, r.n_links, r.thickness, r.depth, r.shear_modulus, r.bulk, r.remanence,
+                                r.magnetisation_angles, r.base_position)
+        t = self.target
+        if t.kind == "follow-the-leader":
+            target = GrowthTarget.arc(robot, t.tip_angle, t.initial_links, t.links_per_step)
+        else:
+            target = GrowthTarget.grow_then_bend(robot, t.tip_angle, t.initial_links, t.links_per_step, t.bend_steps)
+        m = self.magnet
+        planner = MagnetPlanner(robot, m.moment, m.field_scale, m.min_distance, m.max_distance, m.fixed_direction,
+                                PlanWeights(**self.weights.model_dump()), design_profile=t.design_profile,
+                                approach_factor=m.approach_factor)
+        strip = StripSpec(r.thickness, r.depth, r.shear_modulus, r.bulk, r.density)
+        return robot, target, planner, strip
 
 
 # ------------------------------------------------------------------------------------------- loading

@@ -1,0 +1,261 @@
+"""Replay of a magnet-path plan by the MPM engine (2D plane strain), growth included.
+
+The planned robot is a plane-strain strip clamped at its base. Each PRB link becomes one body of the scene (a
+rectangle with its own remanence: the magnetisation profile), behind the base sits an unmagnetised stub whose
+rear part is clamped. The bodies share the MPM grid, so they act as one continuous strip.
+
+Growth. The engine's Model is fixed during a run, so eversion is replayed step by step: step k runs its own
+Simulation holding the links everted at step k. When a step ends, the next Simulation receives the state of the
+particles it shares with the last one (they come first, in the same order, because the bodies are listed from
+the base and the lattice is the same), and the particles of the new links are placed as a rigid, unstrained
+continuation of the tip: x = x_c + R (X - X_c), F = R, with (R, x_c) the best rigid fit (Procrustes) of the
+current last link to its reference. This is what eversion does: new material appears at the tip, stress-free,
+aligned with it.
+
+The magnet follows the plan's :class:`~magsoro.actuation.epm_path.KeyframedDipole` (a source appended to
+``sim.control.sources``), the same keyframes the PRB check follows. The tip is measured the same way in both
+models: the MPM tip is the reference tip point (s = L_k on the centre line) mapped by the rigid fit of the last
+link, the PRB tip is the end of the last link.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from magsoro import MU0
+from magsoro.errors import SimulationError
+from magsoro.actuation.planning import Plan, PlanarPRB, plane_strain_modulus
+
+
+@dataclass
+class StripSpec:
+    """The plane-strain strip the plan is replayed on (SI): in-plane ``thickness`` and out-of-plane ``depth``
+    (m), ``shear_modulus`` and ``bulk_modulus`` (Pa), ``density`` (kg/m^3). The remanence of each link follows
+    from the plan's link moments, Br = mu0 m / V."""
+
+    thickness: float
+    depth: float
+    shear_modulus: float
+    bulk_modulus: float
+    density: float
+
+    def first_period(self, length: float) -> float:
+        """First bending period (s) of the clamped strip of ``length`` (m), Euler-Bernoulli."""
+        EI = plane_strain_modulus(self.shear_modulus, self.bulk_modulus) * self.thickness**3 * self.depth / 12.0
+        mu = self.density * self.thickness * self.depth
+        omega = 1.875104**2 * math.sqrt(EI / (mu * length**4))
+        return 2.0 * math.pi / omega
+
+
+@dataclass
+class ReplayResult:
+    """Tip paths of the replay (times in s, positions in m).
+
+    times, tip_mpm, tip_prb : samples of the whole replay; tip_prb is the quasi-static PRB equilibrium under the
+    same keyframed magnet at those times. step_end_mpm, step_end_prb : (K, 2) tips at the end of each step
+    (the settled states the plan specifies). wall_time : s; steps : MPM steps taken; particles : at the end.
+    """
+
+    times: np.ndarray
+    tip_mpm: np.ndarray
+    tip_prb: np.ndarray
+    step_end_mpm: np.ndarray
+    step_end_prb: np.ndarray
+    step_end_joints_mpm: list
+    step_end_joints_prb: list
+    step_duration: float
+    wall_time: float
+    steps: int
+    particles: int
+    dt: float
+
+    @property
+    def step_end_errors(self) -> np.ndarray:
+        """|tip_MPM - tip_PRB| (m) at the end of each step."""
+        return np.linalg.norm(self.step_end_mpm - self.step_end_prb, axis=1)
+
+    @property
+    def path_errors(self) -> np.ndarray:
+        """|tip_MPM - tip_PRB| (m) at every sample, moves included (the MPM lags the quasi-static PRB while the
+        magnet moves)."""
+        return np.linalg.norm(self.tip_mpm - self.tip_prb, axis=1)
+
+
+def _rigid_fit(X, x):
+    """Rotation R (2x2) and centroids (X_c, x_c) of the best rigid map X -> x (Kabsch)."""
+    Xc, xc = X.mean(axis=0), x.mean(axis=0)
+    H = (X - Xc).T @ (x - xc)
+    U, _, Vt = np.linalg.svd(H)
+    d = np.sign(np.linalg.det(Vt.T @ U.T))
+    R = Vt.T @ np.diag([1.0, d]) @ U.T
+    return R, Xc, xc
+
+
+def _check_multiple(value, h, what):
+    k = value / h
+    if abs(k - round(k)) > 1e-6 * max(1.0, k):
+        raise ValueError(f"{what} ({value:g} m) must be a multiple of dx / particles_per_cell = {h:g} m so that the "
+                         "particle lattice splits exactly at link ends")
+
+
+def link_remanence(prb: PlanarPRB, strip: StripSpec) -> np.ndarray:
+    """Remanence (n, 3) in T of each link in the reference frame (the strip along +x): mu0 m / (l t depth)."""
+    br = np.zeros((prb.n_links, 3))
+    br[:, :2] = MU0 * prb.link_moments / (prb.link_length * strip.thickness * strip.depth)
+    return br
+
+
+def _scene(prb: PlanarPRB, strip: StripSpec, n_links: int, dx: float, ppc: int, domain, damping: float,
+           dt: float) -> dict:
+    ell, t = prb.link_length, strip.thickness
+    remanence = link_remanence(prb, strip)
+    bx, by = prb.base_position
+    mat = {"density": strip.density, "shear_modulus": strip.shear_modulus, "bulk_modulus": strip.bulk_modulus}
+    stub = 4 * dx
+    bodies = [{"name": "stub", "shape": {"type": "rectangle", "center": [bx - 0.5 * stub, by], "size": [stub, t]},
+               "material": mat}]
+    for j in range(n_links):
+        br = remanence[j]
+        bodies.append({"name": f"link{j}", "shape": {"type": "rectangle", "center": [bx + (j + 0.5) * ell, by], "size": [ell, t]},
+                       "material": mat, "magnetization": [float(v) for v in br]})
+    return {
+        "name": f"plan replay, {n_links} links",
+        "simulation": {"dim": 2, "dx": dx, "particles_per_cell": ppc, "domain_lo": list(domain[0]), "domain_hi": list(domain[1]),
+                       "duration": 1.0, "dt": dt, "damping": damping, "depth": strip.depth, "plane_z": prb.plane_z},
+        "bodies": bodies,
+        # the rear of the stub is held; its nodes reach to the base point x = bx, where the PRB clamp sits
+        "clamps": [{"region": {"type": "rectangle", "center": [bx - 2.5 * dx, by], "size": [3 * dx, 2 * t]}, "body": "stub"}],
+        "output": {"particles": False},
+    }
+
+
+def replay(plan: Plan, strip: StripSpec, dx: float, step_duration: float | None = None, move_fraction: float = 0.5,
+           damping_ratio: float = 1.0, particles_per_cell: int = 2, cfl: float = 0.4, samples_per_step: int = 10,
+           progress=None, on_sample=None) -> ReplayResult:
+    """Run the plan's magnet keyframes on the MPM strip, one Simulation per growth step (see module docstring).
+
+    dx : grid spacing (m); the link length and the thickness must be multiples of dx / particles_per_cell.
+    step_duration : simulated time per plan step (s); default the first bending period of the full strip.
+    damping_ratio : grid damping c = 2 zeta omega_1(L_k) of the links everted at each step.
+    progress(k, sim) : called after each step; on_sample(t, tip_mpm, tip_prb) after each sample.
+    """
+    import time
+
+    from magsoro.scene import parse_scene
+    from magsoro.simulation import Simulation
+
+    prb = plan.robot
+    if abs(prb.base_angle) > 1e-12:
+        raise ValueError("the MPM replay builds the strip along +x: plan with base_angle = 0")
+    h = dx / particles_per_cell
+    _check_multiple(prb.link_length, h, "link length")
+    _check_multiple(strip.thickness, h, "thickness")
+    ell, t = prb.link_length, strip.thickness
+    n_final = plan.steps[-1].links
+    L = n_final * ell
+    T = step_duration if step_duration is not None else strip.first_period(L)
+    source = plan.keyframes(T, move_fraction)
+
+    # domain: everything the PRB plan visits plus the stub, with room for the dynamics; aligned with the base
+    # so the lattice splits at the link ends
+    # (the bodies are built straight, in the reference configuration, so that must fit as well)
+    pts = np.vstack([prb.joints(s.theta) for s in plan.steps]
+                    + [prb.base_position - [5 * dx, 0.0], prb.base_position + [L, 0.0]])
+    margin = t + 12 * dx
+    bx, by = prb.base_position
+    lo = np.floor((pts.min(axis=0) - margin - [bx, by]) / dx) * dx + [bx, by]
+    hi = np.ceil((pts.max(axis=0) + margin - [bx, by]) / dx) * dx + [bx, by]
+    lo[1] = by - dx * math.ceil((by - lo[1]) / dx)
+
+    # time step: CFL with the elastic and magnetic wave speed over the whole plan
+    from magsoro.fields.dipole import Dipole
+
+    B_max = 0.0
+    for s in plan.steps:
+        p3, _, _ = prb.load_points(s.theta)
+        B_max = max(B_max, float(np.max(np.linalg.norm(Dipole(s.moment, s.position).B(p3), axis=1))))
+    br_max = float(np.max(np.linalg.norm(link_remanence(prb, strip), axis=1)))
+    c = math.sqrt((strip.bulk_modulus + 4.0 * strip.shear_modulus / 3.0 + 2.0 * B_max * br_max / MU0) / strip.density)
+    dt = cfl * dx / c
+
+    times, tip_mpm, tip_prb, end_mpm, end_prb, joints_mpm, joints_prb = [], [], [], [], [], [], []
+    prev = None  # (state arrays, last-link indices, reference positions) of the previous step
+    wall0 = time.perf_counter()
+    total_steps = 0
+    theta_prb = prb.straight(0)
+    for k, step in enumerate(plan.steps):
+        n = step.links
+        Lk = n * ell
+        damping = 2.0 * damping_ratio * 2.0 * math.pi / strip.first_period(Lk)
+        sim = Simulation(parse_scene(_scene(prb, strip, n, dx, particles_per_cell, (lo, hi), damping, dt),
+                                     source=f"replay step {k}"))
+        sim.control.sources.append(source)
+        X = sim.model.host["positions"]
+        if prev is not None:
+            s_old, idx_last, X_old = prev
+            m_old = len(X_old)
+            if not np.allclose(X[:m_old], X_old):
+                raise RuntimeError("growth step changed the particles of the everted links")
+            R, Xc, xc = _rigid_fit(X_old[idx_last], s_old["x"][idx_last])
+            new = np.arange(m_old, len(X))
+            x = np.empty_like(X)
+            x[:m_old] = s_old["x"]
+            x[new] = xc + (X[new] - Xc) @ R.T
+            v = np.zeros_like(X)
+            v[:m_old] = s_old["v"]
+            C = np.zeros((len(X), 2, 2))
+            C[:m_old] = s_old["C"]
+            F = np.tile(R, (len(X), 1, 1))
+            F[:m_old] = s_old["F"]
+            st = sim.state
+            scal = sim.model.np_scalar
+            st.x.assign(x.astype(scal))
+            st.v.assign(v.astype(scal))
+            st.C.assign(C.astype(scal))
+            st.F.assign(F.astype(scal))
+        sim.state.time = k * T
+        body = sim.model.host["body"]
+        idx_last = np.flatnonzero(body == n)  # body 0 is the stub, link j is body j + 1
+        tip_ref = np.array([bx + Lk, by])
+
+        def tip_now():
+            x = sim.state.x.numpy().astype(np.float64)
+            R, Xc, xc = _rigid_fit(X[idx_last], x[idx_last])
+            return xc + R @ (tip_ref - Xc)
+
+        theta_prb = prb.grow(theta_prb, n)
+        for j in range(1, samples_per_step + 1):
+            tj = k * T + T * j / samples_per_step
+            try:
+                sim.advance_to(tj)
+            except SimulationError as exc:
+                raise SimulationError(f"plan step {k} ({n} links) of the replay: {exc}", exc.step, exc.time) from None
+            times.append(tj)
+            tip_mpm.append(tip_now())
+            theta_prb = prb.equilibrium(source.dipole_at(tj), theta_prb)
+            tip_prb.append(prb.tip(theta_prb))
+            if on_sample is not None:
+                on_sample(tj, tip_mpm[-1], tip_prb[-1])
+        total_steps += sim.steps
+        end_mpm.append(tip_mpm[-1])
+        end_prb.append(prb.tip(step.theta))
+        # MPM joints: the reference link ends mapped by each link's rigid fit (base of each link, then the tip)
+        x_now = sim.state.x.numpy().astype(np.float64)
+        joints = []
+        for j in range(n):
+            idx = np.flatnonzero(body == j + 1)
+            R, Xc, xc = _rigid_fit(X[idx], x_now[idx])
+            joints.append(xc + R @ (np.array([bx + j * ell, by]) - Xc))
+        joints.append(tip_mpm[-1])
+        joints_mpm.append(np.array(joints))
+        joints_prb.append(prb.joints(step.theta))
+        s_np = sim.state.numpy()
+        prev = ({key: s_np[key].astype(np.float64) for key in ("x", "v", "C", "F")}, idx_last, X.copy())
+        if progress is not None:
+            progress(k, sim)
+    return ReplayResult(np.array(times), np.array(tip_mpm), np.array(tip_prb), np.array(end_mpm), np.array(end_prb),
+                        joints_mpm, joints_prb, T, time.perf_counter() - wall0, total_steps, len(X), dt)
+
