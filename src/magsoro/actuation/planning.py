@@ -1,20 +1,21 @@
 """Magnet-path planning for a planar magnetic continuum robot (seed 004 sec II-C).
 
 Pseudo-rigid-body (PRB) model. The robot, clamped at its base, is a chain of n rigid links of length l in the
-x-y plane, joined by torsional springs. Joint j sits at arc length j l (joint 0 at the clamp) and its absolute
+x-y plane, joined by torsional springs. Joint j sits at arc length j l (joint 0 at the clamp) and the absolute
 link angles are phi_j = phi_base + theta_0 + ... + theta_j. The joint stiffnesses come from the bending stiffness
 EI of the material: a joint carries the compliance of the rod around it, l / EI for an inner joint and half of
 it, l / (2 EI), for the clamp joint, so
 
     k_0 = 2 EI / l,    k_j = EI / l  (j >= 1).
 
-With these the joints of a rod under any uniform bending moment lie exactly on the circular arc (the link chords
-of a constant-curvature rod), which is the discretisation the targets use too. The tip half-link beyond the last
-joint is stiff; its share of the bending is lost, which is small where the bending moment vanishes (free tip).
+With these the joints of a rod under a uniform bending moment lie exactly on a circle (the links are the chords
+of the arc), which is the discretisation the targets use too. The tip half-link beyond the last joint is stiff;
+its share of the bending is lost, which is small where the bending moment vanishes (free tip). Links may
+optionally stretch (axial springs EA / l, the moment then carried by the material as m = F Br V0 / mu0).
 
 Magnetic load. Link j carries the moment m_j = Br_j V_j / mu0, fixed in the link frame (the magnetisation
-profile); it is spread over three Gauss points of the link. In a field B with gradient G (G_ik = dB_i/dx_k) a
-point moment m at x receives the torque tau = m x B and the force f = G^T m (seed 000 eqs 15-16, as in the MPM
+profile), spread over three Gauss points of the link. In a field B with gradient G (G_ik = dB_i/dx_k) a point
+moment m at x receives the torque tau = m x B and the force f = G^T m (seed 000 eqs 15-16, as in the MPM
 engine), so the total energy is
 
     U(theta) = 1/2 sum k_j theta_j^2 - sum_points m(theta) . B(x(theta))
@@ -26,23 +27,34 @@ and its gradient (the equilibrium equations) is
 Equilibria are found from the previous configuration by pseudo-transient continuation of the gradient flow
 (:meth:`PlanarPRB.equilibrium`): the overdamped path a damped robot takes, ending in the minimum it settles in.
 
-Planning. A follow-the-leader (FTL) growth plan has K steps; at step k the first n_k links are everted and the
-target shape is the first n_k links of the final shape (the body stays on the path its tip traced). The external
-permanent magnet (EPM) is a point dipole of fixed |m| (seed 004 eq 14). For each step in turn, starting from the
-previous step's equilibrium with the new link added straight, the pose is optimised by least squares over
+Planning. A plan has K steps; at step k the first n_k links are everted and should take the target link angles
+of that step (:class:`GrowthTarget`: follow-the-leader growth into an arc, or straight growth and then bending).
+The external permanent magnet (EPM) is a point dipole of fixed |m| (seed 004 eq 14). Step by step, starting from
+the previous step's equilibrium with the new links added straight (eversion), the pose is optimised by least
+squares over
 
 - the link-angle error of the equilibrium against the target (weight `shape`, RMS over links, per rad),
 - the tip (last-link) angle error (weight `tip`, per rad),
 - the out-of-plane field B_z at the links relative to the field scale (weight `out_of_plane`; seed 004 keeps
   H_z small for the Hall sensors),
-- the pose change from the previous step (weight `smoothness`), and
-- a barrier keeping the magnet at least `min_distance` from every link,
+- the pose change from the previous step (weight `smoothness`),
+- the way there: the already everted links at the start and middle of the magnet's move, against the previous
+  target blended into the new one (weight `path`; for follow-the-leader growth the body should not move),
+- a stiffness margin: the smallest eigenvalue of the energy Hessian below `stability_margin` EI / l
+  (weight `stability`), and the tip displacement when EI is `stiffness_uncertainty` lower (weight
+  `robustness`): plans close to a fold of the equilibrium path cannot be followed by a real robot (or by the
+  MPM replay, whose strip is a few per cent softer in bending than the Euler-Bernoulli PRB),
+- a barrier keeping the magnet at least `min_distance` from every joint,
 
 with the pose parametrised by its distance, azimuth and elevation from the robot base and, unless fixed, the
-moment direction. Every cost evaluation solves the PRB equilibrium, so the optimised pose is judged by the shape it
-really produces. The first step starts from the best of the axial EPM poses (:func:`magsoro.fields.epm.epm_pose`,
-seed 004 eqs 15-16) giving `field_scale` in sixteen in-plane directions at the robot; a later step starts from
-the previous pose and falls back to that search if it misses the tip angle by more than the tolerance.
+moment direction. With ``design_profile`` the magnetisation directions of the links everted in a step are
+optimised with that step's pose and then kept (the seed's optimisation "computes both the magnetic profile and
+the field sequence"). Every cost evaluation solves the PRB equilibrium, so a pose is judged by the shape it
+really produces; the chosen pose is then re-checked along the magnet's actual path (:meth:`MagnetPlanner.follow`)
+and a path that snaps through is rejected. The first step starts from the best of the axial EPM poses
+(:func:`magsoro.fields.epm.epm_pose`, seed 004 eqs 15-16) giving `field_scale` in several in-plane directions at
+the robot; a later step starts from the previous pose, then from the pose extrapolated from the last two, and
+falls back to that multi-start if both miss the tip angle by more than the tolerance.
 """
 
 from __future__ import annotations
@@ -76,11 +88,6 @@ def strip_bending_stiffness(shear_modulus: float, bulk_modulus: float, thickness
 def tube_bending_stiffness(shear_modulus: float, inner_radius: float, outer_radius: float) -> float:
     """EI (N m^2) of an incompressible tube (E = 3 G) with radii A < B (m): 3 G pi (B^4 - A^4) / 4."""
     return 3.0 * shear_modulus * math.pi * (outer_radius**4 - inner_radius**4) / 4.0
-
-
-def _rot(phi):
-    c, s = np.cos(phi), np.sin(phi)
-    return c, s
 
 
 @dataclass
@@ -432,7 +439,7 @@ class PlanStep:
     tip_angle_error: float
     shape_rms_error: float
     max_out_of_plane_field: float
-    min_distance: float
+    min_distance: float  # smallest magnet-to-joint distance, m
     evaluations: int
     path_jump: bool = False
     stiffness_margin: float = float("nan")
