@@ -188,7 +188,6 @@ class PlanarPRB:
         theta = np.diff(np.concatenate([[self.base_angle], phi]))
         return np.concatenate([theta, np.zeros(len(theta))]) if self.extensible else theta
 
-
     # -- kinematics ----------------------------------------------------------------------------------------
     def angles(self, q) -> np.ndarray:
         """Absolute link angles phi (rad) of configuration q."""
