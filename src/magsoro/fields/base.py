@@ -70,6 +70,33 @@ class FieldSource:
         return FieldSum([*self.sources(), *other.sources()])
 
 
+def unit_vector(v, name: str) -> np.ndarray:
+    """``v`` as a unit 3-vector; ValueError naming ``name`` when it is not 3 finite numbers or is zero."""
+    a = np.asarray(v, dtype=np.float64).reshape(-1)
+    if a.shape != (3,) or not np.all(np.isfinite(a)):
+        raise ValueError(f"{name} must be 3 finite numbers, got {v!r}")
+    n = np.linalg.norm(a)
+    if n == 0:
+        raise ValueError(f"{name} must be non-zero")
+    return a / n
+
+
+class MovingSource(FieldSource):
+    """A source with a ``position`` (m) that may follow keyframes ``path``, and, where it has an ``axis``, an
+    ``axis_path`` of keyframed directions."""
+
+    path = None
+    axis_path = None
+
+    def position_at(self, t: float) -> np.ndarray:
+        """Centre (metres) at time ``t`` (s)."""
+        return self.path.value(t) if self.path is not None else self.position
+
+    def axis_at(self, t: float) -> np.ndarray:
+        """Unit axis at time ``t`` (s)."""
+        return unit_vector(self.axis_path.value(t), "axis") if self.axis_path is not None else self.axis
+
+
 class FieldSum(FieldSource):
     """Superposition of sources: B and grad B add."""
 

@@ -26,7 +26,7 @@ import numpy as np
 import warp as wp
 
 from magsoro import MU0
-from magsoro.fields.base import FieldSource, as_points
+from magsoro.fields.base import MovingSource, as_points
 from magsoro.fields.elliptic import PI_F64
 from magsoro.fields.profiles import Keyframes
 
@@ -259,7 +259,7 @@ def cuboid_field(p: wp.vec3d, prm: wp.array(dtype=wp.float64)):
     return Rm * B, Rm * G * wp.transpose(Rm)
 
 
-class CuboidMagnet(FieldSource):
+class CuboidMagnet(MovingSource):
     """Homogeneously magnetised cuboid (block) magnet.
 
     Parameters
@@ -308,10 +308,6 @@ class CuboidMagnet(FieldSource):
     def volume(self) -> float:
         """Volume, m^3."""
         return float(np.prod(self.dimensions))
-
-    def position_at(self, t: float) -> np.ndarray:
-        """Centre (metres) at time ``t`` (s)."""
-        return self.path.value(t) if self.path is not None else self.position
 
     def rotation_at(self, t: float) -> np.ndarray:
         """Body-to-world rotation matrix at time ``t`` (s)."""

@@ -34,7 +34,7 @@ import numpy as np
 import warp as wp
 
 from magsoro import MU0
-from magsoro.fields.base import FieldSource, as_points
+from magsoro.fields.base import MovingSource, as_points, unit_vector as _unit
 from magsoro.fields.elliptic import (
     PI_F64,
     axisym_assemble_np,
@@ -77,16 +77,6 @@ def multipole_coefficients(beta: float, order: int = MAX_ORDER) -> np.ndarray:
         c[n] = 1.0
         out[j] = np.sum(w * np.polynomial.legendre.legval(x, c) * x ** (-(n + 3)))
     return out
-
-
-def _unit(v, name):
-    a = np.asarray(v, dtype=np.float64).reshape(-1)
-    if a.shape != (3,) or not np.all(np.isfinite(a)):
-        raise ValueError(f"{name} must be 3 finite numbers, got {v!r}")
-    n = np.linalg.norm(a)
-    if n == 0:
-        raise ValueError(f"{name} must be non-zero")
-    return a / n
 
 
 # ---------------------------------------------------------------------------------------------------------------
@@ -289,7 +279,7 @@ def cylinder_multipole_field(p: wp.vec3d, prm: wp.array(dtype=wp.float64)):
     return B, (-Br / h) * hess
 
 
-class CylinderMagnet(FieldSource):
+class CylinderMagnet(MovingSource):
     """Axially magnetised cylindrical permanent magnet.
 
     Parameters
@@ -367,14 +357,6 @@ class CylinderMagnet(FieldSource):
     def moment(self, t: float = 0.0) -> np.ndarray:
         """Dipole moment Br V / mu0 along the axis, A m^2 (seed 001 eq 9 inverted)."""
         return self.remanence * self.volume / MU0 * self.axis_at(t)
-
-    def position_at(self, t: float) -> np.ndarray:
-        """Centre (metres) at time ``t`` (s)."""
-        return self.path.value(t) if self.path is not None else self.position
-
-    def axis_at(self, t: float) -> np.ndarray:
-        """Unit magnetisation axis at time ``t`` (s)."""
-        return _unit(self.axis_path.value(t), "axis") if self.axis_path is not None else self.axis
 
     # host forms -------------------------------------------------------------------------------------------------
     def _evaluate(self, points, t, with_grad):

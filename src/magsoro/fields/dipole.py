@@ -5,7 +5,7 @@ import numpy as np
 import warp as wp
 
 from magsoro import MU0
-from magsoro.fields.base import FieldSource, as_points
+from magsoro.fields.base import MovingSource, as_points
 from magsoro.fields.profiles import Keyframes
 
 
@@ -33,7 +33,7 @@ def dipole_field(p: wp.vec3d, prm: wp.array(dtype=wp.float64)):
     return B, G
 
 
-class Dipole(FieldSource):
+class Dipole(MovingSource):
     """Point magnetic dipole.
 
     Parameters
@@ -52,9 +52,6 @@ class Dipole(FieldSource):
         if path is not None and path.values.shape[1] != 3:
             raise ValueError("a dipole path needs 3 position components")
         self.path = path
-
-    def position_at(self, t: float) -> np.ndarray:
-        return self.path.value(t) if self.path is not None else self.position
 
     def B(self, points, t=0.0):
         r = as_points(points) - self.position_at(t)

@@ -23,8 +23,8 @@ import numpy as np
 import warp as wp
 
 from magsoro import MU0
-from magsoro.fields.base import FieldSource, FieldSum, as_points
-from magsoro.fields.cylinder import AXIS_EPS, _unit
+from magsoro.fields.base import FieldSource, FieldSum, MovingSource, as_points, unit_vector as _unit
+from magsoro.fields.cylinder import AXIS_EPS
 from magsoro.fields.elliptic import (
     axisym_assemble_np,
     axisym_assemble_wp,
@@ -104,7 +104,7 @@ def current_loop_field(p: wp.vec3d, prm: wp.array(dtype=wp.float64)):
     return axisym_assemble_wp(a, rhat, b0 * br, b0 * bz, b_rho_over_rho, dbz_dz, g0 * gzr)
 
 
-class CurrentLoop(FieldSource):
+class CurrentLoop(MovingSource):
     """Thin circular current loop (or a compact coil of ``turns`` turns).
 
     Parameters
@@ -155,14 +155,6 @@ class CurrentLoop(FieldSource):
     def moment(self, t: float = 0.0) -> np.ndarray:
         """Magnetic moment N I pi a^2 along the axis, A m^2."""
         return self.turns * self.current * np.pi * self.radius**2 * self.axis_at(t)
-
-    def position_at(self, t: float) -> np.ndarray:
-        """Centre (metres) at time ``t`` (s)."""
-        return self.path.value(t) if self.path is not None else self.position
-
-    def axis_at(self, t: float) -> np.ndarray:
-        """Unit axis at time ``t`` (s)."""
-        return _unit(self.axis_path.value(t), "axis") if self.axis_path is not None else self.axis
 
     def _evaluate(self, points, t, with_grad):
         p = as_points(points)
