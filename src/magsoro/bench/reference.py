@@ -40,6 +40,25 @@ def reference_kernels(dim: int):
             return w1[a]
         return w2[a]
 
+    @wp.func
+    def node(i: int, j: int, k: int, base: ivec, fx: vec, w0: vec, w1: vec, w2: vec, dx: float, shape: ivec):
+        """Weight, offset x_i - x_p and flat index of stencil node (i, j[, k])."""
+        o = ivec()
+        o[0] = i
+        o[1] = j
+        if wp.static(dim == 3):
+            o[2] = k
+        wgt = float(1.0)
+        d = vec()
+        for a in range(dim):
+            wgt = wgt * sel(w0, w1, w2, o[a], a)
+            d[a] = (float(o[a]) - fx[a]) * dx
+        n = base + o
+        idx = n[0] * shape[1] + n[1]
+        if wp.static(dim == 3):
+            idx = idx * shape[2] + n[2]
+        return wgt, d, idx
+
     @wp.kernel
     def p2g(x: wp.array(dtype=vec), v: wp.array(dtype=vec), C: wp.array(dtype=mat), F: wp.array(dtype=mat),
             vol: wp.array(dtype=float), mass: wp.array(dtype=float), G: float, K: float, lo: vec, shape: ivec,
@@ -66,20 +85,7 @@ def reference_kernels(dim: int):
         for i in range(3):
             for j in range(3):
                 for k in range(KN):
-                    o = ivec()
-                    o[0] = i
-                    o[1] = j
-                    if wp.static(dim == 3):
-                        o[2] = k
-                    wgt = float(1.0)
-                    d = vec()
-                    for a in range(dim):
-                        wgt = wgt * sel(w0, w1, w2, o[a], a)
-                        d[a] = (float(o[a]) - fx[a]) * dx
-                    n = base + o
-                    idx = n[0] * shape[1] + n[1]
-                    if wp.static(dim == 3):
-                        idx = idx * shape[2] + n[2]
+                    wgt, d, idx = node(i, j, k, base, fx, w0, w1, w2, dx, shape)
                     wp.atomic_add(gp, idx, wgt * (mv + affine * d))
                     wp.atomic_add(gm, idx, wgt * mass[p])
 
@@ -110,20 +116,7 @@ def reference_kernels(dim: int):
         for i in range(3):
             for j in range(3):
                 for k in range(KN):
-                    o = ivec()
-                    o[0] = i
-                    o[1] = j
-                    if wp.static(dim == 3):
-                        o[2] = k
-                    wgt = float(1.0)
-                    d = vec()
-                    for a in range(dim):
-                        wgt = wgt * sel(w0, w1, w2, o[a], a)
-                        d[a] = (float(o[a]) - fx[a]) * dx
-                    n = base + o
-                    idx = n[0] * shape[1] + n[1]
-                    if wp.static(dim == 3):
-                        idx = idx * shape[2] + n[2]
+                    wgt, d, idx = node(i, j, k, base, fx, w0, w1, w2, dx, shape)
                     gvi = gv[idx]
                     nv = nv + wgt * gvi
                     nC = nC + (wgt * 4.0 / (dx * dx)) * wp.outer(gvi, d)
