@@ -17,6 +17,7 @@ from typing import Literal
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
+from magsoro.config_errors import format_config_error
 from magsoro.errors import MagsoroError
 
 
@@ -307,53 +308,12 @@ class PlanConfig(_Strict):
 
 
 # ------------------------------------------------------------------------------------------- loading
-def _model_at(model: type[BaseModel], loc) -> type[BaseModel] | None:
-    """The pydantic model owning the last element of ``loc`` (to list the allowed keys)."""
-    for part in loc[:-1]:
-        if isinstance(part, int):
-            continue
-        field = model.model_fields.get(part)
-        if field is None:
-            return None
-        ann = field.annotation
-        candidates = [ann, *getattr(ann, "__args__", ())]
-        for c in list(candidates):
-            candidates.extend(getattr(c, "__args__", ()))
-        sub = next((c for c in candidates if isinstance(c, type) and issubclass(c, BaseModel)), None)
-        if sub is None:
-            return None
-        model = sub
-    return model
-
-
-def format_error(exc: ValidationError, root: type[BaseModel], source: str) -> str:
-    """One line naming every bad key, what is wrong and, for an unknown key, the allowed keys."""
-    parts = []
-    for err in exc.errors():
-        loc = tuple(err["loc"])
-        where = ""
-        for p in loc:
-            where += f"[{p}]" if isinstance(p, int) else (f".{p}" if where else str(p))
-        where = where or "(top level)"
-        if err["type"] == "extra_forbidden":
-            owner = _model_at(root, loc)
-            allowed = ", ".join(owner.model_fields) if owner else "?"
-            parts.append(f"{where}: unknown key (allowed here: {allowed})")
-        elif err["type"] == "missing":
-            parts.append(f"{where}: required key is missing")
-        elif err["type"] == "value_error":
-            parts.append(f"{where + ': ' if loc else ''}{err['msg'].removeprefix('Value error, ')}")
-        else:
-            parts.append(f"{where}: {err['msg']} (got {err.get('input')!r})")
-    return f"{source}: " + "; ".join(parts)
-
-
 def parse(model: type[BaseModel], data: dict, source: str = "input"):
     """Validate ``data`` against ``model``; raises :class:`ActuationInputError` with a one-line message."""
     try:
         return model.model_validate(data)
     except ValidationError as exc:
-        raise ActuationInputError(format_error(exc, model, source)) from None
+        raise ActuationInputError(format_config_error(exc, model, source)) from None
 
 
 def load(model: type[BaseModel], path):

@@ -28,6 +28,7 @@ from typing import Literal
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
+from magsoro.config_errors import format_config_error
 from magsoro.errors import SceneError
 from magsoro.rod.magnetisation import MagnetSegment
 from magsoro.rod.model import DEFAULT_BASE_ROTATION, Rod
@@ -158,51 +159,9 @@ class RodConfig(_Strict):
         )
 
 
-def _model_at(model: type[BaseModel], loc) -> type[BaseModel] | None:
-    """The pydantic model class that owns the last element of ``loc`` (to list its allowed keys)."""
-    for part in loc[:-1]:
-        if isinstance(part, int):
-            continue
-        field = model.model_fields.get(part)
-        if field is None:
-            return None
-        ann = field.annotation
-        candidates = [ann, *getattr(ann, "__args__", ())]
-        sub = next((c for c in candidates if isinstance(c, type) and issubclass(c, BaseModel)), None)
-        if sub is None:
-            return None
-        model = sub
-    return model
-
-
-def _format_loc(loc) -> str:
-    out = ""
-    for part in loc:
-        out += f"[{part}]" if isinstance(part, int) else (f".{part}" if out else str(part))
-    return out
-
-
 def format_validation_error(exc: ValidationError, root: type[BaseModel] = None, source: str = "") -> str:
     """One line naming each bad key, what is wrong and (for unknown keys) the allowed ones."""
-    root = root or RodConfig
-    parts = []
-    for err in exc.errors():
-        loc = tuple(err["loc"])
-        where = _format_loc(loc) or "(top level)"
-        if err["type"] == "extra_forbidden":
-            owner = _model_at(root, loc)
-            allowed = ", ".join(owner.model_fields) if owner else "?"
-            parts.append(f"{where}: unknown key (allowed here: {allowed})")
-        elif err["type"] == "missing" and loc and isinstance(loc[-1], int):
-            parts.append(f"{_format_loc(loc[:-1])}: expected 3 numbers, got fewer")
-        elif err["type"] == "missing":
-            parts.append(f"{where}: required key is missing")
-        elif err["type"] == "value_error":
-            parts.append(f"{where + ': ' if loc else ''}{err['msg'].removeprefix('Value error, ')}")
-        else:
-            parts.append(f"{where}: {err['msg']} (got {err.get('input')!r})")
-    prefix = f"{source}: " if source else ""
-    return prefix + "; ".join(parts)
+    return format_config_error(exc, root or RodConfig, source, vector_length=3)
 
 
 def parse_rod_config(data: dict, source: str = "") -> RodConfig:
