@@ -25,6 +25,7 @@ COMMANDS = [
     "magsoro.commands.report",
     "magsoro.commands.validate",
     "magsoro.commands.optimize",
+    "magsoro.commands.reproduce",
 ]
 
 

@@ -13,6 +13,8 @@ def register(sub):
     p.add_argument("--out", required=True, help="output directory")
     p.add_argument("--device", choices=None, help="cpu, cuda or cuda:N (overrides simulation.device)")
     p.add_argument("--duration", type=float, help="simulated time in s (overrides simulation.duration)")
+    p.add_argument("--preview", action="store_true",
+                   help="use the scene's [preview] settings (coarser grid, shorter run) for a quick look")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=run)
 
@@ -29,9 +31,13 @@ def run(args) -> int:
     if args.duration is not None and not args.duration > 0:
         raise SceneError(f"--duration: must be > 0 s, got {args.duration}")
     wall0 = time.perf_counter()
-    scene = load_scene(args.scene)  # every check happens before the output folder is touched
+    scene = load_scene(args.scene, preview=args.preview)  # every check happens before the output folder is touched
     sim = Simulation(scene, device=args.device, source=args.scene)
     echo = tomllib.loads(Path(args.scene).read_text())
+    if args.preview:
+        from magsoro.scene.load import apply_preview
+
+        echo = apply_preview(echo, args.scene)
     duration = args.duration if args.duration is not None else scene.simulation.duration
     writer = RunWriter(args.out, sim, echo, particles=scene.output.particles)
     bar = None

@@ -25,6 +25,9 @@ def register(sub) -> None:
     p.add_argument("cases", nargs="*", metavar="CASE", help="case names (see --list)")
     p.add_argument("--quick", action="store_true",
                    help="only the quick cases (closed forms and the 2D beam; under 10 min on 2 CPU cores)")
+    p.add_argument("--all", action="store_true",
+                   help="every case, including the robot library's (robot-NAME: each robot's preview run and "
+                        "acceptance checks; about 3 min each)")
     p.add_argument("--json", action="store_true",
                    help="print the rows as a JSON list (keys case, quantity, inputs, reference, value, error, "
                         "tolerance, passed); progress goes to stderr")
@@ -39,11 +42,11 @@ def run_validate(args) -> int:
 
     if args.list:
         for case in CASES.values():
-            tag = "quick" if case.quick else "full "
+            tag = "quick" if case.quick else ("robot" if case.group == "robots" else "full ")
             print(f"{case.name:18s} {tag} {case.cost:>10s}  {case.summary}")
         return 0
     try:
-        select_cases(args.cases, args.quick)
+        select_cases(args.cases, args.quick, args.all)
     except KeyError as exc:
         print(f"magsoro validate: error: {exc.args[0]}", file=sys.stderr)
         return 2
@@ -54,7 +57,7 @@ def run_validate(args) -> int:
     # stdout carries only the table or the JSON: anything the engine or Warp prints while the cases run
     # (kernel compilation notices) goes to stderr
     with contextlib.redirect_stdout(sys.stderr):
-        results = run_validation(args.cases, quick=args.quick, out=out)
+        results = run_validation(args.cases, quick=args.quick, out=out, all_cases=args.all)
     wall, cpu = time.perf_counter() - t0, time.process_time() - c0
     rows = [r for res in results for r in res.rows]
     if out is not None:

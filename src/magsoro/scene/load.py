@@ -158,15 +158,49 @@ def _expand_robot(scene: Scene, source: str, base_dir) -> None:
         scene.bodies.append(part)
 
 
-def load_scene(path) -> Scene:
-    """Read a TOML scene file and validate it. Raises :class:`SceneError` with a one-line message."""
+def apply_preview(data: dict, source: str = "scene") -> dict:
+    """The scene dict with its [preview] settings put in place of the [simulation] / [output] ones (a copy;
+    ``data`` is not changed). A scene without a [preview] table is an error: the caller asked for one."""
+    import copy
+
+    from magsoro.scene.schema import Preview
+
+    if "preview" not in data:
+        raise SceneError(f"{source}: preview: --preview needs a [preview] table in the scene "
+                         f"(keys: {', '.join(Preview.model_fields)})")
+    try:
+        prev = Preview.model_validate(data["preview"])
+    except ValidationError:
+        parse_scene(data, source)  # reports the bad [preview] key the way every scene key is reported
+        raise
+    out = copy.deepcopy(data)
+    sim = out.setdefault("simulation", {})
+    for key, value in prev.model_dump(exclude_none=True).items():
+        if key == "every":
+            out.setdefault("output", {})["every"] = value
+        else:
+            sim[key] = value
+    return out
+
+
+def read_scene_toml(path) -> dict:
+    """The raw dict of a TOML scene file; a missing file or bad TOML raises :class:`SceneError`."""
     path = Path(path)
     if not path.is_file():
         raise SceneError(f"{path}: scene file not found")
     try:
-        data = tomllib.loads(path.read_text())
+        return tomllib.loads(path.read_text())
     except tomllib.TOMLDecodeError as exc:
         raise SceneError(f"{path}: not valid TOML: {exc}") from None
+
+
+def load_scene(path, preview: bool = False) -> Scene:
+    """Read a TOML scene file and validate it; ``preview=True`` applies its [preview] table first.
+    Raises :class:`SceneError` with a one-line message."""
+    path = Path(path)
+    data = read_scene_toml(path)
+    if preview:
+        data = apply_preview(data, str(path))
     scene = parse_scene(data, str(path), path.parent)
     scene._source_path = path
     return scene

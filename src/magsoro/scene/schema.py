@@ -584,6 +584,17 @@ class Output(Strict):
     particles: bool = Field(default=True, description="Write the ParaView particle series (.vtp + .pvd).")
 
 
+class Preview(Strict):
+    """Coarser settings used by ``magsoro run --preview`` (and ``magsoro reproduce --preview``): each key given
+    replaces the same key of [simulation] (``every``: of [output]) so the scene runs in a fraction of the time."""
+
+    dx: float | None = Field(default=None, gt=0, description="Grid spacing for the preview, m.")
+    particles_per_cell: int | None = Field(default=None, ge=1, le=4, description="Particles per cell along each axis for the preview.")
+    duration: float | None = Field(default=None, gt=0, description="Simulated time for the preview, s.")
+    cfl: float | None = Field(default=None, gt=0, le=1, description="Time-step safety factor for the preview.")
+    every: float | None = Field(default=None, gt=0, description="Output interval for the preview, s.")
+
+
 class Scene(Strict):
     """A magsoro scene: bodies, clamps, colliders, fields, probes, numerical settings and output."""
 
@@ -597,6 +608,7 @@ class Scene(Strict):
     probes: list[AnyProbe] = Field(default_factory=list, description="Recorded quantities ([[probes]] tables).")
     output: Output = Field(default_factory=Output)
     name: str | None = Field(default=None, description="Scene title.")
+    preview: Preview | None = Field(default=None, description="[preview] table: coarser settings for `magsoro run --preview`.")
     _base_dir: object = PrivateAttr(default=None)
     _source_path: object = PrivateAttr(default=None)
     _material_libraries: object = PrivateAttr(default_factory=list)

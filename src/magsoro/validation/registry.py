@@ -93,18 +93,19 @@ class Case:
     run: Callable[[Context], CaseResult]
     quick: bool = True
     cost: str = ""
+    group: str = "physics"  # "robots": run only when named or with --all
 
 
 CASES: dict[str, Case] = {}
 
 
-def register(name: str, summary: str, quick: bool = True, cost: str = ""):
+def register(name: str, summary: str, quick: bool = True, cost: str = "", group: str = "physics"):
     """Decorator adding ``fn(ctx) -> CaseResult`` to :data:`CASES` under ``name``."""
 
     def wrap(fn):
         if name in CASES:
             raise ValueError(f"validation case {name!r} registered twice")
-        CASES[name] = Case(name, summary, fn, quick, cost)
+        CASES[name] = Case(name, summary, fn, quick, cost, group)
         return fn
 
     return wrap

@@ -1,0 +1,58 @@
+"""The robot library: every robot of the source documents as a scene (``scenes/<name>.toml``) plus a
+``reproduce`` function that draws the quantity the paper plots (docs/robots.md).
+
+>>> from magsoro.robots import ROBOTS, reproduce         # doctest: +SKIP
+>>> res = reproduce("pentahedron", out="runs/pentahedron", preview=True)   # doctest: +SKIP
+
+Robot modules in this package register themselves by defining ``ROBOT`` (a :class:`Robot`); they are found by
+name, so adding a robot is adding a module and its scene.
+"""
+
+from __future__ import annotations
+
+import importlib
+import pkgutil
+from pathlib import Path
+
+from magsoro.robots.base import Context, ReproduceResult, Robot, RobotError, scenes_dir
+
+_NOT_ROBOTS = {"base", "cli"}
+
+
+def _discover() -> dict[str, Robot]:
+    found = []
+    for info in pkgutil.iter_modules(__path__):
+        if info.name in _NOT_ROBOTS or info.name.startswith("_"):
+            continue
+        mod = importlib.import_module(f"{__name__}.{info.name}")
+        robot = getattr(mod, "ROBOT", None)
+        if isinstance(robot, Robot):
+            found.append(robot)
+    # seed order (000, 001, 002), then name
+    found.sort(key=lambda r: (r.source.split()[1] if r.source.startswith("seed ") else r.source, r.name))
+    return {r.name: r for r in found}
+
+
+ROBOTS: dict[str, Robot] = _discover()
+
+
+def get(name: str) -> Robot:
+    """The registry entry of ``name``; an unknown name raises RobotError listing the known ones."""
+    if name not in ROBOTS:
+        raise RobotError(f"unknown robot {name!r}; known: {', '.join(ROBOTS)}")
+    return ROBOTS[name]
+
+
+def reproduce(name: str, out=None, preview: bool = False, device: str | None = None, log=None) -> ReproduceResult:
+    """Run robot ``name`` and write its curve (CSV, PNG) and animation into ``out``
+    (default runs/reproduce/<name>, or runs/reproduce/<name>-preview)."""
+    robot = get(name)
+    out = Path(out) if out is not None else Path("runs") / "reproduce" / (name + ("-preview" if preview else ""))
+    out.mkdir(parents=True, exist_ok=True)
+    ctx = Context(out=out, preview=preview, device=device)
+    if log is not None:
+        ctx.log = log
+    return robot.reproduce(ctx)
+
+
+__all__ = ["ROBOTS", "Robot", "Context", "ReproduceResult", "RobotError", "get", "reproduce", "scenes_dir"]

@@ -1,0 +1,263 @@
+"""What every robot of the library shares: its registry entry, how its scene is loaded (full or ``--preview``),
+the curve it reports (CSV + PNG with the paper's values) and an animation of its motion (GIF).
+
+A robot module (``magsoro/robots/<name>.py``) defines ``ROBOT = Robot(...)`` whose ``reproduce(ctx)`` runs the
+scene (usually a sweep of field strengths), writes its files into ``ctx.out`` and returns a
+:class:`ReproduceResult`. The scene itself is ``scenes/<name>.toml`` in the repository, so
+``magsoro run scenes/<name>.toml`` shows the same robot.
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+import os
+import sys
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+
+from magsoro.errors import MagsoroError
+
+
+class RobotError(MagsoroError):
+    """A robot cannot be reproduced (unknown name, scene folder missing, a run that failed)."""
+
+
+@dataclass
+class Context:
+    """What ``reproduce`` gets: the output folder (created), ``preview`` (coarse and short: the scene's
+    [preview] table), the device and a progress logger (stderr)."""
+
+    out: Path
+    preview: bool = False
+    device: str | None = None
+    log: Callable[[str], None] = field(default=lambda msg: print(msg, file=sys.stderr, flush=True))
+
+
+@dataclass
+class ReproduceResult:
+    """Files written and what they show. ``summary``: one sentence comparing with the paper (the README /
+    gallery line); ``rows``: acceptance checks as validation rows (``magsoro validate --all``); ``info``: run
+    facts (particles, steps, wall time, resolution)."""
+
+    name: str
+    csv: Path
+    png: Path
+    animation: Path | None = None
+    summary: str = ""
+    rows: list = field(default_factory=list)
+    info: dict = field(default_factory=dict)
+
+    @property
+    def passed(self) -> bool:
+        return all(r.passed for r in self.rows)
+
+
+@dataclass
+class Robot:
+    """A registry entry: ``name`` (scene file ``scenes/<name>.toml``), ``title``, ``source`` (seed and
+    section), ``quantity`` (what the paper plots), ``sentence`` (the gallery sentence) and ``reproduce``."""
+
+    name: str
+    title: str
+    source: str
+    quantity: str
+    sentence: str
+    reproduce: Callable[[Context], ReproduceResult]
+    in_ci: bool = False  # its preview is run by the default (not slow) test suite
+
+    @property
+    def scene_path(self) -> Path:
+        return scenes_dir() / f"{self.name}.toml"
+
+
+def scenes_dir() -> Path:
+    """The repository's scenes/ folder (``MAGSORO_SCENES`` overrides). The robot scenes and their reproduce
+    scripts live there, not inside the installed package, so reproducing needs a checkout of the repository."""
+    env = os.environ.get("MAGSORO_SCENES")
+    path = Path(env) if env else Path(__file__).resolve().parents[3] / "scenes"
+    if not path.is_dir():
+        raise RobotError(f"scenes folder '{path}' not found: robots are reproduced from a checkout of the "
+                         "magsoro repository (pip install -e .), or set MAGSORO_SCENES to its scenes/ folder")
+    return path
+
+
+# -- scenes -----------------------------------------------------------------------------------------------
+def scene_data(name: str) -> dict:
+    """The raw TOML dict of ``scenes/<name>.toml`` (edit it, then :func:`simulation`)."""
+    from magsoro.scene.load import read_scene_toml
+
+    return read_scene_toml(scenes_dir() / f"{name}.toml")
+
+
+def scene(name: str, data: dict | None = None, preview: bool = False):
+    """Validated :class:`~magsoro.scene.Scene` of robot ``name`` from ``data`` (default: its file), with the
+    [preview] settings applied when ``preview``. Relative file names resolve against scenes/."""
+    from magsoro.scene.load import apply_preview, parse_scene
+
+    path = scenes_dir() / f"{name}.toml"
+    data = scene_data(name) if data is None else data
+    if preview:
+        data = apply_preview(data, str(path))
+    sc = parse_scene(data, str(path), path.parent)
+    sc._source_path = path
+    return sc
+
+
+def simulation(name: str, data: dict | None = None, preview: bool = False, device: str | None = None):
+    """A ready :class:`~magsoro.simulation.Simulation` of robot ``name`` (see :func:`scene`)."""
+    from magsoro.simulation import Simulation
+
+    return Simulation(scene(name, data, preview), device=device, source=str(scenes_dir() / f"{name}.toml"))
+
+
+def run(sim, duration: float | None = None, every: float | None = None, frames: "FrameRecorder | None" = None,
+        callback: Callable | None = None):
+    """Run ``sim`` for ``duration`` (default: the scene's), recording ``frames`` every ``every`` s when given.
+    A failed run raises :class:`RobotError` naming the step and time."""
+    record = frames.record if frames is not None else None
+    result = sim.run(duration, callback=callback, record=record, record_every=every)
+    if result.status != "completed":
+        raise RobotError(f"{sim.scene.name or 'scene'}: run {result.status}: {result.message}")
+    return result
+
+
+# -- outputs ----------------------------------------------------------------------------------------------
+def write_csv(path: Path, columns: dict[str, list | np.ndarray]) -> Path:
+    """Columns (equal lengths) to a CSV file, atomically."""
+    from magsoro.io.files import atomic_write_text
+
+    names = list(columns)
+    n = len(next(iter(columns.values()))) if columns else 0
+    lines = [",".join(names)]
+    for i in range(n):
+        lines.append(",".join(_fmt(columns[k][i]) for k in names))
+    atomic_write_text(Path(path), "\n".join(lines) + "\n")
+    return Path(path)
+
+
+def _fmt(v) -> str:
+    if isinstance(v, str):
+        return v
+    v = float(v)
+    return "" if not math.isfinite(v) else f"{v:.6g}"
+
+
+def read_csv(path: Path) -> dict[str, np.ndarray]:
+    """A CSV written by :func:`write_csv` (numeric columns) back as arrays."""
+    with open(path, newline="") as fh:
+        rows = list(csv.reader(fh))
+    head, body = rows[0], rows[1:]
+    return {h: np.array([float(r[j]) if r[j] != "" else np.nan for r in body]) for j, h in enumerate(head)}
+
+
+def plot_curve(path: Path, x, series: dict[str, np.ndarray], xlabel: str, ylabel: str, title: str,
+               paper: dict[str, tuple] | None = None, note: str = "") -> Path:
+    """PNG of simulated ``series`` (label -> y over ``x``, lines with markers) and the ``paper``'s values
+    (label -> (x, y), open markers). ``note`` goes under the title."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(5.2, 3.8), dpi=120)
+    for label, y in series.items():
+        ax.plot(x, y, "o-", ms=4, label=f"magsoro: {label}")
+    for label, (px, py) in (paper or {}).items():
+        ax.plot(px, py, "s", mfc="none", ms=7, mew=1.5, label=f"paper: {label}")
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel(ylabel)
+    ax.set_title(title + (f"\n{note}" if note else ""), fontsize=9)
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=7)
+    fig.tight_layout()
+    _save(fig, path)
+    plt.close(fig)
+    return Path(path)
+
+
+def _save(fig, path: Path) -> None:
+    path = Path(path)
+    tmp = path.with_name(path.name + ".tmp" + path.suffix)
+    fig.savefig(tmp)
+    os.replace(tmp, path)
+
+
+class FrameRecorder:
+    """Collects particle positions for an animation: pass ``frames.record`` as a run's ``record`` callback
+    (or call it yourself). ``axes`` picks the two coordinates drawn (e.g. (0, 2) for x-z); ``label(sim)``
+    gives the caption of each frame (default: the time)."""
+
+    def __init__(self, axes=(0, 1), label: Callable | None = None, max_particles: int = 20000):
+        self.axes = tuple(axes)
+        self.label = label
+        self.max_particles = max_particles
+        self.frames: list[tuple[np.ndarray, str]] = []
+        self.color: np.ndarray | None = None
+        self.extras: list[Callable] = []
+
+    def record(self, sim) -> None:
+        x = sim.state.x.numpy()
+        if self.color is None:
+            n = len(x)
+            self._pick = np.arange(n) if n <= self.max_particles else np.linspace(0, n - 1, self.max_particles).astype(int)
+            self.color = sim.model.host["body"][self._pick]
+            order = np.argsort(x[self._pick][:, 3 - sum(self.axes)] if x.shape[1] == 3 else np.zeros(len(self._pick)))
+            self._pick = self._pick[order]
+            self.color = self.color[order]
+        caption = self.label(sim) if self.label else f"t = {sim.time * 1e3:.1f} ms"
+        self.frames.append((x[self._pick][:, list(self.axes)].copy(), caption))
+
+    def write_gif(self, path: Path, title: str = "", fps: int = 12, lims=None, patches: Callable | None = None) -> Path:
+        """The frames as an animated GIF (matplotlib + Pillow); axes in mm. ``patches(ax, k)`` may draw
+        obstacles or magnets on frame ``k``."""
+        import matplotlib
+
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+        from matplotlib.animation import FuncAnimation, PillowWriter
+
+        if not self.frames:
+            raise RobotError("no frames recorded")
+        allx = np.concatenate([f[0] for f in self.frames]) * 1e3
+        if lims is None:
+            lo, hi = allx.min(axis=0), allx.max(axis=0)
+            pad = 0.08 * (hi - lo).max()
+            lims = ((lo[0] - pad, hi[0] + pad), (lo[1] - pad, hi[1] + pad))
+        fig, ax = plt.subplots(figsize=(5, 4), dpi=90)
+        names = "xyz"
+        n = len(self.frames[0][0])
+        size = max(0.5, min(6.0, 6000.0 / n))
+
+        def draw(k):
+            ax.clear()
+            pts, caption = self.frames[k]
+            ax.scatter(pts[:, 0] * 1e3, pts[:, 1] * 1e3, s=size, c=self.color, cmap="tab10", vmin=0, vmax=9,
+                       linewidths=0)
+            if patches is not None:
+                patches(ax, k)
+            ax.set_xlim(*lims[0])
+            ax.set_ylim(*lims[1])
+            ax.set_aspect("equal")
+            ax.set_xlabel(f"{names[self.axes[0]]} (mm)")
+            ax.set_ylabel(f"{names[self.axes[1]]} (mm)")
+            ax.set_title(f"{title}\n{caption}", fontsize=9)
+
+        anim = FuncAnimation(fig, draw, frames=len(self.frames))
+        path = Path(path)
+        tmp = path.with_name(path.name + ".tmp.gif")
+        anim.save(tmp, writer=PillowWriter(fps=fps))
+        os.replace(tmp, path)
+        plt.close(fig)
+        return path
+
+
+def timed(fn: Callable, *args, **kwargs):
+    """``(fn(*args, **kwargs), wall seconds)``."""
+    t0 = time.perf_counter()
+    out = fn(*args, **kwargs)
+    return out, time.perf_counter() - t0
