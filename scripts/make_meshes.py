@@ -4,7 +4,7 @@
 
 gripper_six_arm.stl: the six-arm gripper of Xu et al. (seed 000 sec 4.5) as a flat star, in millimetres (the
 scene loads it with scale = 1e-3). Seed 000 gives no dimensions; the ones below are representative of
-millimetre-scale grippers of that family and are stated in docs/robots.md: arms 1.0 mm wide reaching 4.5 mm
+millimetre-scale grippers of that family and are stated in docs/geometry.md: arms 1.0 mm wide reaching 4.5 mm
 from the centre, a hexagonal hub, 0.4 mm thick.
 """
 

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import importlib
 import pkgutil
+import time
 from pathlib import Path
 
 from magsoro.robots.base import Context, ReproduceResult, Robot, RobotError, scenes_dir
@@ -52,7 +53,18 @@ def reproduce(name: str, out=None, preview: bool = False, device: str | None = N
     ctx = Context(out=out, preview=preview, device=device)
     if log is not None:
         ctx.log = log
-    return robot.reproduce(ctx)
+    t0 = time.perf_counter()
+    res = robot.reproduce(ctx)
+    wall = time.perf_counter() - t0
+    from magsoro.io.files import atomic_write_json
+
+    atomic_write_json(out / "result.json", {
+        "name": name, "title": robot.title, "source": robot.source, "quantity": robot.quantity,
+        "preview": bool(preview), "wall_s": round(wall, 1), "summary": res.summary,
+        "files": {"csv": res.csv.name, "png": res.png.name, "animation": res.animation.name if res.animation else None},
+        "info": res.info, "checks": [r.as_dict() for r in res.rows], "passed": res.passed,
+    })
+    return res
 
 
 __all__ = ["ROBOTS", "Robot", "Context", "ReproduceResult", "RobotError", "get", "reproduce", "scenes_dir"]
