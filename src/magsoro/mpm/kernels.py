@@ -348,7 +348,9 @@ def make_kernels(dim: int, scalar):
                 new_v = new_v + wgv
                 new_C = new_C + wp.outer(wgv, dpos)
             new_C = (scalar(4.0) * inv_dx * inv_dx) * new_C  # scaled once, not per node
-            Fn = (wp.identity(n=dim, dtype=scalar) + dt * new_C) * F_in[p]
+            # F + (dt C) F rather than (I + dt C) F: in float32, 1 + dt C_ii rounds the small increments of a
+            # slowly creeping state away, which showed as a steady drift of loaded beams (docs/engine.md)
+            Fn = F_in[p] + (dt * new_C) * F_in[p]
             xp = xp + dt * new_v
             x_out[p] = xp
             v_out[p] = new_v
