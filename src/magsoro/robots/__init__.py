@@ -17,7 +17,7 @@ from pathlib import Path
 
 from magsoro.robots.base import Context, ReproduceResult, Robot, RobotError, scenes_dir
 
-_NOT_ROBOTS = {"base", "cli"}
+_NOT_ROBOTS = {"base", "cli", "gallery"}
 
 
 def _discover() -> dict[str, Robot]:
