@@ -157,16 +157,35 @@ def probe_by_name(sim, name: str):
     raise RobotError(f"no probe '{name}' in the scene")
 
 
-def hanging_rod_deflection(length: float, diameter: float, youngs_modulus_: float, remanence: float, density: float,
-                           fields, at: float) -> np.ndarray:
-    """Kirchhoff-rod (magsoro.rod) deflection along +x (m) at arc length ``at`` (m) of a round rod of
-    ``length`` and ``diameter`` (m) hanging from a clamp along -z under gravity, magnetised along its axis
-    towards the tip (``remanence`` T), in uniform fields (Bx, 0, 0) for Bx in ``fields`` (T), followed in order."""
+def free_section(sim, body: str) -> dict:
+    """The cross-section the engine was given for ``body``: its free particles (below the clamp face z = 0)
+    as a straight stretch from ``start`` to ``end`` (m below z = 0) with area ``A`` (m^2) and second moment
+    ``I`` (m^4) about the y axis (bending in the x-z plane), each particle a cube of side h = dx / ppc. On a
+    coarse lattice a circle fills a few % more or less than pi d^2 / 4; the references use these values."""
+    sc = sim.scene.simulation
+    h = sc.dx / sc.particles_per_cell
+    X, V = sim.model.host["positions"], sim.model.host["volumes"]
+    m = body_mask(sim, body) & (X[:, 2] < 0.0)
+    z = X[m, 2]
+    start, end = float(-(z.max() + h / 2)), float(-(z.min() - h / 2))
+    ell = end - start
+    xc = float(np.average(X[m, 0], weights=V[m]))
+    A = float(V[m].sum() / ell)
+    inertia = float((((X[m, 0] - xc) ** 2 + h * h / 12.0) * V[m]).sum() / ell)
+    return {"start": start, "end": end, "A": A, "I": inertia}
+
+
+def hanging_rod_deflection(length: float, area: float, inertia: float, youngs_modulus_: float, remanence: float,
+                           density: float, fields, at: float) -> np.ndarray:
+    """Kirchhoff-rod (magsoro.rod) deflection along +x (m) at arc length ``at`` (m) of a rod of ``length`` (m),
+    cross-section ``area`` (m^2) and second moment ``inertia`` (m^4, the same about both axes), hanging from a
+    clamp along -z under gravity, magnetised along its axis towards the tip (``remanence`` T), in uniform fields
+    (Bx, 0, 0) for Bx in ``fields`` (T), followed in order."""
     from magsoro.rod import CrossSection, Rod
 
-    rod = Rod(length, CrossSection.circle(diameter), youngs_modulus=youngs_modulus_,
-              magnetisation=(0.0, 0.0, remanence), density=density, gravity=(0.0, 0.0, -9.81),
-              base_rotation=HANGING)
+    section = CrossSection("circle", area, (inertia, inertia), 2.0 * inertia, 0.9)
+    rod = Rod(length, section, youngs_modulus=youngs_modulus_, magnetisation=(0.0, 0.0, remanence),
+              density=density, gravity=(0.0, 0.0, -9.81), base_rotation=HANGING)
     out = []
     for sol in rod.sweep([(float(b), 0.0, 0.0) for b in fields]):
         out.append(np.interp(at, sol.s, sol.positions[:, 0]))
@@ -228,11 +247,7 @@ def reproduce(ctx: Context) -> ReproduceResult:
     X = sim.model.host["positions"]
     tips = {s: probe_by_name(sim, f"tip_{s}") for s in SERIES}
     ref = {s: tips[s].evaluate(X) for s in SERIES}
-    free = {}
-    for s in SERIES:
-        m = body_mask(sim, s)
-        h = sim.scene.simulation.dx / sim.scene.simulation.particles_per_cell
-        free[s] = float(-X[m, 2].min() + h / 2)  # free length below the clamp face z = 0, m
+    sec = {s: free_section(sim, s) for s in SERIES}
 
     def measure(s):
         x = s.state.x.numpy()
@@ -243,13 +258,16 @@ def reproduce(ctx: Context) -> ReproduceResult:
             f"{len(levels)} field levels, {sched.duration:.2f} s simulated")
     res = drive(sim, sched.reads, measure, WINDOW, frames, frame_every=0.025, log=ctx.log, label=f"{NAME}: ")
 
-    # independent model: Kirchhoff rod with what the engine simulates (E = 9KG/(3K+G), density, |Br|)
+    # independent model: Kirchhoff rod with what the engine simulates (E = 9KG/(3K+G), density, |Br| and the
+    # cross-section of the particle fill)
     rod = {}
     for s in SERIES:
         mat = body_material(sim, s)
         br = float(np.median(np.linalg.norm(mat["remanence"], axis=1)))
-        d = 2 * _part(data, s)["shape"]["radius"]
-        rod[s] = hanging_rod_deflection(free[s], d, mat["E"], br, mat["density"], levels, -ref[s][2]) * 1e3
+        rod[s] = hanging_rod_deflection(sec[s]["end"], sec[s]["A"], sec[s]["I"], mat["E"], br, mat["density"],
+                                        levels, -ref[s][2]) * 1e3
+    d = 2 * _part(data, "corrected")["shape"]["radius"]
+    fill = {"area": sec["corrected"]["A"] / (math.pi * d**2 / 4), "I": sec["corrected"]["I"] / (math.pi * d**4 / 64)}
 
     B_mT = np.array(levels) * 1e3
     sim_d = {s: res.series(f"{s}_mm") for s in SERIES}
@@ -290,7 +308,8 @@ def reproduce(ctx: Context) -> ReproduceResult:
                f"MAPE (theoretical 9.9 % / 11.5 %, corrected 7.5 % / 5.6 %), so no paper number is compared.")
     info = {"particles": res.particles, "steps": res.steps, "sim_wall_s": round(res.wall_s, 1),
             "dx_m": sim.scene.simulation.dx, "dt_min_s": res.dt_min, "dt_max_s": res.dt_max,
-            "free_length_mm": round(free["corrected"] * 1e3, 3), "hold_s": HOLD, "damping": sim.scene.simulation.damping}
+            "free_length_mm": round(sec["corrected"]["end"] * 1e3, 3),
+            "fill_area_ratio": round(fill["area"], 4), "fill_second_moment_ratio": round(fill["I"], 4), "hold_s": HOLD, "damping": sim.scene.simulation.damping}
     return ReproduceResult(NAME, csv, png, gif, summary, rows, info)
 
 
