@@ -15,7 +15,7 @@ from magsoro.robots.continuum_soft import (HANGING, Row, body_mask, body_materia
 NAME = "obstacle_beam"
 
 #: field levels (T) along +x; seed 000 does not list them. 1 mT stays clear of the pin, the rest press on it.
-LEVELS = (0.001, 0.003, 0.006, 0.01, 0.02)
+LEVELS = (0.001, 0.003, 0.006, 0.01, 0.015, 0.02)
 PREVIEW_LEVELS = (0.01,)
 SETTLE, RAMP, HOLD = 0.02, 0.03, 0.3      # s: gravity settling, field ramp, hold per level (Fig 4: statics);
 #                                           the first mode (~20 rad/s at 1 mT, ~30 at 10 mT) settles in ~6 / omega
