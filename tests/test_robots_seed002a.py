@@ -1,0 +1,106 @@
+"""Robots of seed 002 sec 4-5.2: the triangle (warping), the cross (arching and grabbing) and the pentagram
+(crawling and gripping) under the N35 magnet moved beneath the plate (docs/robots.md). The triangle's preview
+reproduction runs in the default suite; the others' and the full reproductions are slow tests."""
+
+import numpy as np
+import pytest
+
+from magsoro.robots import ROBOTS, reproduce
+from magsoro.robots.base import read_csv, scene, scene_data
+
+SEED002A = ("triangle", "cross", "pentagram")
+
+
+@pytest.mark.parametrize("name", SEED002A)
+def test_preview_scene_builds(name):
+    sc = scene(name, preview=True)
+    full = scene(name)
+    assert sc.simulation.dx >= full.simulation.dx
+    assert ROBOTS[name].source.startswith("seed 002 sec ")
+    assert [f.type for f in sc.fields] == ["cylinder_magnet"]
+
+
+@pytest.mark.parametrize("name", ["triangle", "cross"])
+def test_scene_magnet_path_is_the_full_sweep(name):
+    """The magnet path written in the scene file is the sweep the robot module computes (distances giving
+    B_z = 0, 5, ..., 45 mT at the robot's centre), so `magsoro run` shows what `magsoro reproduce` measures."""
+    import importlib
+
+    from magsoro.robots.triangle import cylinder_magnet, stepped_path
+
+    mod = importlib.import_module(f"magsoro.robots.{name}")
+    data = scene_data(name)
+    magnet = next(f for f in data["fields"] if f.get("name") == "magnet")
+    offsets = mod.magnet_offsets(magnet, mod.LEVELS_MT)
+    first_hold = getattr(mod, "SETTLE", getattr(mod, "FIRST_HOLD", None))
+    times, positions, reads = stepped_path(offsets, first_hold, mod.HOLD, mod.MOVE)
+    assert np.allclose(magnet["path"]["times"], times)
+    assert np.allclose(magnet["path"]["positions"], positions, atol=1e-5)
+    assert data["simulation"]["duration"] == pytest.approx(reads[-1])
+    # and the field there is the level (the magnet's own closed form, independent of the root finder)
+    mid = mod.ROBOT_MID_Z if hasattr(mod, "ROBOT_MID_Z") else mod.MID_Z
+    for lv, pos in zip(mod.LEVELS_MT[1:], offsets[1:]):
+        bz = cylinder_magnet(magnet, pos).B([[0.0, 0.0, mid]])[0, 2]
+        assert abs(bz) == pytest.approx(lv * 1e-3, rel=1e-5)
+
+
+def test_cross_elastica_matches_linear_beam_at_low_field():
+    """The cross's elastica reference reduces to the small-deflection cantilever (distributed couple over the arm,
+    clamped at the centre, gravity) when the deflection is small."""
+    from magsoro.robots.cross import ARM_LENGTH, ARM_WIDTH, HALF_CORE, MU0, THICKNESS, elastica_deflection
+
+    G, K, rho, br, B = 66.7e3, 20 * 66.7e3, 1500.0, 0.0443, 0.004
+    E = 9 * K * G / (3 * K + G)
+    EI = E * ARM_WIDTH * THICKNESS ** 3 / 12
+    q = br / MU0 * ARM_WIDTH * THICKNESS * B
+    w = rho * 9.81 * ARM_WIDTH * THICKNESS
+    end = HALF_CORE + ARM_LENGTH
+    linear = q / EI * (ARM_LENGTH * (end * HALF_CORE - HALF_CORE ** 2 / 2) + ARM_LENGTH ** 3 / 3) - w * end ** 4 / (8 * EI)
+    assert elastica_deflection(B, G, K, rho, br) == pytest.approx(linear, rel=0.03)
+    # large fields bend less than the linear estimate (the couple falls as cos theta)
+    big = 0.045
+    assert elastica_deflection(big, G, K, rho, br) < 0.8 * (linear * big / B)
+
+
+def _check_triangle(res):
+    assert res.passed, [r.as_dict() for r in res.rows]
+    data = read_csv(res.csv)
+    wt, ht = data["warp_height_Wt_mm"], data["centroid_rise_Ht_mm"]
+    # a side half bent by a uniform couple lifts its end about three times its mean rise (tip / mean of a
+    # parabola), and the sides' midpoints stay down: W_t / H_t near 3 at the top level
+    assert 2.0 < wt[-1] / ht[-1] < 4.5
+    # no lift without field, warping grows with B
+    assert abs(wt[0]) < 0.05 and np.all(np.diff(wt) > 0)
+    for f in (res.csv, res.png, res.animation):
+        assert f.exists() and f.stat().st_size > 0
+    assert res.animation.stat().st_size < 1.5e6
+
+
+def test_triangle_preview_warps(tmp_path):
+    _check_triangle(reproduce("triangle", out=tmp_path, preview=True))
+
+
+@pytest.mark.slow
+def test_triangle_full(tmp_path):
+    _check_triangle(reproduce("triangle", out=tmp_path))
+
+
+def _check_cross(res):
+    assert res.passed, [r.as_dict() for r in res.rows]
+    data = read_csv(res.csv)
+    # arching lifts the centre (its tips stay on the plate), grabbing lifts the tips (its centre stays down)
+    assert np.all(data["arch_centre_z_mm"][1:] >= data["arch_centre_z_mm"][0] - 0.05)
+    assert data["grab_centre_z_mm"][-1] - data["grab_centre_z_mm"][0] < 0.5
+    # a 10 mm strip cannot rise by more than its length
+    assert data["grab_deflection_mm"].max() < 12.0 and data["arch_deflection_mm"].max() < 12.0
+    assert res.animation.stat().st_size < 1.5e6
+
+
+@pytest.mark.slow
+def test_cross_preview(tmp_path):
+    _check_cross(reproduce("cross", out=tmp_path, preview=True))
+
+
+@pytest.mark.slow
+def test_cross_full(tmp_path):
+    _check_cross(reproduce("cross", out=tmp_path))
