@@ -3,9 +3,9 @@
     python scripts/make_meshes.py            # writes scenes/meshes/gripper_six_arm.stl
 
 gripper_six_arm.stl: the six-arm gripper of Xu et al. (seed 000 sec 4.5) as a flat star, in millimetres (the
-scene loads it with scale = 1e-3). Seed 000 gives no dimensions; the ones below are representative of
-millimetre-scale grippers of that family and are stated in docs/geometry.md: arms 1.0 mm wide reaching 4.5 mm
-from the centre, a hexagonal hub, 0.4 mm thick.
+scene loads it with scale = 1e-3). Seed 000 gives no dimensions; ours (scenes/gripper.toml says why): six arms
+1.5 mm wide reaching 9 mm from the centre, 1.5 mm thick, joined by a small hexagonal hub (an arm's edges meet
+the hub 1.5 mm from the centre).
 """
 
 from __future__ import annotations
@@ -15,10 +15,10 @@ from pathlib import Path
 import numpy as np
 
 ARMS = 6
-ARM_WIDTH_MM = 1.0
-ARM_REACH_MM = 4.5  # centre to arm tip
-HUB_MM = 1.2  # centre to where neighbouring arm edges meet the hub
-THICKNESS_MM = 0.4
+ARM_WIDTH_MM = 1.5
+ARM_REACH_MM = 9.0  # centre to arm tip
+HUB_MM = 1.5  # centre to where an arm's edges meet the hub (> 0.75 / tan 30 deg = 1.3 keeps the outline simple)
+THICKNESS_MM = 1.5
 
 
 def star_outline(arms=ARMS, width=ARM_WIDTH_MM, reach=ARM_REACH_MM, hub=HUB_MM) -> np.ndarray:
