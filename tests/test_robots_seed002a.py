@@ -106,3 +106,34 @@ def test_cross_preview(tmp_path):
 @pytest.mark.slow
 def test_cross_full(tmp_path):
     _check_cross(reproduce("cross", out=tmp_path))
+
+
+# the pentagram checks that our model fails (scenes/pentagram.toml says why): the paper's crawl, and the five
+# strips closing alike on the coarse (dx 2 mm) lattice
+PENTAGRAM_KNOWN_GAPS = ("crawling:", "gripping: spread")
+
+
+def _check_pentagram(res):
+    data = read_csv(res.csv)
+    # gripping: the outer parts rise off the plate and move in towards the centre as the field grows
+    assert data["outer_parts_rise_mm"][-1] > 5.0
+    assert data["grip_closure_mm"][-1] > data["grip_closure_mm"][1] > -0.5
+    # nothing leaves the domain or sinks through the plate
+    crawl = read_csv(res.csv.with_name("pentagram_crawl.csv"))
+    assert np.all(np.isfinite(crawl["centroid_x_mm"])) and crawl["centroid_z_mm"].min() > 0.5
+    assert res.animation.stat().st_size < 1.5e6
+    failing = [r.quantity for r in res.rows if not r.passed]
+    unexpected = [q for q in failing if not q.startswith(PENTAGRAM_KNOWN_GAPS)]
+    assert not unexpected, [r.as_dict() for r in res.rows]
+    if failing:
+        pytest.xfail(f"known gaps to seed 002 sec 5.2: {failing}")
+
+
+@pytest.mark.slow
+def test_pentagram_preview(tmp_path):
+    _check_pentagram(reproduce("pentagram", out=tmp_path, preview=True))
+
+
+@pytest.mark.slow
+def test_pentagram_full(tmp_path):
+    _check_pentagram(reproduce("pentagram", out=tmp_path))
