@@ -29,8 +29,12 @@ RAMP_S = 0.05
 HOLD_S = 0.25
 SLICE_M = 0.5e-3
 SETTLED_S = 0.05  # the tip's drift over the last this-many seconds of a hold is reported (settling)
-TIP_TOL_L = 0.10  # tip position vs rod, in tentacle lengths (see the checks below)
-SHAPE_TOL_L = 0.06  # mean centreline distance vs rod at the design field, in tentacle lengths
+# Tolerances, in tentacle lengths. The rod is inextensible and unshearable and its clamp is exact; the MPM
+# tentacle is a compressible continuum, 2-3 cells across, whose clamp holds the grid nodes one cell into the free
+# part, and slender magnetic beams settle a few % of their deflection too far at the default time step
+# (docs/validation.md). 5 % of the length for the tip and 3 % for the mean centreline distance allow for these.
+TIP_TOL_L = 0.05
+SHAPE_TOL_L = 0.03
 
 
 def _part(data: dict, name: str) -> dict:
