@@ -75,7 +75,8 @@ def _crawl(ctx: Context, data: dict, frames: FrameRecorder):
     # the whole pass also in preview (at the preview's resolution): a shorter one would not show the crawl
     sim = simulation(NAME, _with_dx(data) if ctx.preview else data, preview=False, device=ctx.device)
     mass = sim.model.host["mass"]
-    frames.label = lambda s: f"crawling: magnet centre at x = {path_position(s.time, times, positions)[0] * 1e3:+.0f} mm"
+    frames.label = lambda s: (f"crawling: magnet centre at x = "
+                              f"{path_position(s.time, times, positions)[0] * 1e3:+.0f} mm")
     frames.record(sim)
     track, w0 = [], time.perf_counter()
     t_end = float(times[-1])

@@ -14,6 +14,7 @@ stepped magnet paths, reading settled values).
 from __future__ import annotations
 
 import math
+import time
 
 import numpy as np
 
@@ -102,12 +103,6 @@ def advance(sim, t_end: float, frames: FrameRecorder | None, frame_every: float)
         raise RobotError(f"{sim.scene.name}: run failed at step {exc.step}, t = {exc.time:.4g} s: {exc}") from None
 
 
-def gif_size_ok(path, limit_mb: float = 1.5) -> bool:
-    import os
-
-    return os.path.getsize(path) <= limit_mb * 1e6
-
-
 # -- the triangle -----------------------------------------------------------------------------------------
 def _corners(data: dict) -> np.ndarray:
     """Outer vertices (3, 2) of the triangle, from the baseplate polygons of the scene (the points shared by two
@@ -169,16 +164,15 @@ def reproduce(ctx: Context) -> ReproduceResult:
     frames.record(sim)
     rest = measure(sim, X0, mass, corners)
     rows_out = []
-    import time as _t
-
-    w0 = _t.perf_counter()
+    w0 = time.perf_counter()
     for lv, t_read in zip(levels_mt, reads):
         advance(sim, t_read, frames, FRAME_EVERY)
         m = measure(sim, X0, mass, corners)
         rows_out.append((lv, m))
         ctx.log(f"  {lv:4.0f} mT: W_t = {1e3 * (np.mean(m['vertex']) - np.mean(rest['vertex'])):.2f} mm, "
-                f"H_t = {1e3 * m['centroid']:.2f} mm (t = {sim.time:.2f} s, {_t.perf_counter() - w0:.0f} s wall)")
-    wall = _t.perf_counter() - w0
+                f"centroid {1e3 * m['centroid']:.2f} mm high (t = {sim.time:.2f} s, "
+                f"{time.perf_counter() - w0:.0f} s wall)")
+    wall = time.perf_counter() - w0
 
     B = np.array([lv for lv, _ in rows_out], float)
     vz0 = np.array(rest["vertex"])
@@ -219,7 +213,8 @@ def reproduce(ctx: Context) -> ReproduceResult:
         Row(case, "highest side-midpoint rise at 45 mT (mm): the robot stands on its midpoints", inputs, 0.0,
             float(mid[top].max()), float(max(mid[top].max(), 0.0)), 1.0),
         # W_t grows with the field (value: smallest rise from one level to the next, mm; error: how far it falls)
-        Row(case, "smallest W_t increase between consecutive levels (mm): warp grows with B", {"levels_mT": list(map(float, B))},
+        Row(case, "smallest W_t increase between consecutive levels (mm): warp grows with B",
+            {"levels_mT": list(map(float, B))},
             0.0, float(increments.min()), float(max(0.0, -increments.min())), 0.2),
     ]
     low = np.interp(10.0, B, ht) if B.max() >= 10 else float("nan")
