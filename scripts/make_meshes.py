@@ -27,7 +27,8 @@ def star_outline(arms=ARMS, width=ARM_WIDTH_MM, reach=ARM_REACH_MM, hub=HUB_MM) 
     for k in range(arms):
         t = 2 * np.pi * k / arms
         along, side = np.array([np.cos(t), np.sin(t)]), np.array([-np.sin(t), np.cos(t)])
-        pts += [hub * along - 0.5 * width * side, reach * along - 0.5 * width * side, reach * along + 0.5 * width * side, hub * along + 0.5 * width * side]
+        half = 0.5 * width * side
+        pts += [hub * along - half, reach * along - half, reach * along + half, hub * along + half]
     return np.array(pts)
 
 
@@ -36,7 +37,8 @@ def extrude_star_shaped(outline: np.ndarray, thickness: float):
     [-thickness/2, thickness/2]: fan triangles on the caps, two triangles per side. Outward normals."""
     K = len(outline)
     h = 0.5 * thickness
-    verts = np.concatenate([[[0.0, 0.0, -h]], np.c_[outline, np.full(K, -h)], [[0.0, 0.0, h]], np.c_[outline, np.full(K, h)]])
+    verts = np.concatenate([[[0.0, 0.0, -h]], np.c_[outline, np.full(K, -h)],
+                            [[0.0, 0.0, h]], np.c_[outline, np.full(K, h)]])
     bc, b0, tc, t0 = 0, 1, K + 1, K + 2
     faces = []
     for i in range(K):

@@ -20,7 +20,8 @@ import time
 
 import numpy as np
 
-from magsoro.robots.base import FrameRecorder, ReproduceResult, Robot, RobotError, plot_curve, scene_data, simulation, write_csv
+from magsoro.robots.base import (FrameRecorder, ReproduceResult, Robot, RobotError, plot_curve, scene_data,
+                                 simulation, write_csv)
 
 NAME = "gripper"
 LIFT_MARGIN_M = 1.0e-3  # the bead's lowest point must be this far above the floor
@@ -115,8 +116,9 @@ def reproduce(ctx) -> ReproduceResult:
         "bead lowest point above floor (mm)": height * 1e3,
         "gripper centroid height (mm)": (zg - floor_z) * 1e3,
         "gap between opposite arm tips (mm)": gap * 1e3,
-    }, xlabel="time (s)", ylabel="mm", title="Xu et al. six-arm gripper: close, lift, hold",
-        note="field -z 30 mT from 0.03 s; magnet down 0.12-0.2 s, up 0.25-0.35 s; seed 000 Fig. 5(c): no values")
+    }, xlabel="time (s)", ylabel="mm",
+        title="Xu et al. six-arm gripper: close, lift, hold (seed 000 Fig. 5(c): no values)",
+        note="30 mT along -z from 0.03 s; magnet down 0.12-0.2 s, up 0.25-0.35 s")
 
     mag_path = data["fields"][1]["path"]
     mag_len = float(data["fields"][1]["length"])
@@ -159,19 +161,19 @@ def reproduce(ctx) -> ReproduceResult:
             "above the floor (s)", inputs=inputs, reference=HOLD_S, value=held, error=HOLD_S - held, tolerance=0.0),
     ]
     flat_gap = gap[0]
-    summary = (f"The arms curl round the {bead_d * 1e3:.1f} mm soft bead (opposite tips {gap[last].mean() * 1e3:.1f} mm "
-               f"apart, {flat_gap * 1e3:.1f} mm when flat; fold angle {angle[last].mean():.0f} deg) and the magnet "
-               "lifts gripper and bead: the bead's "
-               f"lowest point stays >= {LIFT_MARGIN_M * 1e3:g} mm above the floor for {held:.2f} s (at least "
+    summary = (f"The arms curl round the {bead_d * 1e3:.1f} mm soft bead (opposite tips {gap[last].mean() * 1e3:.1f} "
+               f"mm apart, {flat_gap * 1e3:.1f} mm when flat; fold angle {angle[last].mean():.0f} deg) and the magnet "
+               f"lifts gripper and bead: the bead's lowest point stays >= {LIFT_MARGIN_M * 1e3:g} mm above the floor "
+               f"for {held:.2f} s (at least "
                f"{min_height * 1e3:.1f} mm over the last second); seed 000 (Fig. 5(c)) shows the grasp but states no "
                "numbers to compare with.")
     info = {"particles": sim.model.n_particles, "steps": sim.steps, "dt_s": sim.dt, "dx_m": sim.model.dx,
             "simulated_s": float(sim.time), "wall_s": round(time.perf_counter() - wall0, 1),
-            "held_s": held, "held_from_s": h0, "held_to_s": h1, "fold_angle_last_s_deg": float(angle[last].mean()), "max_tip_gap_last_s_m": max_gap,
-            "min_tips_below_bead_centre_last_s_m": min_past,
+            "held_s": held, "held_from_s": h0, "held_to_s": h1, "fold_angle_last_s_deg": float(angle[last].mean()),
+            "max_tip_gap_last_s_m": max_gap, "min_tips_below_bead_centre_last_s_m": min_past,
             "min_bead_height_last_s_m": min_height, "tip_gap_flat_m": float(flat_gap),
             "tip_gap_last_s_m": float(gap[last].mean()), "arm_reach_m": arms.reach,
-            "bead_bodies": "bead is an elastic particle body (Ecoflex 00-30)"}
+            "object": "elastic particle body (Ecoflex 00-30 bead)"}
     return ReproduceResult(name=NAME, csv=csv, png=png, animation=gif, summary=summary, rows=rows, info=info)
 
 
