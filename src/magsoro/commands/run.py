@@ -31,10 +31,11 @@ def run(args) -> int:
     if args.duration is not None and not args.duration > 0:
         raise SceneError(f"--duration: must be > 0 s, got {args.duration}")
     wall0 = time.perf_counter()
-    scene = load_scene(args.scene, preview=args.preview)  # every check happens before the output folder is touched
+    preview = getattr(args, "preview", False)
+    scene = load_scene(args.scene, preview=preview)  # every check happens before the output folder is touched
     sim = Simulation(scene, device=args.device, source=args.scene)
     echo = tomllib.loads(Path(args.scene).read_text())
-    if args.preview:
+    if preview:
         from magsoro.scene.load import apply_preview
 
         echo = apply_preview(echo, args.scene)
