@@ -7,7 +7,7 @@ and a target S shape (the first half of the tentacle turns 60 degrees towards +x
 second half turns back). Least squares on the eight angles; the residual is the distance of 33 centreline
 points from the target, in units of the length.
 
-    python scenes/tentacle/design.py         # prints the vectors for [robot.parts.magnetization] (~1-3 min)
+    python scenes/tentacle/design.py         # prints the vectors for [robot.parts.magnetization] (about 30 s)
 """
 
 from __future__ import annotations
