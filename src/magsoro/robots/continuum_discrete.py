@@ -10,8 +10,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from magsoro import MU0
-from magsoro.robots.base import Context, FrameRecorder, ReproduceResult, Robot, RobotError, plot_curve, scene_data, simulation, write_csv
-from magsoro.robots.continuum_soft import Row, drive, level_keyframes, mape, probe_by_name, settle_row
+from magsoro.robots.base import Context, FrameRecorder, ReproduceResult, Robot, RobotError, scene_data, simulation
+from magsoro.robots.continuum_soft import (Row, drive, level_keyframes, probe_by_name, settle_row, twin_mape_rows,
+                                           twin_outputs)
 
 NAME = "continuum_discrete"
 
@@ -154,30 +155,13 @@ def reproduce(ctx: Context) -> ReproduceResult:
         sols = planar_rod(rod_sections(sim, s), [(b, 0.0) for b in levels])
         rod[s] = np.array([np.interp(-ref[s][2], sol[:, 0], sol[:, 1]) for sol in sols]) * 1e3
 
-    B_mT = np.array(levels) * 1e3
-    sim_d = {s: res.series(f"{s}_mm") for s in SERIES}
-    cols = {"B_mT": B_mT}
-    for s in SERIES:
-        cols[f"tip_deflection_{s}_mm"] = sim_d[s]
-    for s in SERIES:
-        cols[f"rod_{s}_mm"] = rod[s]
-    drift = np.max([res.drift(f"{s}_mm", 0.5) for s in SERIES], axis=0)
-    cols["settle_drift"] = drift
-    csv = write_csv(ctx.out / f"{NAME}.csv", cols)
-    png = plot_curve(ctx.out / f"{NAME}.png", B_mT,
-                     {**{f"MPM, {s}": sim_d[s] for s in SERIES}, **{f"Kirchhoff rod, {s}": rod[s] for s in SERIES}},
-                     "uniform field B (mT), perpendicular to the robot", "tip deflection (mm)",
-                     "Discrete continuum robot, 40 x 3 mm (seed 001 Fig 9)",
-                     note="seed 001 states no deflection values (MAPE only)")
-    gif = frames.write_gif(ctx.out / f"{NAME}.gif", title="continuum_discrete: theoretical vs corrected twins")
-
+    B_mT, sim_d, drift, csv, png, gif = twin_outputs(
+        ctx, NAME, res, levels, rod, frames, "Kirchhoff rod",
+        "Discrete continuum robot, 40 x 3 mm (seed 001 Fig 9)",
+        "continuum_discrete: theoretical vs corrected twins")
     case = f"robot-{NAME}"
     inp = {"dx_mm": round(sim.scene.simulation.dx * 1e3, 4), "levels_mT": [round(b, 3) for b in B_mT.tolist()]}
-    rows, err = [], {}
-    for s in SERIES:
-        err[s] = mape(sim_d[s], rod[s])
-        rows.append(Row(case, f"tip deflection MAPE vs planar Kirchhoff rod, {s} parameters", dict(inp, series=s),
-                        0.0, err[s], err[s], 0.12))
+    rows, err = twin_mape_rows(case, inp, sim_d, rod, "planar Kirchhoff rod")
     # the corrected robot (soft plain sections, 42.7 kPa, and Br 160 mT) bends more than the theoretical one
     # (69 kPa everywhere, 151 mT); the rod says by how much
     margin_sim = float(np.mean((sim_d["corrected"] - sim_d["theoretical"]) / sim_d["theoretical"]))

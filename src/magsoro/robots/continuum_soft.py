@@ -271,31 +271,13 @@ def reproduce(ctx: Context) -> ReproduceResult:
     d = 2 * _part(data, "corrected")["shape"]["radius"]
     fill = {"area": sec["corrected"]["A"] / (math.pi * d**2 / 4), "I": sec["corrected"]["I"] / (math.pi * d**4 / 64)}
 
-    B_mT = np.array(levels) * 1e3
-    sim_d = {s: res.series(f"{s}_mm") for s in SERIES}
-    cols = {"B_mT": B_mT}
-    for s in SERIES:
-        cols[f"tip_deflection_{s}_mm"] = sim_d[s]
-    for s in SERIES:
-        cols[f"rod_{s}_mm"] = rod[s]
-    drift = np.max([res.drift(f"{s}_mm", 0.5) for s in SERIES], axis=0)
-    cols["settle_drift"] = drift
-    csv = write_csv(ctx.out / f"{NAME}.csv", cols)
-    png = plot_curve(ctx.out / f"{NAME}.png", B_mT,
-                     {**{f"MPM, {s}": sim_d[s] for s in SERIES}, **{f"Kirchhoff rod, {s}": rod[s] for s in SERIES}},
-                     "uniform field B (mT), perpendicular to the robot", "tip deflection (mm)",
-                     "Fully soft continuum robot, 37 x 5 mm (seed 001 Fig 8)",
-                     note="seed 001 states no deflection values (MAPE only)")
-    gif = frames.write_gif(ctx.out / f"{NAME}.gif", title="continuum_soft: theoretical (orange) vs corrected (blue)")
-
+    B_mT, sim_d, drift, csv, png, gif = twin_outputs(
+        ctx, NAME, res, levels, rod, frames, "Kirchhoff rod",
+        "Fully soft continuum robot, 37 x 5 mm (seed 001 Fig 8)",
+        "continuum_soft: theoretical (orange) vs corrected (blue)")
     case = f"robot-{NAME}"
     inp = {"dx_mm": round(sim.scene.simulation.dx * 1e3, 4), "levels_mT": [round(b, 3) for b in B_mT.tolist()]}
-    rows = []
-    err = {}
-    for s in SERIES:
-        err[s] = mape(sim_d[s], rod[s])
-        rows.append(Row(case, f"tip deflection MAPE vs Kirchhoff rod, {s} parameters", dict(inp, series=s),
-                        0.0, err[s], err[s], 0.12))
+    rows, err = twin_mape_rows(case, inp, sim_d, rod, "Kirchhoff rod")
     # the corrected (stiffer, seed 001 Table II) robot bends less than the theoretical one; by how much: rod
     margin_sim = float(np.mean((sim_d["theoretical"] - sim_d["corrected"]) / sim_d["corrected"]))
     margin_rod = float(np.mean((rod["theoretical"] - rod["corrected"]) / rod["corrected"]))
@@ -315,6 +297,39 @@ def reproduce(ctx: Context) -> ReproduceResult:
             "fill_area_ratio": round(fill["area"], 4), "fill_second_moment_ratio": round(fill["I"], 4),
             "hold_s": HOLD, "damping": sim.scene.simulation.damping}
     return ReproduceResult(NAME, csv, png, gif, summary, rows, info)
+
+
+def twin_outputs(ctx, name, res, levels, rod, frames, rod_label, title, gif_title):
+    """CSV, PNG and GIF of a theoretical-vs-corrected twin sweep (continuum_soft, continuum_discrete): MPM
+    tip deflections and the rod's per level, with the settling drift. Returns (B_mT, sim_d, drift, csv, png,
+    gif); sim_d maps each series to its deflections in mm."""
+    B_mT = np.array(levels) * 1e3
+    sim_d = {s: res.series(f"{s}_mm") for s in SERIES}
+    cols = {"B_mT": B_mT}
+    for s in SERIES:
+        cols[f"tip_deflection_{s}_mm"] = sim_d[s]
+    for s in SERIES:
+        cols[f"rod_{s}_mm"] = rod[s]
+    drift = np.max([res.drift(f"{s}_mm", 0.5) for s in SERIES], axis=0)
+    cols["settle_drift"] = drift
+    csv = write_csv(ctx.out / f"{name}.csv", cols)
+    png = plot_curve(ctx.out / f"{name}.png", B_mT,
+                     {**{f"MPM, {s}": sim_d[s] for s in SERIES}, **{f"{rod_label}, {s}": rod[s] for s in SERIES}},
+                     "uniform field B (mT), perpendicular to the robot", "tip deflection (mm)", title,
+                     note="seed 001 states no deflection values (MAPE only)")
+    gif = frames.write_gif(ctx.out / f"{name}.gif", title=gif_title)
+    return B_mT, sim_d, drift, csv, png, gif
+
+
+def twin_mape_rows(case, inp, sim_d, rod, rod_label):
+    """One check per series: MAPE of the MPM tip deflections against the rod's, tolerance 12 %.
+    Returns (rows, {series: MAPE})."""
+    rows, err = [], {}
+    for s in SERIES:
+        err[s] = mape(sim_d[s], rod[s])
+        rows.append(Row(case, f"tip deflection MAPE vs {rod_label}, {s} parameters", dict(inp, series=s),
+                        0.0, err[s], err[s], 0.12))
+    return rows, err
 
 
 ROBOT = Robot(
