@@ -180,7 +180,9 @@ def test_plan_cli_replays_in_the_mpm_engine(tmp_path, capsys):
     errors = np.array(r["step_end_tip_errors_m"])
     assert len(errors) == 6
     assert errors[:3].max() < 1e-4  # straight growth: measured 0.01 mm
-    assert errors.max() < 5e-3  # measured 3.8 mm = 6.3 % of the 60 mm robot, at full retroflexion
+    # measured 9.3 mm = 15 % of the 60 mm robot at full retroflexion with the engine's velocity-gradient remap
+    # (3.8 mm before it: the creep the remap removed made the MPM robot softer, closer to the PRB's shape)
+    assert errors.max() < 1.2e-2
     assert r["max_path_tip_error_m"] < 0.02  # measured 14.8 mm while the magnet moves (the MPM lags)
     # the keyframes the replay used are the ones written out
     src = KeyframedDipole.from_csv(tmp_path / "epm_path.csv")

@@ -68,8 +68,13 @@ def test_cantilever_settles_and_converges_to_rod(reference):
         # settled: over the last quarter of the run (after the ramp and 3 damping times) the tip moves < 2 %
         assert abs(tip[-1] - tip[-3]) < 0.02 * abs(tip[-1]), tip
         errors.append(abs(tip[-1] - reference) / reference)
+    # Stiff side, first order in dx: the nodes held by the clamped particles reach about one cell past the clamp
+    # face, shortening the free beam by ~dx (2 dx / L = 8 % at t/dx = 4 for this end-torque-like load). Measured
+    # 11.3 % and 8.0 %, ratio 0.71 (dx ratio 0.75). With the engine's old "grid" F update the creep it caused
+    # offset part of this (5 % at t/dx = 4); docs/engine.md.
     assert errors[1] < errors[0]
-    assert errors[1] < 0.05, errors
+    assert 0.6 < errors[1] / errors[0] < 0.85, errors
+    assert errors[1] < 0.10, errors
 
 
 @pytest.mark.slow
@@ -86,3 +91,17 @@ def test_float32_loaded_cantilever_does_not_creep():
     sim.advance_to(0.32)
     y2 = sim.probe_values()["tip_y"]
     assert abs(y2 - y1) < 5e-4 * abs(y2), (y1, y2)
+
+
+@pytest.mark.parametrize("mode, low, high", [("remap", -0.02, 0.02), ("grid", 0.08, 0.25)])
+def test_loaded_slender_beam_does_not_creep_with_the_remap(mode, low, high):
+    """The Zhao beam (L/t = 20.5, t/dx = 2, float64) under a perpendicular field Br B/(mu0 G) = 0.0005, held
+    for 6/omega_1 after a 1.5/omega_1 ramp, against the Kirchhoff rod (docs/engine.md, "Why the remap").
+    With the velocity-gradient remap the tip is within 2 % of the rod (measured +0.03 %). The cheaper "grid"
+    F update lets the loaded beam creep: measured +13.9 %; the band checks that the test tells them apart."""
+    from magsoro.validation.beam import BeamSetup, rod_reference, run_sweep
+
+    s = BeamSetup(t_over_dx=2, velocity_gradient=mode)
+    r = run_sweep(s, (0.0005,), 90.0)
+    ref = rod_reference(s, (0.0005,), 90.0, r.tip_s, r.free_length)[1][0]
+    assert low < r.tip_dy[0] / ref - 1.0 < high

@@ -86,13 +86,14 @@ class _Slot:
         self.grid_p = wp.zeros(n_nodes, dtype=k["vec"], device=dev, requires_grad=True)
         self.grid_m = wp.zeros(n_nodes, dtype=sc, device=dev, requires_grad=True)
         self.grid_v = wp.zeros(n_nodes, dtype=k["vec"], device=dev, requires_grad=True)
+        self.grid_q = wp.zeros(n_nodes, dtype=k["vec"], device=dev, requires_grad=True)  # velocity-gradient remap
         self.grid_clamp = wp.zeros(n_nodes, dtype=wp.int32, device=dev)
 
     def state_arrays(self):
         return (self.x, self.v, self.C, self.F)
 
     def grad_arrays(self):
-        out = [self.x, self.v, self.C, self.F, self.B, self.grid_p, self.grid_m, self.grid_v]
+        out = [self.x, self.v, self.C, self.F, self.B, self.grid_p, self.grid_m, self.grid_v, self.grid_q]
         out += self.Bs + self.Gs + self.Bsum + self.Gsum
         if self.G is not None:
             out += [self.G, self.Btot]
@@ -219,8 +220,10 @@ class Rollout:
         """Launch one step ``step`` from slot ``src`` into slot ``dst`` (recorded by an active tape)."""
         m, k, sc, dev, st = self.model, self.k, self.sc, self.dev, self.settings
         n = m.n_particles
+        remap = st.velocity_gradient == "remap"
         dst.grid_p.zero_()
         dst.grid_m.zero_()
+        dst.grid_q.zero_()
         dst.grid_clamp.zero_()
         dt = sc(self.dt)
         if self.point_sources:
@@ -266,10 +269,18 @@ class Rollout:
             inputs=[
                 dst.grid_v, m.clamped, self._grid_lo, self._shape_v, sc(m.dx), dt,
                 src.x, src.F, dst.x, dst.v, dst.C, dst.F,
-                self.bounds, self.max_speed, self.error,
+                self.bounds, self.max_speed, self.error, 0 if remap else 1,
             ],
             device=dev,
         )
+        if remap:  # the engine's velocity-gradient remap (docs/engine.md), same kernels
+            wp.launch(k["remap_p2g"], dim=n,
+                      inputs=[src.x, dst.v, dst.C, m.mass, self._grid_lo, self._shape_v, sc(m.dx), dst.grid_q],
+                      device=dev)
+            wp.launch(k["remap_F"], dim=n,
+                      inputs=[src.x, m.clamped, self._grid_lo, self._shape_v, sc(m.dx), dt, dst.grid_q, dst.grid_m,
+                              dst.grid_clamp, src.F, dst.F, self.error],
+                      device=dev)
 
     def _run_segment(self, seg: int) -> int:
         """Run segment ``seg`` from slot 0 (already holding its start state); returns its number of steps."""

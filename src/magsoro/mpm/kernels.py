@@ -327,6 +327,7 @@ def make_kernels(dim: int, scalar):
         bounds: wp.array(dtype=scalar),
         max_speed: wp.array(dtype=scalar),
         error: wp.array(dtype=wp.int32),
+        update_F: int,
     ):
         p = wp.tid()
         xp = x_in[p]
@@ -348,16 +349,17 @@ def make_kernels(dim: int, scalar):
                 new_v = new_v + wgv
                 new_C = new_C + wp.outer(wgv, dpos)
             new_C = (scalar(4.0) * inv_dx * inv_dx) * new_C  # scaled once, not per node
-            # F + (dt C) F rather than (I + dt C) F: in float32, 1 + dt C_ii rounds the small increments of a
-            # slowly creeping state away, which showed as a steady drift of loaded beams (docs/engine.md)
-            Fn = F_in[p] + (dt * new_C) * F_in[p]
             xp = xp + dt * new_v
             x_out[p] = xp
             v_out[p] = new_v
             C_out[p] = new_C
-            F_out[p] = Fn
-            J = wp.determinant(Fn)
-            ok = J > scalar(0.0)
+            ok = True
+            if update_F != 0:
+                # F + (dt C) F rather than (I + dt C) F: in float32, 1 + dt C_ii rounds the small increments of a
+                # slowly creeping state away, which showed as a steady drift of loaded beams (docs/engine.md)
+                Fn = F_in[p] + (dt * new_C) * F_in[p]
+                F_out[p] = Fn
+                ok = wp.determinant(Fn) > scalar(0.0)
             for a in range(dim):
                 if not wp.isfinite(xp[a]) or not wp.isfinite(new_v[a]):
                     ok = False
@@ -383,7 +385,75 @@ def make_kernels(dim: int, scalar):
         P[i] = elastic_stress(F[i], model, G, K, prm)
         psi[i] = elastic_energy(F[i], model, G, K, prm)
 
+    @wp.kernel
+    def remap_p2g(
+        x: wp.array(dtype=vec),
+        v: wp.array(dtype=vec),
+        C: wp.array(dtype=mat),
+        mass: wp.array(dtype=scalar),
+        grid_lo: vec,
+        shape: ivec,
+        dx: scalar,
+        grid_p: wp.array(dtype=vec),
+    ):
+        """Second transfer of the velocity-gradient remap: the particles' new affine velocity fields
+        v + C (x_i - x_p), mass-weighted onto the nodes (no stress, no external force). The node masses are
+        those of the first transfer (same particles, same positions)."""
+        p = wp.tid()
+        base, fx = local_coords(x[p], grid_lo, scalar(1.0) / dx)
+        for a in range(dim):
+            if base[a] < 0 or base[a] + 2 >= shape[a]:
+                return  # outside the grid block: p2g has flagged it, the step is discarded
+        w0, w1, w2 = bspline_weights(fx)
+        mp = mass[p]
+        vp = v[p]
+        Cp = C[p]
+        for q in range(NS):
+            weight, dpos, idx = stencil_node(q, base, fx, w0, w1, w2, dx, shape)
+            wp.atomic_add(grid_p, idx, (weight * mp) * (vp + Cp * dpos))
+
+    @wp.kernel
+    def remap_F(
+        x: wp.array(dtype=vec),
+        clamped: wp.array(dtype=wp.int32),
+        grid_lo: vec,
+        shape: ivec,
+        dx: scalar,
+        dt: scalar,
+        grid_p: wp.array(dtype=vec),
+        grid_m: wp.array(dtype=scalar),
+        grid_clamp: wp.array(dtype=wp.int32),
+        F_in: wp.array(dtype=mat),
+        F_out: wp.array(dtype=mat),
+        error: wp.array(dtype=wp.int32),
+    ):
+        """F update from the remapped node velocities (held nodes at rest): F + dt (grad v) F at the particle's
+        position at the start of the step, the same stencil as the first gather."""
+        p = wp.tid()
+        if clamped[p] != 0:
+            F_out[p] = F_in[p]
+            return
+        inv_dx = scalar(1.0) / dx
+        base, fx = local_coords(x[p], grid_lo, inv_dx)
+        for a in range(dim):
+            if base[a] < 0 or base[a] + 2 >= shape[a]:
+                return  # outside the grid block: p2g has flagged it, the step is discarded
+        w0, w1, w2 = bspline_weights(fx)
+        Cn = mat()
+        for q in range(NS):
+            weight, dpos, idx = stencil_node(q, base, fx, w0, w1, w2, dx, shape)
+            m = grid_m[idx]
+            if grid_clamp[idx] == 0 and m > scalar(0.0):
+                Cn = Cn + wp.outer((weight / m) * grid_p[idx], dpos)
+        Cn = (scalar(4.0) * inv_dx * inv_dx) * Cn
+        Fn = F_in[p] + (dt * Cn) * F_in[p]
+        F_out[p] = Fn
+        if not (wp.determinant(Fn) > scalar(0.0)):
+            wp.atomic_max(error, 1, 1)
+
     return dict(
+        remap_p2g=remap_p2g,
+        remap_F=remap_F,
         p2g=p2g,
         grid_update=grid_update,
         g2p=g2p,

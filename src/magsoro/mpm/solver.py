@@ -155,7 +155,11 @@ class Control:
 @dataclass
 class SolverSettings:
     """Numerical settings. damping c in 1/s (f = -c p); gravity m/s^2 (dim components); walls: domain-boundary
-    contact mode; grid_margin: free cells kept around the particles; plane_z: z of the 2D plane for fields."""
+    contact mode; grid_margin: free cells kept around the particles; plane_z: z of the 2D plane for fields;
+    velocity_gradient: where the F update takes its velocity gradient from, "remap" (the particles' new affine
+    velocities transferred back to the grid, an extra transfer per step) or "grid" (the node velocities of the
+    momentum update; cheaper, but nodes with little mass at the free surfaces carry force impulses that make
+    stressed bodies creep: docs/engine.md)."""
 
     damping: float = 0.0
     gravity: tuple = (0.0, 0.0, 0.0)
@@ -164,6 +168,7 @@ class SolverSettings:
     cfl: float = 0.4
     grid_margin: int = 4
     plane_z: float = 0.0
+    velocity_gradient: str = "remap"
 
 
 class Solver:
@@ -175,6 +180,9 @@ class Solver:
         st = self.settings
         if st.walls not in MODES:
             raise ValueError(f"walls must be one of {sorted(MODES)}, got {st.walls!r}")
+        if st.velocity_gradient not in ("remap", "grid"):
+            raise ValueError(f"velocity_gradient must be 'remap' or 'grid', got {st.velocity_gradient!r}")
+        self._remap = st.velocity_gradient == "remap"
         self.k = model.kernels
         dim, dev, sc = model.dim, model.device, model.scalar
         self.dim, self.device, self.scalar = dim, dev, sc
@@ -311,12 +319,30 @@ class Solver:
                     self.grid_v, m.clamped, grid_lo, shape, sc(m.dx), sc(0.0),
                     state_in.x, state_in.F,
                     state_out.x, state_out.v, state_out.C, state_out.F,
-                    self.bounds, self.max_speed, self.error,
+                    self.bounds, self.max_speed, self.error, 0 if self._remap else 1,
                 ],
                 device=dev,
                 record_cmd=True,
             ),
         }
+        if self._remap:
+            self._launches["remap_p2g"] = wp.launch(
+                k["remap_p2g"],
+                dim=m.n_particles,
+                inputs=[state_in.x, state_out.v, state_out.C, m.mass, grid_lo, shape, sc(m.dx), self.grid_p],
+                device=dev,
+                record_cmd=True,
+            )
+            self._launches["remap_F"] = wp.launch(
+                k["remap_F"],
+                dim=m.n_particles,
+                inputs=[
+                    state_in.x, m.clamped, grid_lo, shape, sc(m.dx), sc(0.0),
+                    self.grid_p, self.grid_m, self.grid_clamp, state_in.F, state_out.F, self.error,
+                ],
+                device=dev,
+                record_cmd=True,
+            )
 
     def grid_info(self) -> dict:
         return {"origin": self.org.tolist(), "shape": self.shape.tolist(), "nodes": self.n_active, "capacity": self.capacity, "refits": self.refits}
@@ -404,6 +430,12 @@ class Solver:
         for name, arr in (("x_in", state_in.x), ("F_in", state_in.F), ("x_out", state_out.x), ("v_out", state_out.v), ("C_out", state_out.C), ("F_out", state_out.F)):
             L["g2p"].set_param_by_name(name, arr)
         L["g2p"].set_param_by_name("dt", sc(dt))
+        if self._remap:
+            for name, arr in (("x", state_in.x), ("v", state_out.v), ("C", state_out.C)):
+                L["remap_p2g"].set_param_by_name(name, arr)
+            for name, arr in (("x", state_in.x), ("F_in", state_in.F), ("F_out", state_out.F)):
+                L["remap_F"].set_param_by_name(name, arr)
+            L["remap_F"].set_param_by_name("dt", sc(dt))
         for view in self._grid_views:
             view.zero_()
         self.error.zero_()
@@ -414,6 +446,12 @@ class Solver:
         L["reset"].launch()
         tick = self._phase("grid", tick)
         L["g2p"].launch()
+        if self._remap:
+            # velocity-gradient remap (a second transfer, counted in the g2p phase): the node momenta are rebuilt
+            # from the particles' new affine velocities; node masses and held-node flags are the first transfer's
+            self._grid_views[0].zero_()
+            L["remap_p2g"].launch()
+            L["remap_F"].launch()
         tick = self._phase("g2p", tick)
         self._bounds_valid = True
         state_out.time = t + dt

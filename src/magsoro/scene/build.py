@@ -508,6 +508,7 @@ def build(scene: Scene, device: str | None = None, source: str = "scene", magnet
         wall_friction=sim.wall_friction,
         cfl=sim.cfl,
         plane_z=sim.plane_z,
+        velocity_gradient=sim.velocity_gradient,
     )
     probes = []
     masses = model.host["mass"]

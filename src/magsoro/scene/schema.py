@@ -575,6 +575,12 @@ class Simulation(Strict):
     plane_z: float = Field(default=0.0, description="2D only: z coordinate of the plane for field sources, m.")
     device: str = Field(default="cpu", pattern=r"^(cpu|cuda(:\d+)?)$", description="'cpu', 'cuda' or 'cuda:N'.")
     precision: Literal["float32", "float64"] = Field(default="float32", description="Floating-point precision of the kernels.")
+    velocity_gradient: Literal["remap", "grid"] = Field(
+        default="remap",
+        description="Velocity gradient of the F update: 'remap' (particles' new affine velocities transferred back to "
+        "the grid; no creep of loaded bodies) or 'grid' (momentum-update node velocities; about half the cost per step on CPU, "
+        "stressed bodies creep at a rate set by the time step, docs/engine.md).",
+    )
 
 
 class Output(Strict):

@@ -77,6 +77,7 @@ class BeamSetup:
     # ("a particle moved outside the active grid block"); seen at t/dx = 4 after ~130k steps. Costs ~20 %.
     precision: str = "float64"
     cfl: float = 0.4  # the engine's default safety factor of the automatic time step
+    velocity_gradient: str = "remap"  # the engine's default F update (docs/engine.md)
 
     # -- derived quantities ----------------------------------------------------------------------------------
     @property
@@ -192,6 +193,7 @@ def beam_scene(setup: BeamSetup, schedule: Schedule) -> dict:
         "simulation": {
             "dim": s.dim, "dx": dx, "particles_per_cell": s.ppc, "domain_lo": lo, "domain_hi": hi,
             "duration": schedule.duration, "damping": s.damping * s.omega1, "precision": s.precision, "cfl": s.cfl,
+            "velocity_gradient": s.velocity_gradient,
             **extra,
         },
         "bodies": [{
