@@ -30,6 +30,21 @@ class RunResult:
     message: str = ""
 
 
+@dataclass
+class RelaxResult:
+    """Outcome of :meth:`Simulation.relax`. Energies in J, speeds in m/s."""
+
+    converged: bool
+    steps: int
+    resets: int  # kinetic-energy peaks at which the velocities were zeroed
+    kinetic_energy: float  # at the last kinetic-energy peak (the converged cycle's peak when converged)
+    max_speed: float  # largest particle speed at that peak
+    first_peak_energy: float  # largest kinetic energy seen (the scale the tolerance is relative to)
+    first_peak_speed: float  # largest particle speed seen
+    wall_time: float
+    message: str = ""
+
+
 class Simulation:
     """A scene made runnable: Model, Control, Solver and the current State.
 
@@ -134,6 +149,81 @@ class Simulation:
             self.steps += 1
             if callback is not None:
                 callback(self)
+
+    def kinetic_energy(self) -> tuple[float, float]:
+        """(kinetic energy in J, largest particle speed in m/s) of the current state (host read-back)."""
+        v = self.state.v.numpy().astype(np.float64)
+        m = self.model.host["mass"]
+        sq = np.einsum("ni,ni->n", v, v)
+        free = self.model.host["clamped"] == 0
+        return 0.5 * float(np.dot(m[free], sq[free])), float(np.sqrt(sq[free].max(initial=0.0)))
+
+    def relax(
+        self,
+        energy_tol: float = 1e-6,
+        speed_tol: float = 1e-3,
+        max_steps: int = 1_000_000,
+        viscous: bool = False,
+        callback: Callable | None = None,
+    ) -> RelaxResult:
+        """Static equilibrium under the loads of the current time (fields and collider paths frozen there) by
+        dynamic relaxation with kinetic damping: the explicit steps run undamped (``viscous=False`` turns the
+        scene's grid damping off for the relaxation), and whenever the kinetic energy of the free particles
+        passes a peak every particle velocity and affine matrix is set to zero. A peak of a freely moving body
+        lies where its potential energy is lowest along the path, so each reset removes the energy of the
+        motion at the point nearest the equilibrium.
+
+        Converged when a cycle between two resets peaks below ``energy_tol`` times the largest kinetic energy
+        seen and its largest particle speed is below ``speed_tol`` times the largest speed seen (relative, so
+        the criterion is independent of units and of the load's size: 1e-6 in energy is 1e-3 of the largest
+        velocity amplitude). Time steps are the scene's (fixed or the automatic CFL bound); the simulated time
+        is not advanced. Returns a :class:`RelaxResult`; a SimulationError (invalid state) propagates."""
+        settings = self.solver.settings
+        damping = settings.damping
+        if not viscous:
+            settings.damping = 0.0
+        t_freeze = self.state.time
+        wall0 = _time.perf_counter()
+        prev_e, prev_v = 0.0, 0.0
+        e_max = v_max = 0.0
+        resets, steps = 0, 0
+        peak = (0.0, 0.0)
+        converged = False
+        try:
+            while steps < max_steps:
+                dt = self._next_dt(math.inf)
+                self.solver.step(self.state, self._spare, self.control, dt)
+                self.state, self._spare = self._spare, self.state
+                self.state.time = t_freeze
+                self.steps += 1
+                steps += 1
+                e, v = self.kinetic_energy()
+                if e < prev_e:  # the previous step was a kinetic-energy peak
+                    self.state.v.zero_()
+                    self.state.C.zero_()
+                    resets += 1
+                    peak = (prev_e, prev_v)
+                    e_max, v_max = max(e_max, prev_e), max(v_max, prev_v)
+                    prev_e, prev_v = 0.0, 0.0
+                    if peak[0] <= energy_tol * e_max and peak[1] <= speed_tol * v_max:
+                        converged = True
+                        break
+                elif e == 0.0 and e_max == 0.0 and steps >= 2:  # nothing moves: already in equilibrium
+                    converged = True
+                    break
+                else:
+                    prev_e, prev_v = e, v
+                if callback is not None:
+                    callback(self)
+        finally:
+            settings.damping = damping
+        wall = _time.perf_counter() - wall0
+        if converged:
+            msg = f"equilibrium after {steps} steps and {resets} kinetic-energy resets"
+        else:
+            msg = (f"no equilibrium within {max_steps} steps: last cycle peaked at {peak[0] / max(e_max, 1e-300):.2e} "
+                   f"of the largest kinetic energy (tolerance {energy_tol:g})")
+        return RelaxResult(converged, steps, resets, peak[0], peak[1], e_max, v_max, wall, msg)
 
     def run(
         self,

@@ -15,6 +15,10 @@ def register(sub):
     p.add_argument("--duration", type=float, help="simulated time in s (overrides simulation.duration)")
     p.add_argument("--preview", action="store_true",
                    help="use the scene's [preview] settings (coarser grid, shorter run) for a quick look")
+    p.add_argument("--equilibrium", action="store_true",
+                   help="instead of the motion, find the static equilibrium under the loads at the end of the scene "
+                        "(fields and collider paths at t = duration) by dynamic relaxation with kinetic damping; "
+                        "writes the initial and the relaxed state")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=run)
 
@@ -41,6 +45,8 @@ def run(args) -> int:
         echo = apply_preview(echo, args.scene)
     duration = args.duration if args.duration is not None else scene.simulation.duration
     writer = RunWriter(args.out, sim, echo, particles=scene.output.particles)
+    if getattr(args, "equilibrium", False):
+        return _relax(args, sim, writer, duration, wall0)
     bar = None
     if not args.quiet:
         from tqdm import tqdm
@@ -69,4 +75,40 @@ def run(args) -> int:
         return 1 if result.status == "failed" else 130
     if not args.quiet:
         print(f"{result.steps} steps in {result.wall_time:.1f} s ({result.steps / max(result.wall_time, 1e-9):.0f} steps/s), dt {sim.dt_min:.3g}-{sim.dt_max:.3g} s; results in {args.out}")
+    return 0
+
+
+def _relax(args, sim, writer, t_loads: float, wall0: float) -> int:
+    """``--equilibrium``: relax under the loads at ``t_loads`` and write the start and the relaxed state."""
+    from dataclasses import asdict
+
+    from magsoro.errors import SimulationError
+    from magsoro.simulation import RunResult
+
+    writer.record(sim)
+    sim.state.time = t_loads
+    if not args.quiet:
+        print(f"relaxing under the loads at t = {t_loads:.6g} s ...", file=sys.stderr)
+    try:
+        relax = sim.relax()
+        status = "completed" if relax.converged else "failed"
+        message = relax.message
+        steps, wall = relax.steps, relax.wall_time
+    except SimulationError as exc:
+        relax, status = None, "failed"
+        message = f"step {exc.step}: {exc}"
+        steps, wall = sim.steps, time.perf_counter() - wall0
+    except KeyboardInterrupt:
+        relax, status, message = None, "interrupted", "interrupted by the user"
+        steps, wall = sim.steps, time.perf_counter() - wall0
+    if relax is not None:
+        writer.info["equilibrium"] = asdict(relax)
+        writer.record(sim)
+    result = RunResult(status, steps, sim.time, wall, message)
+    writer.finish(result, time.perf_counter() - wall0)
+    if status != "completed":
+        print(f"magsoro run --equilibrium: {status}: {message}", file=sys.stderr)
+        return 1 if status == "failed" else 130
+    if not args.quiet:
+        print(f"{message} in {wall:.1f} s; results in {args.out}")
     return 0

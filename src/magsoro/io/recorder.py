@@ -95,7 +95,7 @@ class RunWriter:
             wall_time=result.wall_time,
             wall_time_total=wall_total,
             steps_per_second=result.steps / result.wall_time if result.wall_time > 0 else None,
-            dt={"fixed": sim.fixed_dt is not None, "min": sim.dt_min, "max": sim.dt_max, "mean": result.time / result.steps if result.steps else None},
+            dt={"fixed": sim.fixed_dt is not None, "min": sim.dt_min, "max": sim.dt_max, "mean": result.time / result.steps if result.steps and "equilibrium" not in self.info else None},
             grid=sim.solver.grid_info(),
             frames=len(self.frames),
             finished=time.strftime("%Y-%m-%dT%H:%M:%S%z"),

@@ -281,6 +281,63 @@ def run_sweep(setup: BeamSetup, fields, psi_deg: float, log=None) -> SweepRun:
                     int(sim.model.n_particles), int(sim.steps), wall, np.array(hist), np.array(drift))
 
 
+@dataclass
+class RelaxRun:
+    """Static tip displacement over L of the beam under a constant field, and what it cost to reach it."""
+
+    tip_dx: float
+    tip_dy: float
+    tip_s: float
+    free_length: float
+    steps: int
+    wall_s: float
+    converged: bool
+    message: str
+
+
+def settle_beam(setup: BeamSetup, bn: float, psi_deg: float = 90.0, method: str = "relax", dt: float | None = None,
+                energy_tol: float = 1e-6, speed_tol: float = 1e-3, max_steps: int = 2_000_000) -> RelaxRun:
+    """The beam's static shape under the field ``bn`` applied at once (a step load), found either by
+    ``method="relax"`` (:meth:`magsoro.simulation.Simulation.relax`, kinetic damping) or ``method="damped"``
+    (the scene's grid damping, stepping until the kinetic energy and the largest particle speed fall below
+    ``energy_tol`` and ``speed_tol`` times their largest values so far: the same criterion as the relaxation).
+    ``dt`` fixes the time step (default: the CFL bound)."""
+    from magsoro.scene import parse_scene
+    from magsoro.simulation import Simulation
+
+    B = field_vector(setup, bn, psi_deg)
+    scene = beam_scene(setup, Schedule([0.0, 1.0], [B, B], [1.0]))
+    if dt is not None:
+        scene["simulation"]["dt"] = dt
+    sim = Simulation(parse_scene(scene))
+    probe = sim.probes[0]
+    X = sim.model.host["positions"]
+    tip_ref = probe.evaluate(X)
+    L = float(X[X[:, 0] > 0, 0].max() + setup.dx / setup.ppc / 2)
+    t0 = time.perf_counter()
+    if method == "relax":
+        r = sim.relax(energy_tol=energy_tol, speed_tol=speed_tol, max_steps=max_steps)
+        converged, steps, message = r.converged, r.steps, r.message
+    elif method == "damped":
+        e_max = v_max = 0.0
+        converged, steps = False, 0
+        while steps < max_steps:
+            sim.step()
+            steps += 1
+            e, v = sim.kinetic_energy()
+            e_max, v_max = max(e_max, e), max(v_max, v)
+            if e_max > 0 and e <= energy_tol * e_max and v <= speed_tol * v_max:
+                converged = True
+                break
+        message = f"damped run {'settled' if converged else 'did not settle'} after {steps} steps"
+    else:
+        raise ValueError(f"settle_beam: method '{method}' is not allowed; use 'relax' or 'damped'")
+    wall = time.perf_counter() - t0
+    p = probe.evaluate(sim.state.x.numpy())
+    return RelaxRun(float((p[0] - tip_ref[0]) / L), float((p[1] - tip_ref[1]) / L), float(tip_ref[0]), L, steps,
+                    wall, converged, message)
+
+
 def rod_reference(setup: BeamSetup, fields, psi_deg: float, tip_s: float, free_length: float):
     """Kirchhoff-rod tip displacement over L (dx, dy arrays) at arc length ``tip_s`` (m) of a rod of length
     ``free_length`` (m), the engine beam's free part, for each normalised field; continuation in order."""
