@@ -164,6 +164,7 @@ class Simulation:
         speed_tol: float = 1e-3,
         max_steps: int = 1_000_000,
         viscous: bool = False,
+        cfl: float | None = None,
         callback: Callable | None = None,
     ) -> RelaxResult:
         """Static equilibrium under the loads of the current time (fields and collider paths frozen there) by
@@ -176,10 +177,15 @@ class Simulation:
         Converged when a cycle between two resets peaks below ``energy_tol`` times the largest kinetic energy
         seen and its largest particle speed is below ``speed_tol`` times the largest speed seen (relative, so
         the criterion is independent of units and of the load's size: 1e-6 in energy is 1e-3 of the largest
-        velocity amplitude). Time steps are the scene's (fixed or the automatic CFL bound); the simulated time
-        is not advanced. Returns a :class:`RelaxResult`; a SimulationError (invalid state) propagates."""
+        velocity amplitude). Time steps are the scene's (fixed, or the automatic CFL bound with the safety
+        factor ``cfl``, default the scene's); the simulated time is not advanced. Returns a
+        :class:`RelaxResult`; a SimulationError (invalid state) propagates."""
         settings = self.solver.settings
-        damping = settings.damping
+        damping, cfl0 = settings.damping, settings.cfl
+        if cfl is not None:
+            if not 0.0 < cfl <= 1.0:
+                raise ValueError(f"relax: cfl must be in (0, 1], got {cfl!r}")
+            settings.cfl = float(cfl)
         if not viscous:
             settings.damping = 0.0
         t_freeze = self.state.time
@@ -216,7 +222,7 @@ class Simulation:
                 if callback is not None:
                     callback(self)
         finally:
-            settings.damping = damping
+            settings.damping, settings.cfl = damping, cfl0
         wall = _time.perf_counter() - wall0
         if converged:
             msg = f"equilibrium after {steps} steps and {resets} kinetic-energy resets"

@@ -296,12 +296,14 @@ class RelaxRun:
 
 
 def settle_beam(setup: BeamSetup, bn: float, psi_deg: float = 90.0, method: str = "relax", dt: float | None = None,
-                energy_tol: float = 1e-6, speed_tol: float = 1e-3, max_steps: int = 2_000_000) -> RelaxRun:
+                energy_tol: float = 1e-6, speed_tol: float = 1e-3, max_steps: int = 2_000_000,
+                relax_cfl: float | None = None) -> RelaxRun:
     """The beam's static shape under the field ``bn`` applied at once (a step load), found either by
     ``method="relax"`` (:meth:`magsoro.simulation.Simulation.relax`, kinetic damping) or ``method="damped"``
     (the scene's grid damping, stepping until the kinetic energy and the largest particle speed fall below
     ``energy_tol`` and ``speed_tol`` times their largest values so far: the same criterion as the relaxation).
-    ``dt`` fixes the time step (default: the CFL bound)."""
+    ``dt`` fixes the time step (default: the CFL bound); ``relax_cfl`` is the relaxation's CFL safety factor
+    (default the setup's)."""
     from magsoro.scene import parse_scene
     from magsoro.simulation import Simulation
 
@@ -316,7 +318,7 @@ def settle_beam(setup: BeamSetup, bn: float, psi_deg: float = 90.0, method: str 
     L = float(X[X[:, 0] > 0, 0].max() + setup.dx / setup.ppc / 2)
     t0 = time.perf_counter()
     if method == "relax":
-        r = sim.relax(energy_tol=energy_tol, speed_tol=speed_tol, max_steps=max_steps)
+        r = sim.relax(energy_tol=energy_tol, speed_tol=speed_tol, max_steps=max_steps, cfl=relax_cfl)
         converged, steps, message = r.converged, r.steps, r.message
     elif method == "damped":
         e_max = v_max = 0.0
