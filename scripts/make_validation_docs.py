@@ -253,9 +253,11 @@ Found while building these cases (engine code is not part of this validation; mi
 **Fixed since (commit 8849f57): the creep of item 1.** Its cause was the engine's F update, which took the
 velocity gradient from node velocities that carry force impulses at low-mass surface nodes; the
 velocity-gradient remap (docs/engine.md, "Why the remap") removes it. The `beam` rows above are from the quick
-run after the fix (perpendicular MAPE 0.69 %, was 9.6 %; opposite MAPE 10.5 %, was 16.7 %, still above its 8 %).
-The `beam_3d`, `beam_convergence`, `beam_timestep` and `beam_gravity` rows and the robot cases were run before
-it and have not been rerun yet. Item 1 below is kept as the record of what was seen.
+run after the fix (perpendicular MAPE 0.69 %, was 9.6 %; opposite MAPE 10.5 %, was 16.7 %, still above its 8 %);
+`beam_3d`, `beam_convergence`, `beam_timestep` and `beam_gravity` were rerun after it. The robot cases have not
+been rerun since. Item 1 below is kept as the record of what was seen.
+
+**Open: the opposite-field rows at large fields fail at the clamp (item 3).**
 
 1. **The settled tip of a magnetically loaded slender beam depends on the time step** (`beam_timestep`): with
    the automatic step (CFL 0.4) the 2D beam at Br B/(mu0 G) = 0.0005 settles well above the rod and keeps
@@ -278,6 +280,25 @@ it and have not been rerun yet. Item 1 below is kept as the record of what was s
    the hold at Br B/(mu0 G) = 0.001). Refitting when fewer than one spare cell is left would avoid it. The
    beam cases run in float64, where the two tests agree. Reproduce (a few CPU-minutes):
    `python -c "from magsoro.validation.beam import *; run_sweep(BeamSetup(t_over_dx=4, precision='float32'), PERPENDICULAR_FIELDS, 90.0)"`.
+
+3. **In an opposite field past Br B/(mu0 G) of about 0.01 the engine's beam fails at the clamp.** The
+   rod's equilibrium has its largest curvature at the root (outer-fibre strain 19 % at 0.012, 25 % at 0.02).
+   In the engine the tension side of the root spreads apart at the clamp face and the beam folds back on a
+   kink (picture: `docs/validation/opposite_root_failure_t3.png`, t/dx = 3, holds at 0.008 and 0.012). At
+   bn = 0.012 the tip ends at dx/L = -1.81, dy/L = 0.09 with t/dx = 3 and -1.89, 0.05 with t/dx = 6, against
+   the rod's -1.49, 0.50; at t/dx = 4 the root holds together better but the tip is still low (dy/L 0.43 at
+   0.012, 0.32 at 0.02 against 0.50, 0.39), which is the 10.5 % MAPE of the quick run. So refining does not
+   converge these rows, and they are not a tolerance question. The reference was checked independently:
+   a planar elastica with the plane-strain Neo-Hookean section law of the engine's material (finite strain
+   through the thickness) moves dy/L by +0.2 % at 0.004 and +0.5 % at 0.012 against the linear rod; the rod
+   with shear and extension, loaded by the dead tip force Br A B / mu0 that an axially magnetised strip in a
+   uniform field is equivalent to, moves the tip by under 1 % of L (tests/test_rod.py,
+   `test_axial_magnetisation_in_uniform_field_is_a_dead_tip_force_and_shear_barely_matters`). The likely
+   cause is the clamp: every grid node a clamped particle touches is held, so the held layer ends about one
+   cell past the clamp face inside free material, and the corner it makes concentrates the root strain. Not
+   yet changed: holding only nodes whose mass is mostly clamped material would put the held boundary at the
+   face. Reproduce: `python -c "from magsoro.validation.beam import *; c = compare(BeamSetup(t_over_dx=3),
+   OPPOSITE_FIELDS, 180.0); print(c.run.tip_dx, c.run.tip_dy, c.ref_dx, c.ref_dy)"` (about 1.5 CPU-minutes).
 
 ## Reproduce
 
