@@ -75,7 +75,7 @@ def test_relaxed_column_has_the_closed_form_strain_under_its_own_weight():
 
 
 def test_run_equilibrium_writes_the_relaxed_state(tmp_path):
-    from magsoro.__main__ import main
+    from magsoro.cli import main
 
     scene = tmp_path / "block.toml"
     scene.write_text(
@@ -90,6 +90,10 @@ def test_run_equilibrium_writes_the_relaxed_state(tmp_path):
     assert main(["run", str(scene), "--out", str(out), "--equilibrium", "--quiet"]) == 0
     info = json.loads((out / "run.json").read_text())
     assert info["status"] == "completed"
-    assert info["equilibrium"]["converged"] is True
+    # float32, a stiff block under a small load: the kinetic-energy peaks level off at the round-off floor
+    # (about 3e-6 of the largest), which ends the relaxation with a result and a message saying so
+    eq = info["equilibrium"]
+    assert eq["converged"] or (eq["stalled"] and "round-off" in info["message"])
+    assert eq["kinetic_energy"] < 1e-4 * eq["first_peak_energy"]
     assert info["frames"] == 2
     assert (out / "final.npz").exists()

@@ -43,6 +43,7 @@ class RelaxResult:
     first_peak_speed: float  # largest particle speed seen
     wall_time: float
     message: str = ""
+    stalled: bool = False  # the cycle peaks stopped falling above the tolerance (round-off floor)
 
 
 class Simulation:
@@ -165,6 +166,7 @@ class Simulation:
         max_steps: int = 1_000_000,
         viscous: bool = False,
         cfl: float | None = None,
+        patience: int = 50,
         callback: Callable | None = None,
     ) -> RelaxResult:
         """Static equilibrium under the loads of the current time (fields and collider paths frozen there) by
@@ -177,7 +179,9 @@ class Simulation:
         Converged when a cycle between two resets peaks below ``energy_tol`` times the largest kinetic energy
         seen and its largest particle speed is below ``speed_tol`` times the largest speed seen (relative, so
         the criterion is independent of units and of the load's size: 1e-6 in energy is 1e-3 of the largest
-        velocity amplitude). Time steps are the scene's (fixed, or the automatic CFL bound with the safety
+        velocity amplitude). If ``patience`` cycles in a row peak no lower than the lowest peak so far, the
+        relaxation has reached the floor set by round-off (float32 forces of a stiff body under a small load)
+        and stops with ``stalled=True`` and ``converged=False``. Time steps are the scene's (fixed, or the automatic CFL bound with the safety
         factor ``cfl``, default the scene's); the simulated time is not advanced. Returns a
         :class:`RelaxResult`; a SimulationError (invalid state) propagates."""
         settings = self.solver.settings
@@ -194,7 +198,8 @@ class Simulation:
         e_max = v_max = 0.0
         resets, steps = 0, 0
         peak = (0.0, 0.0)
-        converged = False
+        converged = stalled = False
+        lowest, since_lowest = math.inf, 0
         try:
             while steps < max_steps:
                 dt = self._next_dt(math.inf)
@@ -214,6 +219,13 @@ class Simulation:
                     if peak[0] <= energy_tol * e_max and peak[1] <= speed_tol * v_max:
                         converged = True
                         break
+                    if peak[0] < lowest:
+                        lowest, since_lowest = peak[0], 0
+                    else:
+                        since_lowest += 1
+                        if since_lowest >= patience:
+                            stalled = True
+                            break
                 elif e == 0.0 and e_max == 0.0 and steps >= 2:  # nothing moves: already in equilibrium
                     converged = True
                     break
@@ -226,10 +238,14 @@ class Simulation:
         wall = _time.perf_counter() - wall0
         if converged:
             msg = f"equilibrium after {steps} steps and {resets} kinetic-energy resets"
+        elif stalled:
+            msg = (f"kinetic-energy peaks stopped falling after {steps} steps at {lowest / max(e_max, 1e-300):.2e} of "
+                   f"the largest (tolerance {energy_tol:g}): the round-off floor of this precision; "
+                   f"simulation.precision = 'float64' goes lower")
         else:
             msg = (f"no equilibrium within {max_steps} steps: last cycle peaked at {peak[0] / max(e_max, 1e-300):.2e} "
                    f"of the largest kinetic energy (tolerance {energy_tol:g})")
-        return RelaxResult(converged, steps, resets, peak[0], peak[1], e_max, v_max, wall, msg)
+        return RelaxResult(converged, steps, resets, peak[0], peak[1], e_max, v_max, wall, msg, stalled)
 
     def run(
         self,

@@ -91,7 +91,8 @@ def _relax(args, sim, writer, t_loads: float, wall0: float) -> int:
         print(f"relaxing under the loads at t = {t_loads:.6g} s ...", file=sys.stderr)
     try:
         relax = sim.relax()
-        status = "completed" if relax.converged else "failed"
+        # at the round-off floor the state is as static as the precision allows: a result, with the reason
+        status = "completed" if relax.converged or relax.stalled else "failed"
         message = relax.message
         steps, wall = relax.steps, relax.wall_time
     except SimulationError as exc:
