@@ -225,8 +225,9 @@ The straight beam in an opposite field buckles at Br B/(mu0 G) = (pi/2)^2 (E/G)/
 sqrt(B - B_crit) and any 1 % stiffness error is magnified without bound). 3D runs the perpendicular sweep only,
 at t/dx = 2 with the width reduced to the thickness: the 5 mm strip needs six times the particles (8352, about
 6 ms per step here, some 20 CPU-minutes for the sweep), the rod does not depend on the width, and a square
-section has none of the plate (anticlastic) stiffening of a wide strip that the rod does not model. The
-convergence study holds each field 4/omega_1 instead of 6 to fit its budget.
+section has none of the plate (anticlastic) stiffening of a wide strip that the rod does not model.
+Particles: 2 per cell per axis, except the 2D opposite-field sweep, which uses 3 (with 2 the root of the
+curled beam comes apart, item 3 below).
 
 **How the engine is run.** One simulation per field direction follows the sweep by continuation: a keyframed
 uniform field ramps to the next value over 1.5/omega_1 and holds it for 6/omega_1 (omega_1 = 3.516
@@ -257,7 +258,8 @@ run after the fix (perpendicular MAPE 0.69 %, was 9.6 %; opposite MAPE 10.5 %, w
 `beam_3d`, `beam_convergence`, `beam_timestep` and `beam_gravity` were rerun after it. The robot cases have not
 been rerun since. Item 1 below is kept as the record of what was seen.
 
-**Open: the opposite-field rows at large fields fail at the clamp (item 3).**
+**The opposite-field sweep runs at 3 particles per cell per axis (item 3).** With 2, the root of the curled beam
+comes apart at large fields.
 
 1. **The settled tip of a magnetically loaded slender beam depends on the time step** (`beam_timestep`): with
    the automatic step (CFL 0.4) the 2D beam at Br B/(mu0 G) = 0.0005 settles well above the rod and keeps
@@ -281,24 +283,34 @@ been rerun since. Item 1 below is kept as the record of what was seen.
    beam cases run in float64, where the two tests agree. Reproduce (a few CPU-minutes):
    `python -c "from magsoro.validation.beam import *; run_sweep(BeamSetup(t_over_dx=4, precision='float32'), PERPENDICULAR_FIELDS, 90.0)"`.
 
-3. **In an opposite field past Br B/(mu0 G) of about 0.01 the engine's beam fails at the clamp.** The
-   rod's equilibrium has its largest curvature at the root (outer-fibre strain 19 % at 0.012, 25 % at 0.02).
-   In the engine the tension side of the root spreads apart at the clamp face and the beam folds back on a
-   kink (picture: `docs/validation/opposite_root_failure_t3.png`, t/dx = 3, holds at 0.008 and 0.012). At
-   bn = 0.012 the tip ends at dx/L = -1.81, dy/L = 0.09 with t/dx = 3 and -1.89, 0.05 with t/dx = 6, against
-   the rod's -1.49, 0.50; at t/dx = 4 the root holds together better but the tip is still low (dy/L 0.43 at
-   0.012, 0.32 at 0.02 against 0.50, 0.39), which is the 10.5 % MAPE of the quick run. So refining does not
-   converge these rows, and they are not a tolerance question. The reference was checked independently:
-   a planar elastica with the plane-strain Neo-Hookean section law of the engine's material (finite strain
-   through the thickness) moves dy/L by +0.2 % at 0.004 and +0.5 % at 0.012 against the linear rod; the rod
-   with shear and extension, loaded by the dead tip force Br A B / mu0 that an axially magnetised strip in a
-   uniform field is equivalent to, moves the tip by under 1 % of L (tests/test_rod.py,
-   `test_axial_magnetisation_in_uniform_field_is_a_dead_tip_force_and_shear_barely_matters`). The likely
-   cause is the clamp: every grid node a clamped particle touches is held, so the held layer ends about one
-   cell past the clamp face inside free material, and the corner it makes concentrates the root strain. Not
-   yet changed: holding only nodes whose mass is mostly clamped material would put the held boundary at the
-   face. Reproduce: `python -c "from magsoro.validation.beam import *; c = compare(BeamSetup(t_over_dx=3),
-   OPPOSITE_FIELDS, 180.0); print(c.run.tip_dx, c.run.tip_dy, c.ref_dx, c.ref_dy)"` (about 1.5 CPU-minutes).
+3. **In an opposite field past Br B/(mu0 G) of about 0.01, at 2 particles per cell per axis, the beam comes
+   apart at its root.** The rod's equilibrium has its largest curvature at the root (outer-fibre strain 16 % at
+   0.008, 19 % at 0.012, 25 % at 0.02). In the engine at 2 particles per cell per axis the outermost particle
+   rows on the tension side of the root fall behind the curving beam and the beam folds back on a kink
+   (picture: `docs/validation/opposite_root_failure_t3.png`, t/dx = 3, holds at 0.008 and 0.012; colour J).
+   At 0.012 the tip ends at dx/L = -1.81, dy/L = 0.09 with t/dx = 3 and -1.89, 0.05 with t/dx = 6, against the
+   rod's -1.49, 0.50; t/dx = 4 held together better (dy/L 0.43), which gave the quick run's 10.5 % MAPE.
+   With 3 particles per cell per axis the root holds: MAPE 7.9 % (t/dx = 3) and 7.3 % (t/dx = 4); the `beam`
+   case now runs its opposite sweep so. The remaining error grows with the field (dy/L low by 3.6 % at 0.004,
+   14.5 % at 0.02 at t/dx = 4) and falls only slowly with t/dx.
+   The reference was checked independently: a planar elastica with the plane-strain Neo-Hookean section law
+   of the engine's material (finite strain through the thickness) moves dy/L by +0.2 % at 0.004 and +0.5 % at
+   0.012 against the linear rod; the rod with shear and extension, loaded by the dead tip force Br A B / mu0
+   that an axially magnetised strip in a uniform field is equivalent to, moves the tip by under 1 % of L
+   (tests/test_rod.py, `test_axial_magnetisation_in_uniform_field_is_a_dead_tip_force_and_shear_barely_matters`).
+   Holding only grid nodes whose mass is mostly clamped material (so the held layer ends at the clamp face
+   rather than a cell past it) was tried and did not help (t/dx = 3: dy/L 0.11 at 0.012), so the clamp corner
+   is not the cause. Reproduce: `python -c "from magsoro.validation.beam import *; c = compare(BeamSetup(t_over_dx=3,
+   ppc=2), OPPOSITE_FIELDS, 180.0); print(c.run.tip_dx, c.run.tip_dy, c.ref_dx, c.ref_dy)"` (1.5 CPU-minutes;
+   `ppc=3` for the run that holds).
+
+4. **After the remap the 2D perpendicular sweep sits at an error floor of about 1 % that refining does not
+   lower** (`beam_convergence`, hold 6/omega_1: MAPE 0.64, 0.77, 0.69, 1.36 % at t/dx = 2, 3, 4, 6), so the
+   study's "falls with resolution" rows fail at t/dx = 6. At this level the settled tip depends on the path:
+   `beam_timestep` (t/dx = 2) moves it by 2 % between CFL 0.4 and 0.05, the "drift" column shows the tip still
+   moving by about 0.8 % per 1/omega_1 at the end of the holds, and the same beam relaxed by kinetic damping
+   (docs/engine.md, "Equilibrium mode") ends 1.7 % below the damped run. Before the remap the error was 9-10 %
+   and flat; what limits it now is not yet known.
 
 ## Reproduce
 
