@@ -222,11 +222,11 @@ The straight beam in an opposite field buckles at Br B/(mu0 G) = (pi/2)^2 (E/G)/
 
 **Fields.** Perpendicular: Br B/(mu0 G) = 0.0005, 0.001, 0.002, 0.004. Opposite: 0.004, 0.008, 0.012, 0.02 in
 2D (the part of seed 000's 0-0.02 sweep at least twice the critical field; just above it the tip moves like
-sqrt(B - B_crit) and any 1 % stiffness error is magnified without bound). 3D runs the perpendicular sweep only,
+sqrt(B - B_crit) and any 1 % stiffness error is magnified without bound). 3D runs both sweeps
 at t/dx = 2 with the width reduced to the thickness: the 5 mm strip needs six times the particles (8352, about
 6 ms per step here, some 20 CPU-minutes for the sweep), the rod does not depend on the width, and a square
 section has none of the plate (anticlastic) stiffening of a wide strip that the rod does not model.
-Particles: 2 per cell per axis, except the 2D opposite-field sweep, which uses 3 (with 2 the root of the
+Particles: 2 per cell per axis, except the opposite-field sweeps (2D and 3D), which use 3 (with 2 the root of the
 curled beam comes apart, item 3 below).
 
 **How the engine is run.** One simulation per field direction follows the sweep by continuation: a keyframed

@@ -528,14 +528,14 @@ WIDTH_3D = 0.84e-3
 
 
 @register("beam_3d", "beam with the Zhao L/t, 3D MPM (2 x 2 cells square section) vs Kirchhoff rod (E), "
-          "perpendicular field", quick=False, cost="~6 CPU-min")
+          "field perpendicular and opposite to Br", quick=False, cost="~11 CPU-min")
 def beam_3d_case(ctx: Context) -> CaseResult:
     setup = BeamSetup(dim=3, t_over_dx=DEFAULT_T_OVER_DX_3D, width=WIDTH_3D)
     comps, rows = [], []
-    # perpendicular sweep only: one 3D step costs ~20x a 2D one per particle, and the opposite sweep would
-    # double the ~25 min of this case on two CPU cores
-    for psi, fields in ((90.0, PERPENDICULAR_FIELDS),):
-        comp = compare(setup, fields, psi, ctx.log)
+    # the opposite sweep at 3 particles per cell per axis, as in 2D (OPPOSITE_PPC): 4860 particles, ~8 CPU-min
+    for psi, fields in ((90.0, PERPENDICULAR_FIELDS), (180.0, OPPOSITE_FIELDS)):
+        run_setup = replace(setup, ppc=OPPOSITE_PPC) if psi == 180.0 else setup
+        comp = compare(run_setup, fields, psi, ctx.log)
         comps.append(comp)
         tol = MAPE_TOL[(3, int(psi))]
         rows += comparison_rows("beam_3d", comp, tol, 2 * tol)
