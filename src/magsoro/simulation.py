@@ -180,10 +180,12 @@ class Simulation:
         seen and its largest particle speed is below ``speed_tol`` times the largest speed seen (relative, so
         the criterion is independent of units and of the load's size: 1e-6 in energy is 1e-3 of the largest
         velocity amplitude). If ``patience`` cycles in a row peak no lower than the lowest peak so far, the
-        relaxation has reached the floor set by round-off (float32 forces of a stiff body under a small load)
-        and stops with ``stalled=True`` and ``converged=False``. Time steps are the scene's (fixed, or the automatic CFL bound with the safety
-        factor ``cfl``, default the scene's); the simulated time is not advanced. Returns a
-        :class:`RelaxResult`; a SimulationError (invalid state) propagates."""
+        peaks have levelled off: below sqrt(``energy_tol``) of the largest kinetic energy that is the floor
+        set by round-off (float32 forces of a stiff body under a small load) and the relaxation stops with
+        ``stalled=True`` (``converged=False``); above it the motion is not dying out and it stops with neither.
+        Time steps are the scene's (fixed, or the automatic CFL bound with the safety factor ``cfl``, default
+        the scene's); the simulated time is not advanced. Returns a :class:`RelaxResult`; a SimulationError
+        (invalid state) propagates."""
         settings = self.solver.settings
         damping, cfl0 = settings.damping, settings.cfl
         if cfl is not None:
@@ -198,7 +200,7 @@ class Simulation:
         e_max = v_max = 0.0
         resets, steps = 0, 0
         peak = (0.0, 0.0)
-        converged = stalled = False
+        converged = stalled = levelled = False
         lowest, since_lowest = math.inf, 0
         try:
             while steps < max_steps:
@@ -224,7 +226,8 @@ class Simulation:
                     else:
                         since_lowest += 1
                         if since_lowest >= patience:
-                            stalled = True
+                            stalled = lowest <= math.sqrt(energy_tol) * e_max
+                            levelled = True
                             break
                 elif e == 0.0 and e_max == 0.0 and steps >= 2:  # nothing moves: already in equilibrium
                     converged = True
@@ -242,6 +245,10 @@ class Simulation:
             msg = (f"kinetic-energy peaks stopped falling after {steps} steps at {lowest / max(e_max, 1e-300):.2e} of "
                    f"the largest (tolerance {energy_tol:g}): the round-off floor of this precision; "
                    f"simulation.precision = 'float64' goes lower")
+        elif levelled:
+            msg = (f"no equilibrium: the kinetic-energy peaks levelled off after {steps} steps at "
+                   f"{lowest / max(e_max, 1e-300):.2e} of the largest, too high for round-off; the loads keep the "
+                   f"body moving (a contact or field that does not let it settle)")
         else:
             msg = (f"no equilibrium within {max_steps} steps: last cycle peaked at {peak[0] / max(e_max, 1e-300):.2e} "
                    f"of the largest kinetic energy (tolerance {energy_tol:g})")
