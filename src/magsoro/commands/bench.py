@@ -20,8 +20,11 @@ def run(args) -> int:
 
     from magsoro.bench.runner import names_or_all, run as run_bench
     from magsoro.errors import MagsoroError
+    from magsoro.warp_setup import quiet_warp
 
-    wp.config.quiet = True
+    if args.json:
+        # stdout carries one JSON object
+        quiet_warp()
     if args.device != "cpu" and wp.get_cuda_device_count() == 0:
         raise MagsoroError(f"--device {args.device}: no CUDA device on this machine")
     if args.steps is not None and args.steps < 1:

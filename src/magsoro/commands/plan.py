@@ -33,11 +33,9 @@ def run_plan_command(args) -> int:
 
     if args.json and args.replay:
         # stdout carries one JSON object: keep Warp's banner and module-load lines off it
-        import warp as wp
+        from magsoro.warp_setup import quiet_warp
 
-        wp.config.quiet = True
-        if hasattr(wp, "LOG_WARNING") and hasattr(wp.config, "log_level"):
-            wp.config.log_level = wp.LOG_WARNING
+        quiet_warp()
     config = load(PlanConfig, args.plan)
     out = Path(args.out) if args.out else Path("out") / Path(args.plan).stem
 

@@ -16,6 +16,8 @@ import time
 import traceback
 from pathlib import Path
 
+from magsoro.warp_setup import quiet_warp
+
 FINISHED = ("completed", "failed")
 
 # Environment of LocalCluster worker processes: one thread each, because Dask already runs one process per
@@ -27,16 +29,6 @@ SINGLE_THREAD_ENV = {
     "NUMEXPR_NUM_THREADS": "1",
     "VECLIB_MAXIMUM_THREADS": "1",
 }
-
-
-def _quiet_warp() -> None:
-    import warp as wp
-
-    # 'quiet' is the historical switch; Warp >= 1.10 reads log_level instead. Set both so neither prints a
-    # banner or per-module load lines into the worker logs.
-    wp.config.quiet = True
-    if hasattr(wp, "LOG_WARNING") and hasattr(wp.config, "log_level"):
-        wp.config.log_level = wp.LOG_WARNING
 
 
 def _worker_device(device: str | None) -> str | None:
@@ -71,7 +63,7 @@ def execute_run(run: dict, run_dir: str, scene_file: str, device: str | None = N
     sweep_info = {"index": run["index"], "name": run["name"], "params": run["params"], "scene_file": scene_file}
     writer = None
     try:
-        _quiet_warp()
+        quiet_warp()
         import warp as wp
 
         from magsoro.io.files import atomic_write_json
