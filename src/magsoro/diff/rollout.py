@@ -87,6 +87,7 @@ class _Slot:
         self.grid_m = wp.zeros(n_nodes, dtype=sc, device=dev, requires_grad=True)
         self.grid_v = wp.zeros(n_nodes, dtype=k["vec"], device=dev, requires_grad=True)
         self.grid_q = wp.zeros(n_nodes, dtype=k["vec"], device=dev, requires_grad=True)  # velocity-gradient remap
+        self.grid_w = wp.zeros(n_nodes, dtype=k["vec"], device=dev, requires_grad=True)  # its node velocities
         self.grid_clamp = wp.zeros(n_nodes, dtype=wp.int32, device=dev)
 
     def state_arrays(self):
@@ -269,17 +270,16 @@ class Rollout:
             inputs=[
                 dst.grid_v, m.clamped, self._grid_lo, self._shape_v, sc(m.dx), dt,
                 src.x, src.F, dst.x, dst.v, dst.C, dst.F,
-                self.bounds, self.max_speed, self.error, 0 if remap else 1,
+                self.bounds, self.max_speed, self.error, 1 if remap else 0, m.mass, dst.grid_q,
             ],
             device=dev,
         )
         if remap:  # the engine's velocity-gradient remap (docs/engine.md), same kernels
-            wp.launch(k["remap_p2g"], dim=n,
-                      inputs=[src.x, dst.v, dst.C, m.mass, self._grid_lo, self._shape_v, sc(m.dx), dst.grid_q],
-                      device=dev)
+            wp.launch(k["remap_node_velocity"], dim=self.n_nodes,
+                      inputs=[dst.grid_q, dst.grid_m, dst.grid_clamp, dst.grid_w], device=dev)
             wp.launch(k["remap_F"], dim=n,
-                      inputs=[src.x, m.clamped, self._grid_lo, self._shape_v, sc(m.dx), dt, dst.grid_q, dst.grid_m,
-                              dst.grid_clamp, src.F, dst.F, self.error],
+                      inputs=[src.x, m.clamped, self._grid_lo, self._shape_v, sc(m.dx), dt, dst.grid_w, src.F, dst.F,
+                              self.error],
                       device=dev)
 
     def _run_segment(self, seg: int) -> int:

@@ -160,6 +160,15 @@ def make_kernels(dim: int, scalar):
         return base, fx
 
     @wp.func
+    def outside_block(base: ivec, shape: ivec):
+        """True when a particle's 3^dim stencil (nodes base .. base + 2) leaves the active grid block."""
+        out = False
+        for a in range(dim):
+            if base[a] < 0 or base[a] + 2 >= shape[a]:
+                out = True
+        return out
+
+    @wp.func
     def stencil_node(q: int, base: ivec, fx: vec, w0: vec, w1: vec, w2: vec, dx: scalar, shape: ivec):
         """Weight, offset x_i - x_p and flat grid index of the q-th node of a particle's 3^dim stencil."""
         o = stencil_offset(q)
@@ -169,6 +178,16 @@ def make_kernels(dim: int, scalar):
             weight = weight * pick(w0, w1, w2, o[a], a)
             dpos[a] = (scalar(o[a]) - fx[a]) * dx
         return weight, dpos, flat_index(base + o, shape)
+
+    @wp.func
+    def update_F(F_in: wp.array(dtype=mat), F_out: wp.array(dtype=mat), p: int, dtC: mat):
+        """F_out = F + (dt C) F; False when the element inverts (det F <= 0) or F is not finite.
+        F + (dt C) F rather than (I + dt C) F: in float32, 1 + dt C_ii rounds the small increments of a slowly
+        creeping state away, which showed as a steady drift of loaded beams (docs/engine.md)."""
+        Fp = F_in[p]
+        Fn = Fp + dtC * Fp
+        F_out[p] = Fn
+        return wp.determinant(Fn) > scalar(0.0)
 
     @wp.kernel
     def p2g(
@@ -200,10 +219,9 @@ def make_kernels(dim: int, scalar):
         p = wp.tid()
         inv_dx = scalar(1.0) / dx
         base, fx = local_coords(x[p], grid_lo, inv_dx)
-        for a in range(dim):
-            if base[a] < 0 or base[a] + 2 >= shape[a]:
-                error[0] = 1  # particle outside the active grid block: the solver refits and reports
-                return
+        if outside_block(base, shape):
+            error[0] = 1  # particle outside the active grid block: the solver refits and reports
+            return
         w0, w1, w2 = bspline_weights(fx)
         Fp = F[p]
         B = B_uniform
@@ -327,8 +345,14 @@ def make_kernels(dim: int, scalar):
         bounds: wp.array(dtype=scalar),
         max_speed: wp.array(dtype=scalar),
         error: wp.array(dtype=wp.int32),
-        update_F: int,
+        remap: int,
+        mass: wp.array(dtype=scalar),
+        grid_r: wp.array(dtype=vec),
     ):
+        """Grid-to-particle transfer: new x, v, C. With ``remap`` = 0 F is updated from the same node velocities
+        ("grid"); otherwise F_out is left to :func:`remap_F`, and the particle's new affine velocity field
+        v + C (x_i - x_p) is scattered, mass-weighted, into ``grid_r`` (the first half of the velocity-gradient
+        remap; it needs only this particle's new v and C, so it rides on the same stencil pass)."""
         p = wp.tid()
         xp = x_in[p]
         if clamped[p] != 0:
@@ -354,12 +378,13 @@ def make_kernels(dim: int, scalar):
             v_out[p] = new_v
             C_out[p] = new_C
             ok = True
-            if update_F != 0:
-                # F + (dt C) F rather than (I + dt C) F: in float32, 1 + dt C_ii rounds the small increments of a
-                # slowly creeping state away, which showed as a steady drift of loaded beams (docs/engine.md)
-                Fn = F_in[p] + (dt * new_C) * F_in[p]
-                F_out[p] = Fn
-                ok = wp.determinant(Fn) > scalar(0.0)
+            if remap == 0:
+                ok = update_F(F_in, F_out, p, dt * new_C)
+            else:
+                mp = mass[p]
+                for q in range(NS):
+                    weight, dpos, idx = stencil_node(q, base, fx, w0, w1, w2, dx, shape)
+                    wp.atomic_add(grid_r, idx, (weight * mp) * (new_v + new_C * dpos))
             for a in range(dim):
                 if not wp.isfinite(xp[a]) or not wp.isfinite(new_v[a]):
                     ok = False
@@ -386,31 +411,20 @@ def make_kernels(dim: int, scalar):
         psi[i] = elastic_energy(F[i], model, G, K, prm)
 
     @wp.kernel
-    def remap_p2g(
-        x: wp.array(dtype=vec),
-        v: wp.array(dtype=vec),
-        C: wp.array(dtype=mat),
-        mass: wp.array(dtype=scalar),
-        grid_lo: vec,
-        shape: ivec,
-        dx: scalar,
-        grid_p: wp.array(dtype=vec),
+    def remap_node_velocity(
+        grid_r: wp.array(dtype=vec),
+        grid_m: wp.array(dtype=scalar),
+        grid_clamp: wp.array(dtype=wp.int32),
+        grid_w: wp.array(dtype=vec),
     ):
-        """Second transfer of the velocity-gradient remap: the particles' new affine velocity fields
-        v + C (x_i - x_p), mass-weighted onto the nodes (no stress, no external force). The node masses are
-        those of the first transfer (same particles, same positions)."""
-        p = wp.tid()
-        base, fx = local_coords(x[p], grid_lo, scalar(1.0) / dx)
-        for a in range(dim):
-            if base[a] < 0 or base[a] + 2 >= shape[a]:
-                return  # outside the grid block: p2g has flagged it, the step is discarded
-        w0, w1, w2 = bspline_weights(fx)
-        mp = mass[p]
-        vp = v[p]
-        Cp = C[p]
-        for q in range(NS):
-            weight, dpos, idx = stencil_node(q, base, fx, w0, w1, w2, dx, shape)
-            wp.atomic_add(grid_p, idx, (weight * mp) * (vp + Cp * dpos))
+        """Node velocities of the remap: the scattered momenta over the first transfer's node masses (same
+        particles, same positions), at rest on held nodes. Once per node instead of once per stencil entry."""
+        idx = wp.tid()
+        m = grid_m[idx]
+        if m > scalar(0.0) and grid_clamp[idx] == 0:
+            grid_w[idx] = grid_r[idx] / m
+        else:
+            grid_w[idx] = vec()
 
     @wp.kernel
     def remap_F(
@@ -420,39 +434,41 @@ def make_kernels(dim: int, scalar):
         shape: ivec,
         dx: scalar,
         dt: scalar,
-        grid_p: wp.array(dtype=vec),
-        grid_m: wp.array(dtype=scalar),
-        grid_clamp: wp.array(dtype=wp.int32),
+        grid_w: wp.array(dtype=vec),
         F_in: wp.array(dtype=mat),
         F_out: wp.array(dtype=mat),
         error: wp.array(dtype=wp.int32),
     ):
-        """F update from the remapped node velocities (held nodes at rest): F + dt (grad v) F at the particle's
-        position at the start of the step, the same stencil as the first gather."""
+        """F update from the remapped node velocities ``grid_w`` (:func:`remap_node_velocity`): F + dt (grad v) F
+        at the particle's position at the start of the step, the same stencil as the first gather."""
         p = wp.tid()
         if clamped[p] != 0:
             F_out[p] = F_in[p]
             return
         inv_dx = scalar(1.0) / dx
         base, fx = local_coords(x[p], grid_lo, inv_dx)
-        for a in range(dim):
-            if base[a] < 0 or base[a] + 2 >= shape[a]:
-                return  # outside the grid block: p2g has flagged it, the step is discarded
+        if outside_block(base, shape):
+            return  # outside the grid block: p2g has flagged it, the step is discarded
         w0, w1, w2 = bspline_weights(fx)
         Cn = mat()
         for q in range(NS):
             weight, dpos, idx = stencil_node(q, base, fx, w0, w1, w2, dx, shape)
-            m = grid_m[idx]
-            if grid_clamp[idx] == 0 and m > scalar(0.0):
-                Cn = Cn + wp.outer((weight / m) * grid_p[idx], dpos)
-        Cn = (scalar(4.0) * inv_dx * inv_dx) * Cn
-        Fn = F_in[p] + (dt * Cn) * F_in[p]
-        F_out[p] = Fn
-        if not (wp.determinant(Fn) > scalar(0.0)):
+            Cn = Cn + wp.outer(weight * grid_w[idx], dpos)
+        if not update_F(F_in, F_out, p, (dt * scalar(4.0) * inv_dx * inv_dx) * Cn):
             wp.atomic_max(error, 1, 1)
 
+    @wp.kernel
+    def add_grid(dst_p: wp.array(dtype=vec), src_p: wp.array(dtype=vec), dst_m: wp.array(dtype=scalar), src_m: wp.array(dtype=scalar), with_mass: int):
+        """Sum a worker thread's private grid into the shared one (CPU threads: Warp's CPU atomics are plain adds,
+        so each thread scatters into its own copy)."""
+        i = wp.tid()
+        dst_p[i] = dst_p[i] + src_p[i]
+        if with_mass != 0:
+            dst_m[i] = dst_m[i] + src_m[i]
+
     return dict(
-        remap_p2g=remap_p2g,
+        add_grid=add_grid,
+        remap_node_velocity=remap_node_velocity,
         remap_F=remap_F,
         p2g=p2g,
         grid_update=grid_update,

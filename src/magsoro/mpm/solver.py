@@ -11,7 +11,9 @@ move near its edge, so memory and per-step grid work follow the occupied region,
 """
 
 import math
+import os
 import time
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -33,6 +35,34 @@ def resolve_device(name: str | None) -> str:
     if name.startswith("cuda") and wp.get_cuda_device_count() == 0:
         raise SimulationError(f"device {name!r} requested but no CUDA device is available; use device = 'cpu'")
     return name
+
+
+# Automatic CPU threads: one per this many particles, up to the cores available. Below it a thread's share of a
+# step is too small to pay for handing work to another thread (benchmarks/README.md, "CPU threads").
+PARTICLES_PER_THREAD = 4000
+
+
+def resolve_threads(requested: int | None, device: str, n_particles: int) -> int:
+    """Threads a CPU step is split over. ``requested`` None is automatic: the environment variable MAGSORO_THREADS
+    if set (sweep workers set 1), else one thread per PARTICLES_PER_THREAD particles up to the usable cores.
+    Always 1 on CUDA."""
+    if not device.startswith("cpu"):
+        return 1
+    if requested is None:
+        env = os.environ.get("MAGSORO_THREADS")
+        if env:
+            try:
+                requested = int(env)
+            except ValueError:
+                raise ValueError(f"MAGSORO_THREADS must be a positive integer, got {env!r}") from None
+            if requested < 1:
+                raise ValueError(f"MAGSORO_THREADS must be a positive integer, got {env!r}")
+        else:
+            cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+            requested = min(cores, n_particles // PARTICLES_PER_THREAD)
+    if requested < 1:
+        requested = 1
+    return int(min(requested, n_particles))
 
 
 class Model:
@@ -159,7 +189,8 @@ class SolverSettings:
     velocity_gradient: where the F update takes its velocity gradient from, "remap" (the particles' new affine
     velocities transferred back to the grid, an extra transfer per step) or "grid" (the node velocities of the
     momentum update; cheaper, but nodes with little mass at the free surfaces carry force impulses that make
-    stressed bodies creep: docs/engine.md)."""
+    stressed bodies creep: docs/engine.md); threads: CPU threads a step is split over (None: automatic, see
+    :func:`resolve_threads`; ignored on CUDA)."""
 
     damping: float = 0.0
     gravity: tuple = (0.0, 0.0, 0.0)
@@ -169,6 +200,7 @@ class SolverSettings:
     grid_margin: int = 4
     plane_z: float = 0.0
     velocity_gradient: str = "remap"
+    threads: int | None = None
 
 
 class Solver:
@@ -196,8 +228,18 @@ class Solver:
         self.n_active = 0
         self.refits = 0
         self.error = wp.zeros(2, dtype=wp.int32, device=dev)
-        self.bounds = wp.zeros(2 * dim, dtype=sc, device=dev)
-        self.max_speed = wp.zeros(1, dtype=sc, device=dev)
+        if st.threads is not None and (not isinstance(st.threads, int) or st.threads < 1):
+            raise ValueError(f"threads must be a positive integer or None (automatic), got {st.threads!r}")
+        # CPU threads: each takes a contiguous range of particles, scatters into a grid of its own (thread 0 into
+        # the shared one) and keeps its own bounds and top speed; the grids are summed node by node
+        self.threads = resolve_threads(st.threads, dev, model.n_particles)
+        cuts = np.linspace(0, model.n_particles, self.threads + 1).round().astype(int)
+        self._ranges = [(int(cuts[t]), int(cuts[t + 1])) for t in range(self.threads)]
+        self._pool = ThreadPoolExecutor(self.threads - 1, thread_name_prefix="magsoro-step") if self.threads > 1 else None
+        self._thread_bounds = [wp.zeros(2 * dim, dtype=sc, device=dev) for _ in range(self.threads)]
+        self._thread_speed = [wp.zeros(1, dtype=sc, device=dev) for _ in range(self.threads)]
+        self._thread_grids = []  # (grid_p, grid_m) of threads 1.. (allocated with the grid block)
+        self._thread_grid_views = []
         self._bounds_valid = False
         self._evaluator = None
         self._evaluator_key = None
@@ -205,8 +247,7 @@ class Solver:
         self.B_particle = wp.zeros(n, dtype=self.k["v3"], device=dev)
         self.G_particle = wp.zeros(n, dtype=self.k["m3"], device=dev)
         self._collider_array = None
-        self._launches = None
-        self._launch_key = None
+        self._launch_sets = {}
         self._grid_version = 0
         self._grid_views = []
         self.phase_times = None
@@ -255,11 +296,16 @@ class Solver:
             self.grid_v = wp.zeros(cap, dtype=k["vec"], device=dev)
             self.grid_m = wp.zeros(cap, dtype=sc, device=dev)
             self.grid_clamp = wp.zeros(cap, dtype=wp.int32, device=dev)
+            self._thread_grids = [
+                (wp.zeros(cap, dtype=k["vec"], device=dev), wp.zeros(cap, dtype=sc, device=dev)) for _ in range(self.threads - 1)
+            ]
             self.capacity = cap
         self.n_active = need
         self.refits += 1
         self._grid_version += 1
+        self._launch_sets.clear()
         self._grid_views = [self.grid_p[:need], self.grid_m[:need], self.grid_clamp[:need]]
+        self._thread_grid_views = [(gp[:need], gm[:need]) for gp, gm in self._thread_grids]
 
     def enable_phase_timing(self, on: bool = True) -> None:
         """Time the phases of each step (p2g, grid, g2p, other) into ``phase_times`` (seconds, summed).
@@ -274,28 +320,37 @@ class Solver:
         self.phase_times[name] += now - since
         return now
 
-    def _record_launches(self, state_in: State, state_out: State, control: Control, has_gradient: bool) -> None:
-        """Pack every kernel's arguments once (Warp's recorded launches); a step then only updates what changes.
-        Packing all arguments on each launch costs more than the kernels themselves for small robots."""
+    def _record_launches(self, state_in: State, state_out: State, control: Control, has_gradient: bool) -> dict:
+        """Pack every kernel's arguments once (Warp's recorded launches) for this pair of states; a step then only
+        updates the scalars that change. Packing all arguments on each launch costs more than the kernels
+        themselves for small robots. Particle kernels get one launch per thread, over that thread's slice."""
         m, k, st, dev, sc = self.model, self.k, self.settings, self.device, self.scalar
         vec, ivec = k["vec"], k["ivec"]
         shape = ivec(*[int(s) for s in self.shape])
         org = ivec(*[int(o) for o in self.org])
         grid_lo = vec(*[sc(m.domain_lo[a] + self.org[a] * m.dx) for a in range(self.dim)])
         n_act = self.n_active
-        self._launches = {
-            "p2g": wp.launch(
+        grid_p = [self.grid_p] + [gp for gp, _ in self._thread_grids]
+        grid_m = [self.grid_m] + [gm for _, gm in self._thread_grids]
+
+        def particles(kernel, inputs_of):
+            out = []
+            for t, (a, b) in enumerate(self._ranges):
+                cut = (lambda arr: arr[a:b]) if self.threads > 1 else (lambda arr: arr)
+                out.append(wp.launch(kernel, dim=b - a, inputs=inputs_of(t, cut), device=dev, record_cmd=True))
+            return out
+
+        L = {
+            "p2g": particles(
                 k["p2g"],
-                dim=m.n_particles,
-                inputs=[
-                    state_in.x, state_in.v, state_in.C, state_in.F,
-                    m.vol0, m.mass, m.shear, m.bulk, m.material_model, m.material_params, m.Br, m.clamped,
-                    k["v3"](), 1 if has_gradient else 0, self.B_particle, self.G_particle,
+                lambda t, cut: [
+                    cut(state_in.x), cut(state_in.v), cut(state_in.C), cut(state_in.F),
+                    cut(m.vol0), cut(m.mass), cut(m.shear), cut(m.bulk), cut(m.material_model), cut(m.material_params),
+                    cut(m.Br), cut(m.clamped),
+                    k["v3"](), 1 if has_gradient else 0, cut(self.B_particle), cut(self.G_particle),
                     grid_lo, shape, sc(m.dx), sc(0.0),
-                    self.grid_p, self.grid_m, self.grid_clamp, self.error,
+                    grid_p[t], grid_m[t], self.grid_clamp, self.error,
                 ],
-                device=dev,
-                record_cmd=True,
             ),
             "grid_update": wp.launch(
                 k["grid_update"],
@@ -311,46 +366,78 @@ class Solver:
                 device=dev,
                 record_cmd=True,
             ),
-            "reset": wp.launch(k["reset_reductions"], dim=1, inputs=[self.bounds, self.max_speed, sc(1e30)], device=dev, record_cmd=True),
-            "g2p": wp.launch(
+            "reset": [
+                wp.launch(k["reset_reductions"], dim=1, inputs=[self._thread_bounds[t], self._thread_speed[t], sc(1e30)], device=dev, record_cmd=True)
+                for t in range(self.threads)
+            ],
+            "g2p": particles(
                 k["g2p"],
-                dim=m.n_particles,
-                inputs=[
-                    self.grid_v, m.clamped, grid_lo, shape, sc(m.dx), sc(0.0),
-                    state_in.x, state_in.F,
-                    state_out.x, state_out.v, state_out.C, state_out.F,
-                    self.bounds, self.max_speed, self.error, 0 if self._remap else 1,
+                lambda t, cut: [
+                    self.grid_v, cut(m.clamped), grid_lo, shape, sc(m.dx), sc(0.0),
+                    cut(state_in.x), cut(state_in.F),
+                    cut(state_out.x), cut(state_out.v), cut(state_out.C), cut(state_out.F),
+                    self._thread_bounds[t], self._thread_speed[t], self.error, 1 if self._remap else 0, cut(m.mass), grid_p[t],
                 ],
-                device=dev,
-                record_cmd=True,
             ),
+            "sum_mass": [
+                wp.launch(k["add_grid"], dim=n_act, inputs=[self.grid_p, grid_p[t], self.grid_m, grid_m[t], 1], device=dev, record_cmd=True)
+                for t in range(1, self.threads)
+            ],
+            "sum_momentum": [
+                wp.launch(k["add_grid"], dim=n_act, inputs=[self.grid_p, grid_p[t], self.grid_m, grid_m[t], 0], device=dev, record_cmd=True)
+                for t in range(1, self.threads)
+            ],
+            # keep the states' arrays alive: the set is found again by their ids
+            "_arrays": (state_in.x, state_in.v, state_in.C, state_in.F, state_out.x, state_out.v, state_out.C, state_out.F),
+            "_scalars": None,
         }
         if self._remap:
-            self._launches["remap_p2g"] = wp.launch(
-                k["remap_p2g"],
-                dim=m.n_particles,
-                inputs=[state_in.x, state_out.v, state_out.C, m.mass, grid_lo, shape, sc(m.dx), self.grid_p],
+            # second half of the remap: g2p has scattered the new affine velocities into grid_p (free after the
+            # grid update); node velocities go to grid_v (free after g2p), and F is gathered from them
+            L["remap_nodes"] = wp.launch(
+                k["remap_node_velocity"],
+                dim=n_act,
+                inputs=[self.grid_p, self.grid_m, self.grid_clamp, self.grid_v],
                 device=dev,
                 record_cmd=True,
             )
-            self._launches["remap_F"] = wp.launch(
+            L["remap_F"] = particles(
                 k["remap_F"],
-                dim=m.n_particles,
-                inputs=[
-                    state_in.x, m.clamped, grid_lo, shape, sc(m.dx), sc(0.0),
-                    self.grid_p, self.grid_m, self.grid_clamp, state_in.F, state_out.F, self.error,
+                lambda t, cut: [
+                    cut(state_in.x), cut(m.clamped), grid_lo, shape, sc(m.dx), sc(0.0), self.grid_v,
+                    cut(state_in.F), cut(state_out.F), self.error,
                 ],
-                device=dev,
-                record_cmd=True,
             )
+        return L
+
+    def _launch_set(self, state_in: State, state_out: State, control: Control, has_gradient: bool) -> dict:
+        arrays = (state_in.x, state_in.v, state_in.C, state_in.F, state_out.x, state_out.v, state_out.C, state_out.F)
+        key = (len(control.colliders), has_gradient) + tuple(id(a) for a in arrays)
+        L = self._launch_sets.get(key)
+        if L is None:
+            if len(self._launch_sets) >= 8:  # states made afresh each call: do not keep their launches forever
+                self._launch_sets.clear()
+            L = self._record_launches(state_in, state_out, control, has_gradient)
+            self._launch_sets[key] = L
+        return L
+
+    def _parallel(self, launches) -> None:
+        """Run one launch per thread: the calling thread takes the first (Warp releases the GIL in CPU kernels)."""
+        if len(launches) == 1:
+            launches[0].launch()
+            return
+        pending = [self._pool.submit(one.launch) for one in launches[1:]]
+        launches[0].launch()
+        for f in pending:
+            f.result()
 
     def grid_info(self) -> dict:
         return {"origin": self.org.tolist(), "shape": self.shape.tolist(), "nodes": self.n_active, "capacity": self.capacity, "refits": self.refits}
 
     def _particle_bounds(self, state: State):
         if self._bounds_valid:
-            b = self.bounds.numpy()
-            return b[: self.dim].astype(np.float64), b[self.dim :].astype(np.float64)
+            b = np.array([tb.numpy() for tb in self._thread_bounds], dtype=np.float64)
+            return b[:, : self.dim].min(axis=0), b[:, self.dim :].max(axis=0)
         x = state.x.numpy()
         return x.min(axis=0).astype(np.float64), x.max(axis=0).astype(np.float64)
 
@@ -382,7 +469,7 @@ class Solver:
         return total
 
     def last_max_speed(self) -> float:
-        return float(self.max_speed.numpy()[0])
+        return max(float(ts.numpy()[0]) for ts in self._thread_speed)
 
     # -- stepping -------------------------------------------------------------------------------------------
     def step(self, state_in: State, state_out: State, control: Control, dt: float) -> None:
@@ -410,48 +497,54 @@ class Solver:
             table = collider_table(control.colliders, t)
             if self._collider_array is None or self._collider_array.shape[0] != len(table):
                 self._collider_array = wp.array(table, dtype=wp.float64, device=dev)
-                self._launches = None
+                self._launch_sets.clear()
             else:
                 self._collider_array.assign(table)
         elif self._collider_array is None:
             self._collider_array = wp.zeros(COLLIDER_STRIDE, dtype=wp.float64, device=dev)
-        key = (self._grid_version, len(control.colliders), fields.has_gradient)
-        if self._launches is None or self._launch_key != key:
-            self._record_launches(state_in, state_out, control, fields.has_gradient)
-            self._launch_key = key
-        L = self._launches
-        # per-step values: the state pair (ping-pong), field, time step
-        for name, arr in (("x", state_in.x), ("v", state_in.v), ("C", state_in.C), ("F", state_in.F)):
-            L["p2g"].set_param_by_name(name, arr)
-        L["p2g"].set_param_by_name("B_uniform", k["v3"](*[sc(b) for b in b0]))
-        L["p2g"].set_param_by_name("dt", sc(dt))
-        L["grid_update"].set_param_by_name("dt", sc(dt))
-        L["grid_update"].set_param_by_name("damping_factor", sc(math.exp(-st.damping * dt)))
-        for name, arr in (("x_in", state_in.x), ("F_in", state_in.F), ("x_out", state_out.x), ("v_out", state_out.v), ("C_out", state_out.C), ("F_out", state_out.F)):
-            L["g2p"].set_param_by_name(name, arr)
-        L["g2p"].set_param_by_name("dt", sc(dt))
-        if self._remap:
-            for name, arr in (("x", state_in.x), ("v", state_out.v), ("C", state_out.C)):
-                L["remap_p2g"].set_param_by_name(name, arr)
-            for name, arr in (("x", state_in.x), ("F_in", state_in.F), ("F_out", state_out.F)):
-                L["remap_F"].set_param_by_name(name, arr)
-            L["remap_F"].set_param_by_name("dt", sc(dt))
+        L = self._launch_set(state_in, state_out, control, fields.has_gradient)
+        # per-step values: field and time step (set only when they change)
+        b_uniform = k["v3"](*[sc(b) for b in b0])
+        scalars = (tuple(float(b) for b in b0), float(dt), float(st.damping))
+        if L["_scalars"] != scalars:
+            dt_s = sc(dt)
+            for one in L["p2g"]:
+                one.set_param_by_name("B_uniform", b_uniform)
+                one.set_param_by_name("dt", dt_s)
+            if L["_scalars"] is None or L["_scalars"][1:] != scalars[1:]:
+                L["grid_update"].set_param_by_name("dt", dt_s)
+                L["grid_update"].set_param_by_name("damping_factor", sc(math.exp(-st.damping * dt)))
+                for one in L["g2p"] + L.get("remap_F", []):
+                    one.set_param_by_name("dt", dt_s)
+            L["_scalars"] = scalars
         for view in self._grid_views:
             view.zero_()
+        for gp, gm in self._thread_grid_views:
+            gp.zero_()
+            gm.zero_()
         self.error.zero_()
         tick = self._phase("other", tick)
-        L["p2g"].launch()
+        self._parallel(L["p2g"])
+        for one in L["sum_mass"]:
+            one.launch()
         tick = self._phase("p2g", tick)
         L["grid_update"].launch()
-        L["reset"].launch()
-        tick = self._phase("grid", tick)
-        L["g2p"].launch()
+        for one in L["reset"]:
+            one.launch()
         if self._remap:
-            # velocity-gradient remap (a second transfer, counted in the g2p phase): the node momenta are rebuilt
-            # from the particles' new affine velocities; node masses and held-node flags are the first transfer's
+            # grid_p (and the threads' copies) receive the remap's momenta in g2p
             self._grid_views[0].zero_()
-            L["remap_p2g"].launch()
-            L["remap_F"].launch()
+            for gp, _ in self._thread_grid_views:
+                gp.zero_()
+        tick = self._phase("grid", tick)
+        self._parallel(L["g2p"])
+        if self._remap:
+            # velocity-gradient remap (counted in the g2p phase): node momenta rebuilt from the particles' new
+            # affine velocities over the first transfer's node masses and held-node flags, then F from them
+            for one in L["sum_momentum"]:
+                one.launch()
+            L["remap_nodes"].launch()
+            self._parallel(L["remap_F"])
         tick = self._phase("g2p", tick)
         self._bounds_valid = True
         state_out.time = t + dt

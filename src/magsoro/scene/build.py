@@ -509,6 +509,7 @@ def build(scene: Scene, device: str | None = None, source: str = "scene", magnet
         cfl=sim.cfl,
         plane_z=sim.plane_z,
         velocity_gradient=sim.velocity_gradient,
+        threads=sim.threads,
     )
     probes = []
     masses = model.host["mass"]

@@ -581,6 +581,13 @@ class Simulation(Strict):
         "the grid; no creep of loaded bodies) or 'grid' (momentum-update node velocities; about half the cost per step on CPU, "
         "stressed bodies creep at a rate set by the time step, docs/engine.md).",
     )
+    threads: int | None = Field(
+        default=None,
+        ge=1,
+        le=256,
+        description="CPU threads a step is split over. Default: automatic, one per 4000 particles up to the usable "
+        "cores (the environment variable MAGSORO_THREADS overrides it; sweep workers use 1). Ignored on CUDA.",
+    )
 
 
 class Output(Strict):
