@@ -17,9 +17,12 @@ from magsoro.mpm.solver import Solver
 DEFAULT_STEPS = {"walker": 300, "walker_1m": 300, "beam2d": 1000, "block1m": 3}
 
 
-def run_scene(name: str, device: str = "cpu", steps: int | None = None) -> dict:
+def run_scene(name: str, device: str = "cpu", steps: int | None = None, threads: int | None = None) -> dict:
+    """Time ``name``. ``threads``: CPU threads of the engine's step (None: its automatic choice); the reference
+    kernel always runs on one thread, so on CPU the ratio also carries the engine's threading."""
     steps = steps or DEFAULT_STEPS[name]
     model, control, settings = build(name, device)
+    settings.threads = threads
     solver = Solver(model, settings)
     a, b = solver.new_state(), solver.new_state()
     dt = solver.stable_dt(control)
@@ -48,6 +51,8 @@ def run_scene(name: str, device: str = "cpu", steps: int | None = None) -> dict:
         "name": name,
         "n_particles": n,
         "dim": model.dim,
+        "threads": solver.threads,
+        "reference_threads": 1,
         "steps": steps,
         "dt": dt,
         "ms_per_step": 1e3 * wall / steps,
@@ -60,8 +65,8 @@ def run_scene(name: str, device: str = "cpu", steps: int | None = None) -> dict:
     }
 
 
-def run(names, device: str = "cpu", steps: int | None = None) -> dict:
-    scenes = [run_scene(n, device, steps) for n in names]
+def run(names, device: str = "cpu", steps: int | None = None, threads: int | None = None) -> dict:
+    scenes = [run_scene(n, device, steps, threads) for n in names]
     if device == "cpu":
         peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
     else:
@@ -69,13 +74,23 @@ def run(names, device: str = "cpu", steps: int | None = None) -> dict:
     return {
         "device": device,
         "device_name": wp.get_device(device).name,
-        "machine": {"node": platform.node(), "processor": platform.processor() or platform.machine(), "cpu_count": __import__("os").cpu_count()},
+        "machine": {"node": platform.node(), "processor": platform.processor() or platform.machine(), "cpu_count": __import__("os").cpu_count(), "cpu_model": _cpu_model()},
         "warp_version": wp.config.version,
         "commit": _commit(),
         "date": datetime.datetime.now().isoformat(timespec="seconds"),
         "peak_memory_bytes": peak,
         "scenes": scenes,
     }
+
+
+def _cpu_model() -> str:
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    return platform.processor() or "unknown"
 
 
 def _commit() -> str:

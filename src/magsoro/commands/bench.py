@@ -1,4 +1,5 @@
-"""``magsoro bench [NAME ...] [--device cpu|cuda] [--steps N] [--json] [--save]``: time the fixed benchmark scenes."""
+"""``magsoro bench [NAME ...] [--device cpu|cuda] [--steps N] [--threads N] [--json] [--save]``: time the fixed
+benchmark scenes."""
 
 import json
 import sys
@@ -10,6 +11,7 @@ def register(sub):
     p.add_argument("names", nargs="*", help="scenes to run (default: all)")
     p.add_argument("--device", default="cpu", help="cpu or cuda[:N]")
     p.add_argument("--steps", type=int, help="timed steps per scene (default depends on the scene)")
+    p.add_argument("--threads", type=int, help="CPU threads per step (default: the engine's automatic choice, one per 4000 particles up to the cores)")
     p.add_argument("--json", action="store_true", help="print the result as JSON")
     p.add_argument("--save", action="store_true", help="write benchmarks/results/<date>-<device>-<commit>.json")
     p.set_defaults(func=run)
@@ -29,20 +31,23 @@ def run(args) -> int:
         raise MagsoroError(f"--device {args.device}: no CUDA device on this machine")
     if args.steps is not None and args.steps < 1:
         raise MagsoroError("--steps must be >= 1")
-    result = run_bench(names_or_all(args.names), args.device, args.steps)
+    if args.threads is not None and args.threads < 1:
+        raise MagsoroError("--threads must be >= 1")
+    result = run_bench(names_or_all(args.names), args.device, args.steps, args.threads)
     if args.json:
         print(json.dumps(result, indent=2))
     else:
         print(f"device {result['device_name']} ({result['device']}), commit {result['commit']}")
-        print(f"{'scene':<10} {'particles':>10} {'ms/step':>9} {'steps/s':>9} {'Mpart-steps/s':>14} {'ref ratio':>9}  phases ms (p2g/grid/g2p/other)")
+        print(f"{'scene':<10} {'particles':>10} {'threads':>7} {'ms/step':>9} {'steps/s':>9} {'Mpart-steps/s':>14} {'ref ratio':>9}  phases ms (p2g/grid/g2p/other)")
         for s in result["scenes"]:
             ph = s["phases_ms"]
-            print(f"{s['name']:<10} {s['n_particles']:>10} {s['ms_per_step']:>9.3f} {s['steps_per_s']:>9.1f} {s['particle_steps_per_s'] / 1e6:>14.2f} {s['ratio_to_reference']:>9.2f}  "
+            print(f"{s['name']:<10} {s['n_particles']:>10} {s['threads']:>7} {s['ms_per_step']:>9.3f} {s['steps_per_s']:>9.1f} {s['particle_steps_per_s'] / 1e6:>14.2f} {s['ratio_to_reference']:>9.2f}  "
                   f"{ph['p2g']:.2f}/{ph['grid']:.2f}/{ph['g2p']:.2f}/{ph['other']:.2f}")
     if args.save:
         out_dir = Path("benchmarks") / "results"
         out_dir.mkdir(parents=True, exist_ok=True)
-        out = out_dir / f"{result['date'][:10]}-{args.device.replace(':', '')}-{result['commit']}.json"
+        tag = "" if args.threads is None else f"-threads{args.threads}"
+        out = out_dir / f"{result['date'][:10]}-{args.device.replace(':', '')}-{result['commit']}{tag}.json"
         from magsoro.io.files import atomic_write_json
 
         atomic_write_json(out, result)
