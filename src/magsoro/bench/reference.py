@@ -128,46 +128,59 @@ def reference_kernels(dim: int):
     return dict(p2g=p2g, grid=grid, g2p=g2p, vec=vec, mat=mat, ivec=ivec)
 
 
-def time_reference(positions, volumes, masses, shear_modulus: float, bulk_modulus: float, dx: float, dt: float,
-                   steps: int, device: str = "cpu", margin: int = 8) -> dict:
-    """Run ``steps`` bare steps from rest on the given particles and return timing (float32, recorded launches)."""
-    X = np.asarray(positions, dtype=np.float64)
-    n, dim = X.shape
-    k = reference_kernels(dim)
-    lo_node = np.floor(X.min(axis=0) / dx - 0.5).astype(int) - margin
-    hi_node = np.floor(X.max(axis=0) / dx - 0.5).astype(int) + 2 + margin
-    shape = hi_node - lo_node + 1
-    lo = lo_node * dx
-    nn = int(np.prod(shape))
-    x = wp.array(X.astype(np.float32), dtype=k["vec"], device=device)
-    v = wp.zeros(n, dtype=k["vec"], device=device)
-    C = wp.zeros(n, dtype=k["mat"], device=device)
-    F = wp.array(np.broadcast_to(np.eye(dim, dtype=np.float32), (n, dim, dim)).copy(), dtype=k["mat"], device=device)
-    vol = wp.array(np.asarray(volumes, dtype=np.float32), dtype=float, device=device)
-    mass = wp.array(np.asarray(masses, dtype=np.float32), dtype=float, device=device)
-    gp = wp.zeros(nn, dtype=k["vec"], device=device)
-    gm = wp.zeros(nn, dtype=float, device=device)
-    gv = wp.zeros(nn, dtype=k["vec"], device=device)
-    g = k["vec"](*([0.0] * (dim - 1) + [-9.81]))
-    lov, shp = k["vec"](*lo.astype(np.float32)), k["ivec"](*shape.astype(np.int32))
-    launches = [
-        wp.launch(k["p2g"], dim=n, inputs=[x, v, C, F, vol, mass, float(shear_modulus), float(bulk_modulus), lov, shp, dx, dt, gp, gm], device=device, record_cmd=True),
-        wp.launch(k["grid"], dim=nn, inputs=[gp, gm, g, dt, gv], device=device, record_cmd=True),
-        wp.launch(k["g2p"], dim=n, inputs=[gv, lov, shp, dx, dt, x, v, C, F], device=device, record_cmd=True),
-    ]
+class ReferenceStep:
+    """The bare MLS-MPM step on the given particles, set up once: :meth:`time` runs ``steps`` more steps and
+    returns their wall time (s), so a benchmark can alternate it with the engine (float32, recorded launches)."""
 
-    def one():
-        gp.zero_()
-        gm.zero_()
-        for cmd in launches:
+    def __init__(self, positions, volumes, masses, shear_modulus: float, bulk_modulus: float, dx: float, dt: float,
+                 device: str = "cpu", margin: int = 8):
+        X = np.asarray(positions, dtype=np.float64)
+        n, dim = X.shape
+        k = reference_kernels(dim)
+        lo_node = np.floor(X.min(axis=0) / dx - 0.5).astype(int) - margin
+        hi_node = np.floor(X.max(axis=0) / dx - 0.5).astype(int) + 2 + margin
+        shape = hi_node - lo_node + 1
+        lo = lo_node * dx
+        nn = int(np.prod(shape))
+        self.n_particles, self.grid_nodes, self.device = n, nn, device
+        x = wp.array(X.astype(np.float32), dtype=k["vec"], device=device)
+        v = wp.zeros(n, dtype=k["vec"], device=device)
+        C = wp.zeros(n, dtype=k["mat"], device=device)
+        F = wp.array(np.broadcast_to(np.eye(dim, dtype=np.float32), (n, dim, dim)).copy(), dtype=k["mat"], device=device)
+        vol = wp.array(np.asarray(volumes, dtype=np.float32), dtype=float, device=device)
+        mass = wp.array(np.asarray(masses, dtype=np.float32), dtype=float, device=device)
+        self._gp = wp.zeros(nn, dtype=k["vec"], device=device)
+        self._gm = wp.zeros(nn, dtype=float, device=device)
+        gv = wp.zeros(nn, dtype=k["vec"], device=device)
+        g = k["vec"](*([0.0] * (dim - 1) + [-9.81]))
+        lov, shp = k["vec"](*lo.astype(np.float32)), k["ivec"](*shape.astype(np.int32))
+        self._launches = [
+            wp.launch(k["p2g"], dim=n, inputs=[x, v, C, F, vol, mass, float(shear_modulus), float(bulk_modulus), lov, shp, dx, dt, self._gp, self._gm], device=device, record_cmd=True),
+            wp.launch(k["grid"], dim=nn, inputs=[self._gp, self._gm, g, dt, gv], device=device, record_cmd=True),
+            wp.launch(k["g2p"], dim=n, inputs=[gv, lov, shp, dx, dt, x, v, C, F], device=device, record_cmd=True),
+        ]
+        for _ in range(3):
+            self._one()
+        wp.synchronize_device(device)
+
+    def _one(self):
+        self._gp.zero_()
+        self._gm.zero_()
+        for cmd in self._launches:
             cmd.launch()
 
-    for _ in range(3):
-        one()
-    wp.synchronize_device(device)
-    t0 = time.perf_counter()
-    for _ in range(steps):
-        one()
-    wp.synchronize_device(device)
-    wall = time.perf_counter() - t0
-    return {"n_particles": n, "steps": steps, "ms_per_step": 1e3 * wall / steps, "particle_steps_per_s": n * steps / wall, "grid_nodes": nn}
+    def time(self, steps: int) -> float:
+        t0 = time.perf_counter()
+        for _ in range(steps):
+            self._one()
+        wp.synchronize_device(self.device)
+        return time.perf_counter() - t0
+
+
+def time_reference(positions, volumes, masses, shear_modulus: float, bulk_modulus: float, dx: float, dt: float,
+                   steps: int, device: str = "cpu", margin: int = 8) -> dict:
+    """Run ``steps`` bare steps from rest on the given particles and return timing."""
+    ref = ReferenceStep(positions, volumes, masses, shear_modulus, bulk_modulus, dx, dt, device, margin)
+    wall = ref.time(steps)
+    n = ref.n_particles
+    return {"n_particles": n, "steps": steps, "ms_per_step": 1e3 * wall / steps, "particle_steps_per_s": n * steps / wall, "grid_nodes": ref.grid_nodes}

@@ -10,14 +10,20 @@ from pathlib import Path
 import numpy as np
 import warp as wp
 
-from magsoro.bench.reference import time_reference
+from magsoro.bench.reference import ReferenceStep
 from magsoro.bench.scenes import SCENES, build
 from magsoro.mpm.solver import Solver
 
 DEFAULT_STEPS = {"walker": 300, "walker_1m": 300, "beam2d": 1000, "block1m": 3}
 
 
-def run_scene(name: str, device: str = "cpu", steps: int | None = None, threads: int | None = None) -> dict:
+#: Timed rounds per scene: engine and reference alternate, ``steps`` each, so both see the same machine; the
+#: figures are medians over the rounds (a shared 2-core VM here changes speed by up to 1.7x from one second to
+#: the next, which a single timing mistakes for a change of the code).
+ROUNDS = 5
+
+
+def run_scene(name: str, device: str = "cpu", steps: int | None = None, threads: int | None = None, rounds: int = ROUNDS) -> dict:
     """Time ``name``. ``threads``: CPU threads of the engine's step (None: its automatic choice); the reference
     kernel always runs on one thread, so on CPU the ratio also carries the engine's threading."""
     steps = steps or DEFAULT_STEPS[name]
@@ -29,13 +35,18 @@ def run_scene(name: str, device: str = "cpu", steps: int | None = None, threads:
     for _ in range(5):  # kernel load and first grid fit
         solver.step(a, b, control, dt)
         a, b = b, a
-    wp.synchronize_device(device)
-    t0 = time.perf_counter()
-    for _ in range(steps):
-        solver.step(a, b, control, dt)
-        a, b = b, a
-    wp.synchronize_device(device)
-    wall = time.perf_counter() - t0
+    h = model.host
+    ref = ReferenceStep(h["positions"], h["volumes"], h["mass"], float(h["shear_modulus"][0]), float(h["bulk_modulus"][0]), model.dx, dt, device)
+    engine_s, ref_s = [], []
+    for _ in range(rounds):
+        wp.synchronize_device(device)
+        t0 = time.perf_counter()
+        for _ in range(steps):
+            solver.step(a, b, control, dt)
+            a, b = b, a
+        wp.synchronize_device(device)
+        engine_s.append(time.perf_counter() - t0)
+        ref_s.append(ref.time(steps))
     # phase split from a separate, synchronised pass (timing each phase adds synchronisation)
     solver.enable_phase_timing(True)
     n_phase = max(1, steps // 4)
@@ -43,10 +54,10 @@ def run_scene(name: str, device: str = "cpu", steps: int | None = None, threads:
         solver.step(a, b, control, dt)
         a, b = b, a
     phases = {k: 1e3 * v / n_phase for k, v in solver.phase_times.items()}
-    h = model.host
-    ref = time_reference(h["positions"], h["volumes"], h["mass"], float(h["shear_modulus"][0]), float(h["bulk_modulus"][0]), model.dx, dt, steps, device)
     n = model.n_particles
-    pps = n * steps / wall
+    wall = float(np.median(engine_s))
+    ref_wall = float(np.median(ref_s))
+    ratios = [r / e for e, r in zip(engine_s, ref_s)]  # each round against the reference timed right after it
     return {
         "name": name,
         "n_particles": n,
@@ -54,12 +65,16 @@ def run_scene(name: str, device: str = "cpu", steps: int | None = None, threads:
         "threads": solver.threads,
         "reference_threads": 1,
         "steps": steps,
+        "rounds": rounds,
         "dt": dt,
         "ms_per_step": 1e3 * wall / steps,
+        "ms_per_step_rounds": [1e3 * e / steps for e in engine_s],
         "steps_per_s": steps / wall,
-        "particle_steps_per_s": pps,
-        "reference_particle_steps_per_s": ref["particle_steps_per_s"],
-        "ratio_to_reference": pps / ref["particle_steps_per_s"],
+        "particle_steps_per_s": n * steps / wall,
+        "reference_ms_per_step": 1e3 * ref_wall / steps,
+        "reference_ms_per_step_rounds": [1e3 * r / steps for r in ref_s],
+        "reference_particle_steps_per_s": n * steps / ref_wall,
+        "ratio_to_reference": float(np.median(ratios)),
         "phases_ms": phases,
         "grid": solver.grid_info(),
     }
