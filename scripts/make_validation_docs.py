@@ -328,7 +328,10 @@ comes apart at large fields.
    1/omega_1; with the time step's CFL factor at 0.1 instead of 0.4 it is -0.57 % after 12/omega_1 and rising at
    the same rate. So the settled tip of a loaded slender beam is still time- and time-step-dependent at the 1-2 %
    level after the remap: a slow drift of the engine, not a resolution error, and it is what the convergence
-   rows measure. Reproduce (about 20 s, 40 s and 75 s on one core):
+   rows measure. Tried and ruled out: moving the particles with the remapped velocities as well (so that x and F
+   follow the same velocity field) gives +1.34 % and +2.10 % after 12 and 24/omega_1, no change. The beam under
+   its own weight shows the same slow tail (`beam_gravity`, docs/engine.md), so the drift is not magnetic.
+   Reproduce (about 20 s, 40 s and 75 s on one core):
    `python -c "from magsoro.validation.beam import *; c = compare(BeamSetup(t_over_dx=2, hold=12), (0.001,), 90.0); print(c.run.tip_dy, c.ref_dy)"`
    (then `hold=24`, and `hold=12, cfl=0.1`).
 
