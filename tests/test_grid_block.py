@@ -22,3 +22,32 @@ def test_grid_block_independent_of_domain():
     assert info[0]["capacity"] == info[1]["capacity"]
     # the block is a small multiple of the robot's cells (10 x 2 mm at 0.25 mm is 40 x 8 cells), not of the domain
     assert info[1]["nodes"] < 60 * 20
+
+
+def test_safe_box_is_inside_the_fit_and_the_domain():
+    """The step skips the refit and domain checks while the particle bounds stay inside a box computed at each
+    refit; every bound inside that box must pass the full checks (Solver._fits and the domain test)."""
+    import numpy as np
+
+    sim = Simulation(parse_scene(robot_scene(0.02, 2, "cpu")))
+    sim.step()
+    solver, m = sim.solver, sim.solver.model
+    rng = np.random.default_rng(3)
+    lo_box, hi_box = solver._safe_lo, solver._safe_hi
+    assert np.all(hi_box > lo_box)
+    # bounds on and near the box faces, inside and just outside
+    for _ in range(2000):
+        lo = lo_box + rng.uniform(-2, 2, m.dim) * m.dx * rng.choice([1e-9, 1e-3, 0.5, 1.0], m.dim)
+        hi = hi_box + rng.uniform(-2, 2, m.dim) * m.dx * rng.choice([1e-9, 1e-3, 0.5, 1.0], m.dim)
+        if np.all(lo >= lo_box) and np.all(hi < hi_box):
+            assert solver._fits(lo, hi)
+            assert np.all(lo >= m.domain_lo) and np.all(hi <= m.domain_hi)
+    # and the box is tight: a bound 0.01 dx outside any face fails the fit or the domain test
+    for a in range(m.dim):
+        for side in (0, 1):
+            lo, hi = lo_box.copy(), hi_box.copy() - 1e-6 * m.dx
+            if side == 0:
+                lo[a] -= 0.01 * m.dx
+            else:
+                hi[a] += 0.01 * m.dx
+            assert not solver._fits(lo, hi) or lo[a] < m.domain_lo[a] or hi[a] > m.domain_hi[a]

@@ -83,3 +83,36 @@ def test_threads_setting_is_checked():
         parse_scene(scene)
     scene["simulation"]["threads"] = 2
     assert parse_scene(scene).simulation.threads == 2
+
+
+def test_workers_run_every_launch_and_pass_errors_on():
+    """The helper threads of a CPU step run their launches, wait for all of them, and re-raise a worker's
+    error in the stepping thread (after the others have finished: they write into the same arrays)."""
+    import threading
+    import time
+
+    from magsoro.mpm.solver import _Workers
+
+    ran = []
+
+    class Job:
+        def __init__(self, name, fail=False, delay=0.0):
+            self.name, self.fail, self.delay = name, fail, delay
+
+        def launch(self):
+            time.sleep(self.delay)
+            ran.append((self.name, threading.current_thread().name))
+            if self.fail:
+                raise RuntimeError(f"{self.name} failed")
+
+    w = _Workers(2)
+    w.run([Job("a"), Job("b"), Job("c")])
+    assert sorted(n for n, _ in ran) == ["a", "b", "c"]
+    assert {t for _, t in ran} == {threading.current_thread().name, "magsoro-step-1", "magsoro-step-2"}
+    ran.clear()
+    with pytest.raises(RuntimeError, match="c failed"):
+        w.run([Job("a"), Job("b", delay=0.05), Job("c", fail=True)])
+    assert sorted(n for n, _ in ran) == ["a", "b", "c"]  # b finished before the error came back
+    ran.clear()
+    w.run([Job("a"), Job("b"), Job("c")])  # still usable after an error
+    assert len(ran) == 3
