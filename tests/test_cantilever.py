@@ -78,19 +78,21 @@ def test_cantilever_settles_and_converges_to_rod(reference):
 
 
 @pytest.mark.slow
-def test_float32_loaded_cantilever_does_not_creep():
-    """A settled float32 cantilever under a constant field stays put. With the deformation-gradient update
-    written as (I + dt C) F, float32 rounding of 1 + dt C_ii dropped the small increments of the settling
-    state and the tip crept steadily along the field without end (0.37 % of its deflection between 0.24 s and
-    0.32 s); F + (dt C) F keeps them, and the tip stops (measured: no change in those 80 ms)."""
-    d = cantilever_scene(3, 0.32, precision="float32")
-    d["fields"][0]["profile"]["duration"] = 0.01
-    sim = Simulation(parse_scene(d))
-    sim.advance_to(0.24)
-    y1 = sim.probe_values()["tip_y"]
-    sim.advance_to(0.32)
-    y2 = sim.probe_values()["tip_y"]
-    assert abs(y2 - y1) < 5e-4 * abs(y2), (y1, y2)
+def test_float32_loaded_cantilever_tracks_float64():
+    """A float32 cantilever held under a constant field stays with the float64 run of the same scene. With the
+    deformation-gradient update written as (I + dt C) F, float32 rounding of 1 + dt C_ii dropped the small
+    increments of the settling state and the tip crept along the field: 1.6 % above the float64 tip at 0.32 s
+    (measured with that form restored); F + (dt C) F keeps them: 0.1 %. (Both precisions still move by about
+    0.2 % per 80 ms late in the hold: the engine's slow drift of docs/validation.md, finding 4, which is not a
+    float32 effect; an earlier form of this test asked for a settled float32 tip and failed on it.)"""
+    tips = {}
+    for precision in ("float32", "float64"):
+        d = cantilever_scene(3, 0.32, precision=precision)
+        d["fields"][0]["profile"]["duration"] = 0.01
+        sim = Simulation(parse_scene(d))
+        sim.advance_to(0.32)
+        tips[precision] = sim.probe_values()["tip_y"]
+    assert abs(tips["float32"] - tips["float64"]) < 5e-3 * abs(tips["float64"]), tips
 
 
 @pytest.mark.parametrize("mode, low, high", [("remap", -0.02, 0.02), ("grid", 0.08, 0.25)])

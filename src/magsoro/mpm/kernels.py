@@ -116,12 +116,13 @@ def make_kernels(dim: int, scalar):
         return w0, w1, w2
 
     @wp.func
-    def pick(w0: vec, w1: vec, w2: vec, o: int, a: int):
+    def pick(w0: vec, w1: vec, w2: vec, o: int):
+        """The weights of offset ``o`` (a constant once the stencil loop is unrolled) along every axis."""
         if o == 0:
-            return w0[a]
+            return w0
         if o == 1:
-            return w1[a]
-        return w2[a]
+            return w1
+        return w2
 
     @wp.func
     def stencil_offset(q: int):
@@ -169,15 +170,18 @@ def make_kernels(dim: int, scalar):
         return out
 
     @wp.func
-    def stencil_node(q: int, base: ivec, fx: vec, w0: vec, w1: vec, w2: vec, dx: scalar, shape: ivec):
-        """Weight, offset x_i - x_p and flat grid index of the q-th node of a particle's 3^dim stencil."""
+    def stencil_node(q: int, w0: vec, w1: vec, w2: vec, first: int, shape: ivec):
+        """Weight, integer offset o (as a vector) and flat grid index of the q-th node of a particle's 3^dim
+        stencil; ``first`` is the flat index of its base node. The node's offset from the particle is
+        x_i - x_p = (o - fx) dx: the loops below sum with o and subtract the fx part once, so that with q a
+        constant (the loops are unrolled) each node costs a few additions instead of a product with (o - fx)."""
         o = stencil_offset(q)
         weight = scalar(1.0)
-        dpos = vec()
+        of = vec()
         for a in range(dim):
-            weight = weight * pick(w0, w1, w2, o[a], a)
-            dpos[a] = (scalar(o[a]) - fx[a]) * dx
-        return weight, dpos, flat_index(base + o, shape)
+            weight = weight * pick(w0, w1, w2, o[a])[a]
+            of[a] = scalar(o[a])
+        return weight, of, first + flat_index(o, shape)
 
     @wp.func
     def update_F(F_in: wp.array(dtype=mat), F_out: wp.array(dtype=mat), p: int, dtC: mat):
@@ -249,9 +253,15 @@ def make_kernels(dim: int, scalar):
             f3 = wp.transpose(G_particle[p]) * m3d
             mv = mv + dt * inplane(f3)
         is_clamped = clamped[p]
+        # node value mv + affine (x_i - x_p) = mv + ((affine dx) o - affine fx dx). mv is added per node, not
+        # folded into the constant part: the small momentum of a settling body would lose its low bits to the
+        # large stress term once for all 27 nodes alike, a bias that makes float32 bodies creep
+        A = affine * dx
+        Afx = A * fx
+        first = flat_index(base, shape)
         for q in range(NS):
-            weight, dpos, idx = stencil_node(q, base, fx, w0, w1, w2, dx, shape)
-            wp.atomic_add(grid_p, idx, weight * (mv + affine * dpos))
+            weight, o, idx = stencil_node(q, w0, w1, w2, first, shape)
+            wp.atomic_add(grid_p, idx, weight * (mv + (A * o - Afx)))
             wp.atomic_add(grid_m, idx, weight * mp)
             if is_clamped != 0:
                 grid_clamp[idx] = 1
@@ -366,13 +376,15 @@ def make_kernels(dim: int, scalar):
             base, fx = local_coords(xp, grid_lo, inv_dx)
             w0, w1, w2 = bspline_weights(fx)
             new_v = vec()
-            new_C = mat()
+            S = mat()
+            first = flat_index(base, shape)
             for q in range(NS):
-                weight, dpos, idx = stencil_node(q, base, fx, w0, w1, w2, dx, shape)
+                weight, o, idx = stencil_node(q, w0, w1, w2, first, shape)
                 wgv = weight * grid_v[idx]
                 new_v = new_v + wgv
-                new_C = new_C + wp.outer(wgv, dpos)
-            new_C = (scalar(4.0) * inv_dx * inv_dx) * new_C  # scaled once, not per node
+                S = S + wp.outer(wgv, o)
+            # C = (4/dx^2) sum w v_i (x_i - x_p)^T = (4/dx) (sum w v_i o^T - v fx^T)
+            new_C = (scalar(4.0) * inv_dx) * (S - wp.outer(new_v, fx))
             xp = xp + dt * new_v
             x_out[p] = xp
             v_out[p] = new_v
@@ -382,9 +394,11 @@ def make_kernels(dim: int, scalar):
                 ok = update_F(F_in, F_out, p, dt * new_C)
             else:
                 mp = mass[p]
-                for q in range(NS):
-                    weight, dpos, idx = stencil_node(q, base, fx, w0, w1, w2, dx, shape)
-                    wp.atomic_add(grid_r, idx, (weight * mp) * (new_v + new_C * dpos))
+                Cd = new_C * dx
+                Cfx = Cd * fx
+                for q in range(NS):  # new_v added per node, as in p2g
+                    weight, o, idx = stencil_node(q, w0, w1, w2, first, shape)
+                    wp.atomic_add(grid_r, idx, (weight * mp) * (new_v + (Cd * o - Cfx)))
             for a in range(dim):
                 if not wp.isfinite(xp[a]) or not wp.isfinite(new_v[a]):
                     ok = False
@@ -450,11 +464,16 @@ def make_kernels(dim: int, scalar):
         if outside_block(base, shape):
             return  # outside the grid block: p2g has flagged it, the step is discarded
         w0, w1, w2 = bspline_weights(fx)
-        Cn = mat()
+        S = mat()
+        sv = vec()
+        first = flat_index(base, shape)
         for q in range(NS):
-            weight, dpos, idx = stencil_node(q, base, fx, w0, w1, w2, dx, shape)
-            Cn = Cn + wp.outer(weight * grid_w[idx], dpos)
-        if not update_F(F_in, F_out, p, (dt * scalar(4.0) * inv_dx * inv_dx) * Cn):
+            weight, o, idx = stencil_node(q, w0, w1, w2, first, shape)
+            wv = weight * grid_w[idx]
+            sv = sv + wv
+            S = S + wp.outer(wv, o)
+        # as in g2p: (4/dx^2) sum w v_i (x_i - x_p)^T = (4/dx) (S - (sum w v_i) fx^T)
+        if not update_F(F_in, F_out, p, (dt * scalar(4.0) * inv_dx) * (S - wp.outer(sv, fx))):
             wp.atomic_max(error, 1, 1)
 
     @wp.kernel
