@@ -193,9 +193,11 @@ def test_interrupted_sweep_resumes_without_duplicates_or_gaps(tmp_path):
     finished before the interruption are not run again."""
     from magsoro.cli import main
 
-    # runs long enough (0.01 s simulated, a few seconds each) that the interrupt lands while some are left even
-    # on a busy machine, where the first runs wait for the worker's start and the later ones race through
-    scene = write_scene(tmp_path, TINY_SCENE.replace("duration = 0.001", "duration = 0.01"))
+    # runs long enough (0.04 s simulated, a few seconds each) that the interrupt lands while some are left even
+    # on a busy machine, where the first runs wait for the worker's start and the later ones race through (at
+    # 0.01 s a faster engine finished the last four runs in 3 s, before the interrupt took effect)
+    duration = 0.04
+    scene = write_scene(tmp_path, TINY_SCENE.replace("duration = 0.001", f"duration = {duration}"))
     out = tmp_path / "sweep"
     args = ["sweep", str(scene), "--param", f"fields.0.B={B_VALUES}", "--out", str(out)]
     env = dict(os.environ, PYTHONUNBUFFERED="1")
@@ -233,4 +235,4 @@ def test_interrupted_sweep_resumes_without_duplicates_or_gaps(tmp_path):
     for r in rows:
         metrics = read_csv(out / "runs" / r["run"] / "metrics.csv")
         times = [float(m["time"]) for m in metrics]
-        assert times == sorted(times) and times[-1] == pytest.approx(0.01)  # one clean series per run
+        assert times == sorted(times) and times[-1] == pytest.approx(duration)  # one clean series per run
