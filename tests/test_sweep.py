@@ -193,16 +193,17 @@ def test_interrupted_sweep_resumes_without_duplicates_or_gaps(tmp_path):
     finished before the interruption are not run again."""
     from magsoro.cli import main
 
-    # runs long enough (0.04 s simulated, a few seconds each) that the interrupt lands while some are left even
-    # on a busy machine, where the first runs wait for the worker's start and the later ones race through (at
-    # 0.01 s a faster engine finished the last four runs in 3 s, before the interrupt took effect)
-    duration = 0.04
-    scene = write_scene(tmp_path, TINY_SCENE.replace("duration = 0.001", f"duration = {duration}"))
+    # runs long enough (0.01 s simulated, a few seconds each) that the interrupt lands while some are left even
+    # on a busy machine, where the first runs wait for the worker's start and the later ones race through
+    scene = write_scene(tmp_path, TINY_SCENE.replace("duration = 0.001", "duration = 0.01"))
     out = tmp_path / "sweep"
     args = ["sweep", str(scene), "--param", f"fields.0.B={B_VALUES}", "--out", str(out)]
     env = dict(os.environ, PYTHONUNBUFFERED="1")
+    # SIGINT back to its default in the child: a test run started in the background of a non-interactive shell
+    # (`bash .ci/run &`) inherits SIGINT ignored, and Python then installs no KeyboardInterrupt handler
     proc = subprocess.Popen([sys.executable, "-m", "magsoro.cli", *args, "--workers", "1"], env=env,
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     deadline = time.monotonic() + 120
     done = 0
     while time.monotonic() < deadline and proc.poll() is None:
@@ -235,4 +236,4 @@ def test_interrupted_sweep_resumes_without_duplicates_or_gaps(tmp_path):
     for r in rows:
         metrics = read_csv(out / "runs" / r["run"] / "metrics.csv")
         times = [float(m["time"]) for m in metrics]
-        assert times == sorted(times) and times[-1] == pytest.approx(duration)  # one clean series per run
+        assert times == sorted(times) and times[-1] == pytest.approx(0.01)  # one clean series per run
