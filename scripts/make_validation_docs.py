@@ -342,6 +342,37 @@ comes apart at large fields.
    `python -c "from magsoro.validation.beam import *; c = compare(BeamSetup(t_over_dx=2, hold=12), (0.001,), 90.0); print(c.run.tip_dy, c.ref_dy)"`
    (then `hold=24`, and `hold=12, cfl=0.1`).
 
+   **What the drift is made of** (2026-11-23, commit fc99d5a; `python benchmarks/creep_diagnostics.py`, 18 s on
+   one core, and the same with `--load gravity`; t/dx = 2, the load applied over 1.5/omega_1 and then held):
+   - The tip keeps moving, at a slowly falling rate, long after the bending mode has settled: under the field
+     (Br B/(mu0 G) = 0.001) from +0.37 % of the rod's value at 8/omega_1 to +1.74 % at 21/omega_1; under its
+     weight (linear sag 0.25 L) from -2.77 % to -1.38 %. The largest particle speed stays at 2-6e-4 m/s instead
+     of decaying at the damping's rate, e^(-0.75 omega_1 t).
+   - The engine's own energy (the kernels' elastic energy plus the load's potential, summed over the particles)
+     keeps falling: by 0.003-0.006 uJ per 1/omega_1 under the field, about 1000 times what the grid damping
+     removes at the particles' speeds (c sum m v^2). The beam slides down its discrete energy rather than being
+     pumped, and the energy goes in the grid-particle transfers: every step the node forces that do not balance
+     put node velocities on the grid that the particles' v and C carry only in part.
+   - Particle places and deformation gradients drift apart: the mismatch of neighbouring free particles,
+     |(x_j - x_i) - F (X_j - X_i)| / h, grows steadily (rms 0.019 at 8/omega_1, 0.038 at 21/omega_1; largest
+     0.20, in the root half of the beam). With `velocity_gradient = "grid"` it stays near 0.003; moving the
+     particles with the remapped velocities (a temporary kernel change, not kept) holds it at 0.001 and leaves
+     the tip where it was (0.37679 against 0.37643 at 12/omega_1). The mismatch is a symptom, not the cause.
+   - Along the beam the rotation part of F grows, by up to 1e-3 rad per 1/omega_1 beyond x = 8 mm (8 to
+     12/omega_1), from zero at x = 1.4 mm, with no change of the axial stretch across the section above its
+     0.5e-4 per 1/omega_1 scatter; the particles' in-plane shear alternates in sign from row to row (2-7e-3), a
+     zig-zag that a bent beam does not have.
+   - Kinetic-damping relaxation does not remove it: relaxed with the field applied at once, the beam stops at
+     0.3855 (+3.5 %; the relaxation ends with "peaks stopped falling" at 3e-9 of the largest kinetic energy),
+     and the damped steps that follow keep it rising by 0.00025-0.0003 per 1/omega_1, the largest speed growing
+     from 3.2e-4 to 6.2e-4 m/s over 12/omega_1 (`--relax`).
+   - With 3 particles per cell per axis instead of 2 at the same dx the rate halves and the tip is -3.0 % at
+     12/omega_1 (+1.1 % with 2): the particle density, not only dx, sets where the beam is at a given time,
+     which is one reason the convergence rows (dx refined, 2 particles per cell per axis) do not fall.
+
+   What would remove it is a change to the transfers or the stress sampling that lets the node forces balance;
+   not attempted yet.
+
 ## Reproduce
 
 ```bash
