@@ -123,6 +123,9 @@ class Rollout:
         m = self.model = built.model
         self.control = built.control
         st = self.settings = built.settings
+        if st.formulation != "updated":
+            raise ValueError(f"the differentiable rollout runs the updated-Lagrangian engine only; the scene asks for "
+                             f"simulation.formulation = {st.formulation!r}")
         self.k = k = m.kernels
         self.dim, self.dev, self.sc = m.dim, m.device, m.scalar
         self.dt = float(dt)
@@ -251,7 +254,7 @@ class Rollout:
                 m.vol0, m.mass, m.shear, m.bulk, m.material_model, m.material_params, m.Br, m.clamped,
                 k["v3"](), 1, B_particle, G_particle,
                 self._grid_lo, self._shape_v, sc(m.dx), dt,
-                dst.grid_p, dst.grid_m, dst.grid_clamp, self.error,
+                dst.grid_p, dst.grid_m, dst.grid_clamp, self.error, 0,
             ],
             device=dev,
         )
@@ -270,7 +273,7 @@ class Rollout:
             inputs=[
                 dst.grid_v, m.clamped, self._grid_lo, self._shape_v, sc(m.dx), dt,
                 src.x, src.F, dst.x, dst.v, dst.C, dst.F,
-                self.bounds, self.max_speed, self.error, 1 if remap else 0, m.mass, dst.grid_q,
+                self.bounds, self.max_speed, self.error, 1 if remap else 0, m.mass, dst.grid_q, src.x, 0,
             ],
             device=dev,
         )

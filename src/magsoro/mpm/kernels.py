@@ -219,7 +219,12 @@ def make_kernels(dim: int, scalar):
         grid_m: wp.array(dtype=scalar),
         grid_clamp: wp.array(dtype=wp.int32),
         error: wp.array(dtype=wp.int32),
+        total: int,
     ):
+        """Particle-to-grid transfer of mass, momentum and the stress impulse. ``x`` are the positions the grid
+        weights are taken at: the current ones (updated Lagrangian, ``total`` = 0) or the reference ones (total
+        Lagrangian, ``total`` = 1: the grid is the reference configuration's, and the node force takes the first
+        Piola stress P instead of the Kirchhoff stress P F^T)."""
         p = wp.tid()
         inv_dx = scalar(1.0) / dx
         base, fx = local_coords(x[p], grid_lo, inv_dx)
@@ -235,7 +240,9 @@ def make_kernels(dim: int, scalar):
         # Magnetic stress of a hard-magnetic elastomer (seed 000 eq 13): P = -(1/mu0) B (x) Br
         P = elastic_stress(Fp, material_model[p], shear[p], bulk[p], material_params[p]) - scalar(inv_mu0) * wp.outer(inplane(B), inplane(br))
         # MLS-MPM: grid force -V0 P F^T grad w, with grad w = (4/dx^2) w (x_i - x_p) for quadratic B-splines
-        stress = (-dt * vol0[p] * scalar(4.0) * inv_dx * inv_dx) * (P * wp.transpose(Fp))
+        stress = (-dt * vol0[p] * scalar(4.0) * inv_dx * inv_dx) * P
+        if total == 0:
+            stress = stress * wp.transpose(Fp)
         mp = mass[p]
         affine = stress + mp * C[p]
         mv = mp * v[p]
@@ -358,16 +365,25 @@ def make_kernels(dim: int, scalar):
         remap: int,
         mass: wp.array(dtype=scalar),
         grid_r: wp.array(dtype=vec),
+        x_cur: wp.array(dtype=vec),
+        total: int,
     ):
         """Grid-to-particle transfer: new x, v, C. With ``remap`` = 0 F is updated from the same node velocities
         ("grid"); otherwise F_out is left to :func:`remap_F`, and the particle's new affine velocity field
         v + C (x_i - x_p) is scattered, mass-weighted, into ``grid_r`` (the first half of the velocity-gradient
-        remap; it needs only this particle's new v and C, so it rides on the same stencil pass)."""
+        remap; it needs only this particle's new v and C, so it rides on the same stencil pass).
+
+        ``x_in`` are the positions the grid weights are taken at and ``x_cur`` the particles' current positions,
+        which move by dt v: the same array in the updated-Lagrangian form (``total`` = 0). In the
+        total-Lagrangian form ``x_in`` holds the reference positions, C is the velocity gradient with respect to
+        them and F grows by dt C (``remap`` must be 0); the bounds reduction then covers the reference positions,
+        which the grid block is fitted to."""
         p = wp.tid()
         xp = x_in[p]
+        xc = x_cur[p]
         if clamped[p] != 0:
             # held particles keep their place and shape
-            x_out[p] = xp
+            x_out[p] = xc
             v_out[p] = vec()
             C_out[p] = mat()
             F_out[p] = F_in[p]
@@ -385,12 +401,18 @@ def make_kernels(dim: int, scalar):
                 S = S + wp.outer(wgv, o)
             # C = (4/dx^2) sum w v_i (x_i - x_p)^T = (4/dx) (sum w v_i o^T - v fx^T)
             new_C = (scalar(4.0) * inv_dx) * (S - wp.outer(new_v, fx))
-            xp = xp + dt * new_v
-            x_out[p] = xp
+            xc = xc + dt * new_v
+            x_out[p] = xc
+            if total == 0:
+                xp = xc
             v_out[p] = new_v
             C_out[p] = new_C
             ok = True
-            if remap == 0:
+            if total != 0:
+                Fn = F_in[p] + dt * new_C
+                F_out[p] = Fn
+                ok = wp.determinant(Fn) > scalar(0.0)
+            elif remap == 0:
                 ok = update_F(F_in, F_out, p, dt * new_C)
             else:
                 mp = mass[p]
@@ -400,7 +422,7 @@ def make_kernels(dim: int, scalar):
                     weight, o, idx = stencil_node(q, w0, w1, w2, first, shape)
                     wp.atomic_add(grid_r, idx, (weight * mp) * (new_v + (Cd * o - Cfx)))
             for a in range(dim):
-                if not wp.isfinite(xp[a]) or not wp.isfinite(new_v[a]):
+                if not wp.isfinite(xc[a]) or not wp.isfinite(new_v[a]):
                     ok = False
             if not ok:
                 wp.atomic_max(error, 1, 1)

@@ -242,8 +242,12 @@ class SolverSettings:
     velocity_gradient: where the F update takes its velocity gradient from, "remap" (the particles' new affine
     velocities transferred back to the grid, an extra transfer per step) or "grid" (the node velocities of the
     momentum update; cheaper, but nodes with little mass at the free surfaces carry force impulses that make
-    stressed bodies creep: docs/engine.md); threads: CPU threads a step is split over (None: automatic, see
-    :func:`resolve_threads`; ignored on CUDA)."""
+    stressed bodies creep: docs/engine.md); formulation: "updated" (updated Lagrangian, the grid weights are
+    taken at the current positions) or "total" (total Lagrangian: weights, node forces and the velocity gradient
+    are taken on the reference configuration, F grows by dt grad_X v, no colliders; a node is held when at least
+    half of its mass comes from clamped particles, so a clamp acts at the clamped region's face; see
+    docs/engine.md); threads: CPU threads a step is split over (None: automatic, see :func:`resolve_threads`;
+    ignored on CUDA)."""
 
     damping: float = 0.0
     gravity: tuple = (0.0, 0.0, 0.0)
@@ -253,6 +257,7 @@ class SolverSettings:
     grid_margin: int = 4
     plane_z: float = 0.0
     velocity_gradient: str = "remap"
+    formulation: str = "updated"
     threads: int | None = None
 
 
@@ -267,7 +272,11 @@ class Solver:
             raise ValueError(f"walls must be one of {sorted(MODES)}, got {st.walls!r}")
         if st.velocity_gradient not in ("remap", "grid"):
             raise ValueError(f"velocity_gradient must be 'remap' or 'grid', got {st.velocity_gradient!r}")
-        self._remap = st.velocity_gradient == "remap"
+        if st.formulation not in ("updated", "total"):
+            raise ValueError(f"formulation must be 'updated' or 'total', got {st.formulation!r}")
+        self._total = st.formulation == "total"
+        # the total-Lagrangian F update takes the velocity gradient on the reference grid directly: no remap
+        self._remap = st.velocity_gradient == "remap" and not self._total
         self.k = model.kernels
         dim, dev, sc = model.dim, model.device, model.scalar
         self.dim, self.device, self.scalar = dim, dev, sc
@@ -313,6 +322,10 @@ class Solver:
         self._grid_version = 0
         self._grid_views = []
         self.phase_times = None
+        # total Lagrangian: the reference positions the kernels take the grid weights at, and the held-node mask
+        # of the (fixed) grid block
+        self._X0 = wp.array(model.host["positions"].astype(model.np_scalar), dtype=self.k["vec"], device=dev) if self._total else None
+        self._held = None
 
     # -- states -------------------------------------------------------------------------------------------
     def new_state(self, velocity=None) -> State:
@@ -374,11 +387,42 @@ class Solver:
         # >= org + 1, last node < org + shape - 1) intersected with the domain. Particle bounds inside it skip
         # the checks of the next step.
         m = self.model
+        if self._total:
+            self._held = wp.array(self._majority_held_nodes(), dtype=wp.int32, device=self.device)
+            self._launch_sets.clear()
         fit_lo = m.domain_lo + (self.org + 1.5) * m.dx
         fit_hi = m.domain_lo + (self.org + self.shape - 2.5) * m.dx
         eps = 1e-9 * m.dx  # round-off of the two forms of the same test
         self._safe_lo = np.maximum(fit_lo, m.domain_lo) + eps
         self._safe_hi = np.minimum(fit_hi, m.domain_hi) - eps
+
+    def _majority_held_nodes(self) -> np.ndarray:
+        """Held-node mask of the grid block for the total-Lagrangian form (flat, int32): a node is held when at
+        least half of the mass the reference particles give it comes from clamped particles. For a clamped region
+        whose face lies on a lattice line this holds the nodes up to and including the face, where the
+        updated-Lagrangian rule (every node a clamped particle touches) holds one more layer."""
+        m, dim = self.model, self.dim
+        X = m.host["positions"]
+        mass = m.host["mass"]
+        held_p = m.host["clamped"]
+        xg = (X - m.domain_lo) / m.dx
+        base = np.floor(xg - 0.5).astype(np.int64)
+        fx = xg - base
+        w = [0.5 * (1.5 - fx) ** 2, 0.75 - (fx - 1.0) ** 2, 0.5 * (fx - 0.5) ** 2]
+        n_nodes = int(np.prod(self.shape))
+        total = np.zeros(n_nodes)
+        clamped = np.zeros(n_nodes)
+        local = base - self.org
+        for q in range(3**dim):
+            o = [(q // 3 ** (dim - 1 - a)) % 3 for a in range(dim)]
+            weight = mass.copy()
+            flat = np.zeros(len(X), dtype=np.int64)
+            for a in range(dim):
+                weight = weight * w[o[a]][:, a]
+                flat = flat * int(self.shape[a]) + (local[:, a] + o[a])
+            total += np.bincount(flat, weights=weight, minlength=n_nodes)
+            clamped += np.bincount(flat[held_p], weights=weight[held_p], minlength=n_nodes)
+        return ((total > 0) & (clamped >= (0.5 - 1e-9) * total)).astype(np.int32)
 
     def enable_phase_timing(self, on: bool = True) -> None:
         """Time the phases of each step (p2g, grid, g2p, other) into ``phase_times`` (seconds, summed).
@@ -405,6 +449,7 @@ class Solver:
         n_act = self.n_active
         grid_p = [self.grid_p] + [gp for gp, _ in self._thread_grids]
         grid_m = [self.grid_m] + [gm for _, gm in self._thread_grids]
+        x_grid = self._X0 if self._total else state_in.x  # the positions the grid weights are taken at
 
         def particles(kernel, inputs_of):
             out = []
@@ -417,19 +462,19 @@ class Solver:
             "p2g": particles(
                 k["p2g"],
                 lambda t, cut: [
-                    cut(state_in.x), cut(state_in.v), cut(state_in.C), cut(state_in.F),
+                    cut(x_grid), cut(state_in.v), cut(state_in.C), cut(state_in.F),
                     cut(m.vol0), cut(m.mass), cut(m.shear), cut(m.bulk), cut(m.material_model), cut(m.material_params),
                     cut(m.Br), cut(m.clamped),
                     k["v3"](), 1 if has_gradient else 0, cut(self.B_particle), cut(self.G_particle),
                     grid_lo, shape, sc(m.dx), sc(0.0),
-                    grid_p[t], grid_m[t], self.grid_clamp, self.error,
+                    grid_p[t], grid_m[t], self.grid_clamp, self.error, 1 if self._total else 0,
                 ],
             ),
             "grid_update": wp.launch(
                 k["grid_update"],
                 dim=n_act,
                 inputs=[
-                    self.grid_p, self.grid_m, self.grid_clamp, org, shape,
+                    self.grid_p, self.grid_m, self._held if self._total else self.grid_clamp, org, shape,
                     vec(*[sc(v) for v in m.domain_lo]), vec(*[sc(v) for v in m.domain_hi]),
                     MODES[st.walls], sc(st.wall_friction), sc(m.dx), sc(0.0),
                     sc(1.0), self.gravity,
@@ -447,9 +492,10 @@ class Solver:
                 k["g2p"],
                 lambda t, cut: [
                     self.grid_v, cut(m.clamped), grid_lo, shape, sc(m.dx), sc(0.0),
-                    cut(state_in.x), cut(state_in.F),
+                    cut(x_grid), cut(state_in.F),
                     cut(state_out.x), cut(state_out.v), cut(state_out.C), cut(state_out.F),
                     self._thread_bounds[t], self._thread_speed[t], self.error, 1 if self._remap else 0, cut(m.mass), grid_p[t],
+                    cut(state_in.x), 1 if self._total else 0,
                 ],
             ),
             "sum_mass": [
@@ -512,7 +558,7 @@ class Solver:
                 return b[: self.dim].astype(np.float64), b[self.dim :].astype(np.float64)
             b = np.array(self._bounds_np if self._on_cpu else [tb.numpy() for tb in self._thread_bounds], dtype=np.float64)
             return b[:, : self.dim].min(axis=0), b[:, self.dim :].max(axis=0)
-        x = state.x.numpy()
+        x = self.model.host["positions"] if self._total else state.x.numpy()  # what the grid block is fitted to
         return x.min(axis=0).astype(np.float64), x.max(axis=0).astype(np.float64)
 
     # -- control --------------------------------------------------------------------------------------------
@@ -571,6 +617,9 @@ class Solver:
         b0 = fields.uniform_value(t)
         if fields.has_gradient:
             fields.evaluate(state_in.x, self.B_particle, self.G_particle, t)
+        if control.colliders and self._total:
+            raise ValueError("formulation 'total' keeps the grid on the reference configuration, where colliders cannot "
+                             "act; use formulation 'updated' for scenes with colliders")
         if control.colliders:
             table = collider_table(control.colliders, t)
             if self._collider_array is None or self._collider_array.shape[0] != len(table):

@@ -501,6 +501,11 @@ def build(scene: Scene, device: str | None = None, source: str = "scene", magnet
         except ValueError as exc:
             raise SceneError(f"{source}: fields[{i}]: {exc}") from None
     colliders = [make_collider(c, dim, sim.plane_z) for c in scene.colliders]
+    if sim.formulation == "total" and colliders:
+        raise SceneError(
+            f"{source}: simulation.formulation = 'total' keeps the grid on the reference configuration, where "
+            f"colliders cannot act; remove the {len(colliders)} collider(s) or use formulation = 'updated'"
+        )
     settings = SolverSettings(
         damping=sim.damping,
         gravity=tuple(sim.gravity) if sim.gravity is not None else (0.0,) * dim,
@@ -509,6 +514,7 @@ def build(scene: Scene, device: str | None = None, source: str = "scene", magnet
         cfl=sim.cfl,
         plane_z=sim.plane_z,
         velocity_gradient=sim.velocity_gradient,
+        formulation=sim.formulation,
         threads=sim.threads,
     )
     probes = []
