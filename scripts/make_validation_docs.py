@@ -83,21 +83,21 @@ def _rows(records):
 
 
 def _beam_runs_table(records) -> str:
-    lines = ["| case | dim | field angle (deg) | t/dx | cfl | particles | steps | wall (s) | MAPE of dy/L | drift over last 1/omega_1 |",
-             "|---|---|---|---|---|---|---|---|---|---|"]
+    lines = ["| case | dim | formulation | field angle (deg) | t/dx | cfl | particles | steps | wall (s) | MAPE of dy/L | drift over last 1/omega_1 |",
+             "|---|---|---|---|---|---|---|---|---|---|---|"]
     for rec in records:
         for run in rec["info"].get("runs", []):
-            lines.append(f"| {rec['case']} | {run['dim']} | {run['psi_deg']:g} | {run['t_over_dx']} | {run.get('cfl', 0.4):g} | {run['particles']} | "
+            lines.append(f"| {rec['case']} | {run['dim']} | {run.get('formulation', 'updated')} | {run['psi_deg']:g} | {run['t_over_dx']} | {run.get('cfl', 0.4):g} | {run['particles']} | "
                          f"{run['steps']} | {run['wall_s']:.0f} | {100 * run['mape']:.1f} % | "
                          f"{100 * run['max_drift_last_tau']:.2f} % |")
     return "\n".join(lines) + "\n"
 
 
 def _convergence_table(rec) -> str:
-    lines = ["| t/dx | dx (mm) | particles | particles per mm^2 | steps | wall (s) | MAPE of dy/L |",
-             "|---|---|---|---|---|---|---|"]
+    lines = ["| formulation | t/dx | dx (mm) | particles | particles per mm^2 | steps | wall (s) | MAPE of dy/L |",
+             "|---|---|---|---|---|---|---|---|"]
     for r in rec["info"]["table"]:
-        lines.append(f"| {r['t_over_dx']} | {1e3 * r['dx_m']:.3f} | {r['particles']} | {r['particles_per_mm2']:.0f} | "
+        lines.append(f"| {r.get('formulation', 'updated')} | {r['t_over_dx']} | {1e3 * r['dx_m']:.3f} | {r['particles']} | {r['particles_per_mm2']:.0f} | "
                      f"{r['steps']} | {r['wall_s']:.0f} | {100 * r['mape']:.2f} % |")
     return "\n".join(lines) + "\n"
 

@@ -51,7 +51,8 @@ def test_majority_clamp_holds_the_nodes_up_to_the_clamped_face():
     assert mask[np.isclose(x, dx)].any()
 
 
-def test_rigid_motion_is_exact_in_both_formulations():
+@pytest.mark.parametrize("dim", [2, 3])
+def test_rigid_motion_is_exact_in_both_formulations(dim):
     """A free block thrown under gravity: positions X + v0 t + g t^2 / 2 (up to the symplectic Euler term
     g t dt / 2) and F = I in either formulation, and the same positions in both (the total-Lagrangian positions
     are integrated from the particle velocities, the grid stays put)."""
@@ -63,6 +64,12 @@ def test_rigid_motion_is_exact_in_both_formulations():
                     "velocity": [0.3, 0.2]}],
         "output": {"particles": False},
     }
+    if dim == 3:
+        base["simulation"].update(dim=3, domain_lo=[0.0, 0.0, 0.0], domain_hi=[0.05, 0.05, 0.05], gravity=[0.0, -9.81, 0.0])
+        base["bodies"][0].update(shape={"type": "box", "center": [0.02, 0.03, 0.025], "size": [4e-3, 2e-3, 2e-3]},
+                                 velocity=[0.3, 0.2, -0.1])
+    v0 = np.array(base["bodies"][0]["velocity"])
+    g = np.array(base["simulation"]["gravity"])
     final = {}
     for form in ("total", "updated"):
         scene = copy.deepcopy(base)
@@ -71,10 +78,10 @@ def test_rigid_motion_is_exact_in_both_formulations():
         X0 = sim.model.host["positions"].copy()
         sim.advance_to(1e-3)
         t = sim.time
-        expected = X0 + np.array([0.3, 0.2]) * t + 0.5 * np.array([0.0, -9.81]) * t**2
+        expected = X0 + v0 * t + 0.5 * g * t**2
         x = sim.state.x.numpy()
         assert np.abs(x - expected).max() <= 0.5 * 9.81 * t * sim.dt_max * 1.001 + 1e-12, form
-        assert np.abs(sim.state.F.numpy() - np.eye(2)).max() < 1e-9, form
+        assert np.abs(sim.state.F.numpy() - np.eye(dim)).max() < 1e-9, form
         final[form] = x
     assert np.abs(final["total"] - final["updated"]).max() < 1e-12
 

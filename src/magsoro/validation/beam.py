@@ -490,7 +490,8 @@ def plot_convergence(table: list[dict], path: Path) -> Path:
 
 def _run_info(comp: Comparison) -> dict:
     r = comp.run
-    return {"dim": r.setup.dim, "psi_deg": r.psi_deg, "t_over_dx": r.setup.t_over_dx, "ppc": r.setup.ppc,
+    return {"dim": r.setup.dim, "formulation": r.setup.formulation, "psi_deg": r.psi_deg,
+            "t_over_dx": r.setup.t_over_dx, "ppc": r.setup.ppc,
             "cfl": r.setup.cfl, "particles": r.particles,
             "steps": r.steps, "wall_s": round(r.wall_s, 1), "mape": comp.mape,
             "max_drift_last_tau": float(np.nanmax(r.drift)) if len(r.drift) else float("nan")}
@@ -649,7 +650,7 @@ def beam_timestep_case(ctx: Context) -> CaseResult:
         fig.savefig(path, dpi=110)
         plt.close(fig)
         figures.append(path)
-    info = {"runs": [dict(_run_info(c), formulation=form) for form, comps in series.items() for c in comps]}
+    info = {"runs": [_run_info(c) for comps in series.values() for c in comps]}
     return CaseResult("beam_timestep", rows, figures, info)
 
 
