@@ -128,3 +128,29 @@ def test_total_formulation_keeps_the_grid_block_fixed():
     tip = sim.probes[0].evaluate(sim.state.x.numpy())
     assert tip[1] > 0.3 * setup.length and not math.isnan(tip[0])
     assert sim.solver.refits == 1
+
+
+def test_gradient_force_moves_a_free_cube_alike_in_both_formulations():
+    """A magnetised cube pulled by a point dipole (no floor, no gravity): the field and its gradient are taken at
+    the current positions in both formulations. Over 10 ms the cube moves 1.29 mm (2.6 cells) and the pull grows
+    by about 40 % on the way (|grad B| ~ 1/r^4); the centroids agree within 1e-3 of the displacement (measured
+    6e-6). Taking the field at the reference positions would miss that growth by far more."""
+    scene = {
+        "simulation": {"dim": 3, "dx": 5e-4, "domain_lo": [0.0, 0.0, 0.0], "domain_hi": [0.03, 0.012, 0.012],
+                       "duration": 0.01, "precision": "float64"},
+        "bodies": [{"name": "cube", "shape": {"type": "box", "center": [0.008, 0.006, 0.006], "size": [0.004] * 3},
+                    "material": {"density": 1500.0, "shear_modulus": 30e3}, "magnetization": [0.1, 0.0, 0.0]}],
+        "fields": [{"type": "dipole", "moment": [0.05, 0.0, 0.0], "position": [0.024, 0.006, 0.006]}],
+        "probes": [{"type": "centroid", "name": "cube", "body": "cube"}],
+        "output": {"particles": False},
+    }
+    moved = {}
+    for form in ("total", "updated"):
+        s = copy.deepcopy(scene)
+        s["simulation"]["formulation"] = form
+        sim = Simulation(parse_scene(s))
+        start = np.array([sim.probe_values()[f"cube_{a}"] for a in "xyz"])
+        sim.advance_to(0.01)
+        moved[form] = np.array([sim.probe_values()[f"cube_{a}"] for a in "xyz"]) - start
+    assert moved["updated"][0] > 1e-3  # pulled towards the magnet
+    assert np.linalg.norm(moved["total"] - moved["updated"]) < 1e-3 * np.linalg.norm(moved["updated"])
