@@ -14,7 +14,7 @@ from magsoro.bench.reference import ReferenceStep
 from magsoro.bench.scenes import SCENES, build
 from magsoro.mpm.solver import Solver
 
-DEFAULT_STEPS = {"walker": 300, "walker_1m": 300, "beam2d": 1000, "block1m": 3}
+DEFAULT_STEPS = {"walker": 300, "walker_1m": 300, "beam2d": 1000, "block1m": 3, "sweep": 60}
 
 
 #: Timed rounds per scene: engine and reference alternate, ``steps`` each, so both see the same machine; the
@@ -58,7 +58,7 @@ def run_scene(name: str, device: str = "cpu", steps: int | None = None, threads:
     wall = float(np.median(engine_s))
     ref_wall = float(np.median(ref_s))
     ratios = [r / e for e, r in zip(engine_s, ref_s)]  # each round against the reference timed right after it
-    return {
+    out = {
         "name": name,
         "n_particles": n,
         "dim": model.dim,
@@ -78,6 +78,16 @@ def run_scene(name: str, device: str = "cpu", steps: int | None = None, threads:
         "phases_ms": phases,
         "grid": solver.grid_info(),
     }
+    if name == "sweep":
+        # the batch against the same copies run one after another: the walker timed in this call
+        from magsoro.bench.scenes import SWEEP_FREQUENCIES_HZ
+
+        single = run_scene("walker", device, None, threads, rounds)
+        copies = len(SWEEP_FREQUENCIES_HZ)
+        out["copies"] = copies
+        out["sequential_ms_per_step"] = copies * single["ms_per_step"]
+        out["batch_speedup"] = out["sequential_ms_per_step"] / out["ms_per_step"]
+    return out
 
 
 def run(names, device: str = "cpu", steps: int | None = None, threads: int | None = None) -> dict:
@@ -122,4 +132,4 @@ def names_or_all(names):
         from magsoro.errors import MagsoroError
 
         raise MagsoroError(f"unknown benchmark scene(s) {unknown}; available: {', '.join(SCENES)}")
-    return list(names) or ["walker", "walker_1m", "beam2d", "block1m"]
+    return list(names) or ["walker", "walker_1m", "beam2d", "block1m", "sweep"]

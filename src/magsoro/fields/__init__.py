@@ -13,7 +13,7 @@ from magsoro.fields.epm import EPMPose, epm_pose
 from magsoro.fields.loops import CurrentLoop, HelmholtzPair, MaxwellPair
 from magsoro.fields.magpylib_source import MagpylibSource
 from magsoro.fields.profiles import Keyframes
-from magsoro.fields.uniform import KeyframedVector, Ramp, Rotating, Sine, Uniform
+from magsoro.fields.uniform import KeyframedVector, Ramp, Regional, Rotating, Sine, Uniform
 
 __all__ = [
     "FieldSource",
@@ -23,6 +23,7 @@ __all__ = [
     "Sine",
     "Rotating",
     "KeyframedVector",
+    "Regional",
     "Keyframes",
     "Dipole",
     "CylinderMagnet",
