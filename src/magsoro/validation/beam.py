@@ -565,7 +565,8 @@ CONVERGENCE_HOLD = 6.0
 CONVERGENCE_FORMULATIONS = ("updated", "total")
 
 
-@register("beam_convergence", "MAPE of the 2D beam's tip deflection vs particles per mm^2 (seed 000 Fig 2c)",
+@register("beam_convergence", "MAPE of the 2D beam's tip deflection vs particles per mm^2 (seed 000 Fig 2c), updated- and "
+          "total-Lagrangian formulations",
           quick=False, cost="~17 CPU-min")
 def beam_convergence_case(ctx: Context) -> CaseResult:
     table, rows = [], []
