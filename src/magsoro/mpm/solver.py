@@ -383,13 +383,12 @@ class Solver:
         self._thread_grid_views = [(gp[:need], gm[:need]) for gp, gm in self._thread_grids]
         if self._on_cpu:
             self._grid_np = [v.numpy() for v in self._grid_views] + [a.numpy() for pair in self._thread_grid_views for a in pair]
+        if self._total:
+            self._held = wp.array(self._majority_held_nodes(), dtype=wp.int32, device=self.device)
         # The box in which a particle needs neither a refit nor a domain check: the inverse of _fits (first node
         # >= org + 1, last node < org + shape - 1) intersected with the domain. Particle bounds inside it skip
         # the checks of the next step.
         m = self.model
-        if self._total:
-            self._held = wp.array(self._majority_held_nodes(), dtype=wp.int32, device=self.device)
-            self._launch_sets.clear()
         fit_lo = m.domain_lo + (self.org + 1.5) * m.dx
         fit_hi = m.domain_lo + (self.org + self.shape - 2.5) * m.dx
         eps = 1e-9 * m.dx  # round-off of the two forms of the same test
@@ -617,10 +616,10 @@ class Solver:
         b0 = fields.uniform_value(t)
         if fields.has_gradient:
             fields.evaluate(state_in.x, self.B_particle, self.G_particle, t)
-        if control.colliders and self._total:
-            raise ValueError("formulation 'total' keeps the grid on the reference configuration, where colliders cannot "
-                             "act; use formulation 'updated' for scenes with colliders")
         if control.colliders:
+            if self._total:  # scenes are refused when built (scene/build.py); this guards direct use of the solver
+                raise ValueError("formulation 'total' keeps the grid on the reference configuration, where colliders "
+                                 "cannot act; use formulation 'updated' for scenes with colliders")
             table = collider_table(control.colliders, t)
             if self._collider_array is None or self._collider_array.shape[0] != len(table):
                 self._collider_array = wp.array(table, dtype=wp.float64, device=dev)
