@@ -3,12 +3,9 @@
 The public scripting API lives here; see README.md and docs/ for the tour.
 """
 
-__version__ = "0.1.0"
-
-MU0 = 1.25663706212e-6
-"""Vacuum permeability, T m / A."""
-
-from magsoro.errors import MagsoroError, SceneError, SimulationError  # noqa: E402
+from magsoro._version import __version__
+from magsoro.constants import MU0
+from magsoro.errors import MagsoroError, SceneError, SimulationError
 
 __all__ = ["MU0", "MagsoroError", "SceneError", "SimulationError", "__version__"]
 

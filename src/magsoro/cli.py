@@ -6,7 +6,7 @@ import argparse
 import importlib
 import sys
 
-from magsoro import __version__
+from magsoro._version import __version__
 from magsoro.errors import MagsoroError
 
 COMMANDS = [

@@ -17,6 +17,7 @@ import numpy as np
 
 from magsoro.errors import SimulationError
 from magsoro.mpm.solver import Solver
+from magsoro.mpm.timestep import cfl_time_step
 from magsoro.scene import Scene, load_scene
 from magsoro.scene.build import Built, build
 
@@ -65,7 +66,8 @@ class Simulation:
         self.fixed_dt = sim.dt
         self._field_peak = self.solver.field_magnitude(self.control)
         self._wave_speed = self.model.wave_speed(self._field_peak)
-        self.dt = self.fixed_dt if self.fixed_dt is not None else self.solver.settings.cfl * self.model.dx / self._wave_speed
+        self.dt = (self.fixed_dt if self.fixed_dt is not None
+                   else cfl_time_step(self.solver.settings.cfl, self.model.dx, self._wave_speed))
         self.dt_min = self.dt_max = self.dt
         self.steps = 0
         self.last_good_time = 0.0
@@ -125,7 +127,7 @@ class Simulation:
     def _next_dt(self, remaining: float) -> float:
         if self.fixed_dt is None:
             vmax = self.solver.last_max_speed() if self.steps else 0.0
-            self.dt = self.solver.settings.cfl * self.model.dx / (self._wave_speed + vmax)
+            self.dt = cfl_time_step(self.solver.settings.cfl, self.model.dx, self._wave_speed, vmax)
         dt = self.dt
         if remaining < dt * (1 + 1e-9):
             dt = remaining

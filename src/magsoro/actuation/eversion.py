@@ -57,7 +57,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from magsoro import MU0
+from magsoro.constants import MU0
 
 #: Tail-geometry presets (perimeter factor phi, capstan geometry factor gamma). The seed's pulling test (Fig. 4)
 #: found a cruciform tail needs about five times less pulling force than a cylindrical one, hence phi = 0.2 for

@@ -64,8 +64,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from magsoro import MU0
-from magsoro.fields.dipole import Dipole
+from magsoro.constants import MU0
+from magsoro.fields.dipole import Dipole, dipole_field_force
 
 _GAUSS_X = np.array([0.5 - 0.5 * math.sqrt(0.6), 0.5, 0.5 + 0.5 * math.sqrt(0.6)])
 _GAUSS_W = np.array([5.0, 8.0, 5.0]) / 18.0
@@ -227,20 +227,7 @@ class PlanarPRB:
     def _field_terms(source, pts, mom, t):
         """B (P, 3) and f = G^T m (P, 3) at the load points; a closed form for a plain point dipole."""
         if type(source) is Dipole:
-            # f_k = sum_i m_i dB_i/dx_k for the dipole gradient
-            # dB_i/dx_k = c (M.r d_ik + M_i r_k + r_i M_k - 5 (M.r) r_i r_k / r^2), c = 3 mu0 / (4 pi r^5)
-            M = source.moment
-            r = pts - source.position
-            r2 = np.einsum("pi,pi->p", r, r)
-            rn = np.sqrt(r2)
-            Mr = r @ M
-            mr = np.einsum("pi,pi->p", mom, r)
-            k = MU0 / (4.0 * np.pi)
-            B = k * (3.0 * r * (Mr / (r2 * r2 * rn))[:, None] - M[None, :] / (r2 * rn)[:, None])
-            c = 3.0 * k / (r2 * r2 * rn)
-            f = c[:, None] * (Mr[:, None] * mom + (mom @ M)[:, None] * r + mr[:, None] * M[None, :]
-                              - (5.0 * Mr * mr / r2)[:, None] * r)
-            return B, f
+            return dipole_field_force(pts, mom, source.moment, source.position)
         B = source.B(pts, t)
         G = source.grad_B(pts, t)
         return B, np.einsum("pik,pi->pk", G, mom)

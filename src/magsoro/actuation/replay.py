@@ -25,8 +25,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from magsoro import MU0
+from magsoro.constants import MU0
 from magsoro.errors import SimulationError
+from magsoro.mpm.timestep import cfl_time_step
 from magsoro.actuation.planning import Plan, PlanarPRB, plane_strain_modulus
 
 
@@ -179,7 +180,7 @@ def replay(plan: Plan, strip: StripSpec, dx: float, step_duration: float | None 
         B_max = max(B_max, float(np.max(np.linalg.norm(Dipole(s.moment, s.position).B(p3), axis=1))))
     br_max = float(np.max(np.linalg.norm(link_remanence(prb, strip), axis=1)))
     c = math.sqrt((strip.bulk_modulus + 4.0 * strip.shear_modulus / 3.0 + 2.0 * B_max * br_max / MU0) / strip.density)
-    dt = cfl * dx / c
+    dt = cfl_time_step(cfl, dx, c)
 
     times, tip_mpm, tip_prb, end_mpm, end_prb, joints_mpm, joints_prb = [], [], [], [], [], [], []
     prev = None  # (state arrays, last-link indices, reference positions) of the previous step

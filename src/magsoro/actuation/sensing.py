@@ -47,8 +47,6 @@ from pathlib import Path
 
 import numpy as np
 
-from magsoro import MU0
-
 #: x = rho / h at the zero crossing of eq 20 and at its minimum, and the minimum value of q.
 X_ZERO = float(np.sqrt(2.0))
 X_MIN = 2.0
@@ -56,14 +54,19 @@ Q_MIN = -1.0 / (25.0 * np.sqrt(5.0))
 
 
 def marker_field_z(rho, gap, moment) -> np.ndarray:
-    """B_z (T) of a z-aligned dipole of ``moment`` (A m^2) at lateral offset ``rho`` and gap ``gap`` (m), eq 18."""
-    rho, h = np.asarray(rho, dtype=float), np.asarray(gap, dtype=float)
-    return MU0 * moment / (4.0 * np.pi) * (2.0 * h * h - rho * rho) / (rho * rho + h * h) ** 2.5
+    """B_z (T) of a z-aligned dipole of ``moment`` (A m^2) at lateral offset ``rho`` and gap ``gap`` (m), eq 18
+    (the point dipole of :func:`magsoro.fields.dipole.dipole_B`; inputs broadcast)."""
+    from magsoro.fields.dipole import dipole_B  # lazy: keeps `magsoro sense` free of Warp
+
+    rho, h, m = np.broadcast_arrays(np.asarray(rho, dtype=float), np.asarray(gap, dtype=float),
+                                    np.asarray(moment, dtype=float))
+    r = np.stack([rho.ravel(), np.zeros(rho.size), h.ravel()], axis=1)  # sensor relative to the marker
+    return (m.ravel() * dipole_B(r, (0.0, 0.0, 1.0))[:, 2]).reshape(rho.shape)
 
 
 def peak_field(gap, moment) -> np.ndarray:
     """B0 = mu0 m / (2 pi h^3) (T), the aligned reading of eq 19."""
-    return MU0 * moment / (2.0 * np.pi * np.asarray(gap, dtype=float) ** 3)
+    return marker_field_z(0.0, gap, moment)
 
 
 def normalised_ratio(x) -> np.ndarray:

@@ -83,7 +83,7 @@ def _beam2d():
     n = len(X)
     Br = np.tile([0.258, 0.0, 0.0], (n, 1))
     clamped = X[:, 0] < 0.0
-    from magsoro import MU0
+    from magsoro.constants import MU0
 
     B = 0.004 * MU0 * 303e3 / 0.258
     control = Control([Uniform([0.0, B, 0.0])])

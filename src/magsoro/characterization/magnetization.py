@@ -41,7 +41,7 @@ from typing import Mapping, Sequence
 import numpy as np
 from scipy.optimize import least_squares
 
-from magsoro import MU0
+from magsoro.constants import MU0
 from magsoro.characterization.csvfiles import read_columns
 from magsoro.characterization.errors import CharacterizationDataError
 

@@ -126,7 +126,19 @@ class Rollout:
         if st.formulation != "updated":
             raise ValueError(f"the differentiable rollout runs the updated-Lagrangian engine only; the scene asks for "
                              f"simulation.formulation = {st.formulation!r}")
+        groups = int(m.host["contact_group"].max()) + 1
+        if st.contact is not None and st.contact.active(groups):
+            raise ValueError("the differentiable rollout has no contact between bodies or self-contact; give the scene "
+                             "contact.friction = 'sticky' (one velocity field) or a single body")
         self.k = k = m.kernels
+        self._no_contact = k["ContactGrid"]()  # inactive: one velocity field per node
+        self._no_contact.active = 0
+        self._no_contact.n_nodes = 0
+        # one-element arrays, never read while inactive: the tape visits every array of a struct argument
+        nc, one_v = self._no_contact, lambda dt: wp.zeros(1, dtype=dt, device=m.device)
+        nc.group, nc.split, nc.gmin = one_v(wp.int32), one_v(wp.int32), one_v(wp.int32)
+        nc.X, nc.xbar, nc.axis, nc.grad_m = (one_v(k["vec"]) for _ in range(4))
+        nc.mu = one_v(m.scalar)
         self.dim, self.dev, self.sc = m.dim, m.device, m.scalar
         self.dt = float(dt)
         self.n_steps = int(n_steps)
@@ -254,7 +266,7 @@ class Rollout:
                 m.vol0, m.mass, m.shear, m.bulk, m.material_model, m.material_params, m.Br, m.clamped,
                 k["v3"](), 1, B_particle, G_particle,
                 self._grid_lo, self._shape_v, sc(m.dx), dt,
-                dst.grid_p, dst.grid_m, dst.grid_clamp, self.error, 0,
+                dst.grid_p, dst.grid_m, dst.grid_clamp, self.error, 0, self._no_contact,
             ],
             device=dev,
         )
@@ -264,7 +276,7 @@ class Rollout:
                 dst.grid_p, dst.grid_m, dst.grid_clamp, self._org_v, self._shape_v,
                 self._domain_lo, self._domain_hi, MODES[st.walls], sc(st.wall_friction), sc(m.dx), dt,
                 self._damping, self._gravity, self._collider_views[step], self.n_colliders, wp.float64(st.plane_z),
-                dst.grid_v,
+                dst.grid_v, self._no_contact,
             ],
             device=dev,
         )
@@ -273,16 +285,16 @@ class Rollout:
             inputs=[
                 dst.grid_v, m.clamped, self._grid_lo, self._shape_v, sc(m.dx), dt,
                 src.x, src.F, dst.x, dst.v, dst.C, dst.F,
-                self.bounds, self.max_speed, self.error, 1 if remap else 0, m.mass, dst.grid_q, src.x, 0,
+                self.bounds, self.max_speed, self.error, 1 if remap else 0, m.mass, dst.grid_q, src.x, 0, self._no_contact,
             ],
             device=dev,
         )
         if remap:  # the engine's velocity-gradient remap (docs/engine.md), same kernels
             wp.launch(k["remap_node_velocity"], dim=self.n_nodes,
-                      inputs=[dst.grid_q, dst.grid_m, dst.grid_clamp, dst.grid_w], device=dev)
+                      inputs=[dst.grid_q, dst.grid_m, dst.grid_clamp, dst.grid_w, self.n_nodes], device=dev)
             wp.launch(k["remap_F"], dim=n,
                       inputs=[src.x, m.clamped, self._grid_lo, self._shape_v, sc(m.dx), dt, dst.grid_w, src.F, dst.F,
-                              self.error],
+                              self.error, self._no_contact],
                       device=dev)
 
     def _run_segment(self, seg: int) -> int:

@@ -25,7 +25,7 @@ is singular only on the edges.
 import numpy as np
 import warp as wp
 
-from magsoro import MU0
+from magsoro.constants import MU0
 from magsoro.fields.base import MovingSource, as_points
 from magsoro.fields.elliptic import PI_F64
 from magsoro.fields.profiles import Keyframes

@@ -33,7 +33,7 @@ Two models of the same magnet (diameter D, length L, remanence Br along its axis
 import numpy as np
 import warp as wp
 
-from magsoro import MU0
+from magsoro.constants import MU0
 from magsoro.fields.base import MovingSource, as_points, unit_vector as _unit
 from magsoro.fields.elliptic import (
     PI_F64,

@@ -1,10 +1,14 @@
-"""Point dipole: the far field of a small permanent magnet (seed 004 eq 14)."""
+"""Point dipole: the far field of a small permanent magnet (seed 004 eq 14).
+
+The package's one home for the dipole law: the host functions :func:`dipole_B`, :func:`dipole_grad_B` and
+:func:`dipole_field_force`, the device function :func:`dipole_field` and the :class:`Dipole` source.
+"""
 
 
 import numpy as np
 import warp as wp
 
-from magsoro import MU0
+from magsoro.constants import MU0
 from magsoro.fields.base import MovingSource, as_points
 from magsoro.fields.profiles import Keyframes
 
@@ -33,6 +37,57 @@ def dipole_field(p: wp.vec3d, prm: wp.array(dtype=wp.float64)):
     return B, G
 
 
+def dipole_B(points, moment, position=(0.0, 0.0, 0.0)) -> np.ndarray:
+    """B (N, 3), T, at (N, 3) ``points`` (m) of a point dipole of ``moment`` (A m^2) at ``position`` (m):
+    mu0/(4 pi) (3 r (m.r)/r^5 - m/r^3), r = x - position; 0 at the dipole itself."""
+    moment = np.asarray(moment, dtype=np.float64)
+    r = as_points(points) - position
+    rn = np.linalg.norm(r, axis=1, keepdims=True)
+    mr = r @ moment
+    with np.errstate(divide="ignore", invalid="ignore"):
+        out = MU0 / (4 * np.pi) * (3 * r * (mr[:, None] / rn**5) - moment / rn**3)
+    out[rn[:, 0] == 0] = 0.0
+    return out
+
+
+def dipole_grad_B(points, moment, position=(0.0, 0.0, 0.0)) -> np.ndarray:
+    """grad B (N, 3, 3), T/m, [n, i, j] = dB_i/dx_j, of the point dipole of :func:`dipole_B`; 0 at the dipole."""
+    m = np.asarray(moment, dtype=np.float64)
+    r = as_points(points) - position
+    r2 = np.einsum("ni,ni->n", r, r)
+    mr = r @ m
+    with np.errstate(divide="ignore", invalid="ignore"):
+        c = 3 * MU0 / (4 * np.pi) / r2**2.5
+        G = (
+            mr[:, None, None] * np.eye(3)
+            + m[None, :, None] * r[:, None, :]
+            + r[:, :, None] * m[None, None, :]
+            - 5 * (mr / r2)[:, None, None] * r[:, :, None] * r[:, None, :]
+        ) * c[:, None, None]
+    G[r2 == 0] = 0.0
+    return G
+
+
+def dipole_field_force(points, moments, moment, position):
+    """B (P, 3), T, and the force f = (grad B)^T m_p (P, 3), N, on small moments ``moments`` (P, 3), A m^2, at
+    ``points`` (P, 3), m, in the field of a point dipole of ``moment`` at ``position``: one closed form, without
+    the (P, 3, 3) gradient. The points must not be at the dipole.
+
+    dB_i/dx_k = c (M.r d_ik + M_i r_k + r_i M_k - 5 (M.r) r_i r_k / r^2), c = 3 mu0 / (4 pi r^5)."""
+    M = moment
+    r = points - position
+    r2 = np.einsum("pi,pi->p", r, r)
+    rn = np.sqrt(r2)
+    Mr = r @ M
+    mr = np.einsum("pi,pi->p", moments, r)
+    k = MU0 / (4.0 * np.pi)
+    B = k * (3.0 * r * (Mr / (r2 * r2 * rn))[:, None] - M[None, :] / (r2 * rn)[:, None])
+    c = 3.0 * k / (r2 * r2 * rn)
+    f = c[:, None] * (Mr[:, None] * moments + (moments @ M)[:, None] * r + mr[:, None] * M[None, :]
+                      - (5.0 * Mr * mr / r2)[:, None] * r)
+    return B, f
+
+
 class Dipole(MovingSource):
     """Point magnetic dipole.
 
@@ -54,29 +109,10 @@ class Dipole(MovingSource):
         self.path = path
 
     def B(self, points, t=0.0):
-        r = as_points(points) - self.position_at(t)
-        rn = np.linalg.norm(r, axis=1, keepdims=True)
-        mr = r @ self.moment
-        with np.errstate(divide="ignore", invalid="ignore"):
-            out = MU0 / (4 * np.pi) * (3 * r * (mr[:, None] / rn**5) - self.moment / rn**3)
-        out[rn[:, 0] == 0] = 0.0
-        return out
+        return dipole_B(points, self.moment, self.position_at(t))
 
     def grad_B(self, points, t=0.0):
-        r = as_points(points) - self.position_at(t)
-        m = self.moment
-        r2 = np.einsum("ni,ni->n", r, r)
-        mr = r @ m
-        with np.errstate(divide="ignore", invalid="ignore"):
-            c = 3 * MU0 / (4 * np.pi) / r2**2.5
-            G = (
-                mr[:, None, None] * np.eye(3)
-                + m[None, :, None] * r[:, None, :]
-                + r[:, :, None] * m[None, None, :]
-                - 5 * (mr / r2)[:, None, None] * r[:, :, None] * r[:, None, :]
-            ) * c[:, None, None]
-        G[r2 == 0] = 0.0
-        return G
+        return dipole_grad_B(points, self.moment, self.position_at(t))
 
     def device_func(self):
         return dipole_field

@@ -33,7 +33,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from magsoro import MU0
+from magsoro.constants import MU0
 
 _COMPONENTS = {"x": 0, "y": 1, "z": 2}
 

@@ -22,7 +22,7 @@ and dB_rho/drho = -B_rho/rho - dB_z/dz (div B = 0). On the axis dB_z/dz reduces 
 import numpy as np
 import warp as wp
 
-from magsoro import MU0
+from magsoro.constants import MU0
 from magsoro.fields.base import FieldSource, FieldSum, MovingSource, as_points, unit_vector as _unit
 from magsoro.fields.cylinder import AXIS_EPS
 from magsoro.fields.elliptic import (

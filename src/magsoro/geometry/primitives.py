@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from magsoro.mpm.colliders import rotation_to_axis
+from magsoro.geometry.transforms import rotation_to_axis
 
 
 class Shape:

@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-from magsoro import __version__
+from magsoro._version import __version__
 from magsoro.io.files import atomic_save_npz, atomic_write_json, atomic_write_text
 from magsoro.io.vtk import write_pvd, write_vtp
 

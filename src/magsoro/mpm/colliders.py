@@ -12,6 +12,7 @@ import numpy as np
 import warp as wp
 
 from magsoro.fields.profiles import Keyframes
+from magsoro.geometry.transforms import rotation_to_axis
 
 COLLIDER_STRIDE = wp.constant(24)
 HALF_SPACE, BOX, SPHERE, CYLINDER = 0, 1, 2, 3
@@ -172,20 +173,6 @@ class Collider:
         else:
             d = np.stack([np.hypot(q[:, 0], q[:, 1]) - self.size[0], np.abs(q[:, 2]) - self.size[1]], axis=1)
         return np.linalg.norm(np.maximum(d, 0), axis=1) + np.minimum(d.max(axis=1), 0)
-
-
-def rotation_to_axis(axis) -> np.ndarray:
-    """A rotation matrix whose third column is the unit vector ``axis``."""
-    z = np.asarray(axis, dtype=np.float64).reshape(3)
-    nz = np.linalg.norm(z)
-    if nz == 0:
-        raise ValueError("axis must be non-zero")
-    z = z / nz
-    helper = np.array([1.0, 0, 0]) if abs(z[0]) < 0.9 else np.array([0, 1.0, 0])
-    x = np.cross(helper, z)
-    x /= np.linalg.norm(x)
-    y = np.cross(z, x)
-    return np.stack([x, y, z], axis=1)
 
 
 def collider_table(colliders: list[Collider], t: float) -> np.ndarray:

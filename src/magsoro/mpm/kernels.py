@@ -13,8 +13,9 @@ import functools
 
 import warp as wp
 
-from magsoro import MU0
+from magsoro.constants import MU0
 from magsoro.mpm.colliders import COLLIDER_STRIDE, collider_sdf
+from magsoro.mpm.contact import make_contact
 
 # Unroll the 3^dim-node stencil loops (27 in 3D): constant offsets let the compiler fold the weight selection.
 wp.set_module_options({"max_unroll": 32})
@@ -36,65 +37,20 @@ def make_kernels(dim: int, scalar):
     v3 = wp.types.vector(length=3, dtype=scalar)
     m3 = wp.types.matrix(shape=(3, 3), dtype=scalar)
     NS = 3**dim
+    ct_ns = make_contact(dim, scalar)
+    ContactGrid = ct_ns["ContactGrid"]
+    field_of = ct_ns["field_of"]
+    resolve_contact = ct_ns["resolve"]
     # Constants are computed here in double precision: literal arithmetic inside a kernel runs in float32.
     inv_mu0 = 1.0 / MU0
     minus_two_thirds = -2.0 / 3.0
 
-    @wp.func
-    def invariants(F: mat):
-        """J, I1 = tr C and tr(C^2) of C = F^T F; in 2D (plane strain) F_zz = 1 adds 1 to both traces."""
-        C = wp.transpose(F) * F
-        J = wp.determinant(F)
-        I1 = wp.trace(C)
-        trC2 = wp.trace(C * C)
-        if wp.static(dim == 2):
-            I1 = I1 + scalar(1.0)
-            trC2 = trC2 + scalar(1.0)
-        return J, I1, trC2
+    # Constitutive laws (stress and energy of each registered law): see magsoro.mpm.materials
+    from magsoro.mpm.materials import make_material_functions
 
-    @wp.func
-    def elastic_stress(F: mat, model: int, G: scalar, K: scalar, prm: v3):
-        """First Piola stress of the compressible hyperelastic models, volumetric part K/2 (J - 1)^2 for all:
-
-        model 0, Neo-Hookean (seed 000 eq 10): W = G/2 (I1b - 3),  P = G J^(-2/3) (F - I1/3 F^-T) + ...
-          (the extracted text of eq 10 reads F^-2 in the last term; F^-T is what the energy gives)
-        model 1, Mooney-Rivlin: W = C10 (I1b - 3) + C01 (I2b - 3),             prm = (C10, C01, 0)
-        model 2, Yeoh:          W = C10 (I1b - 3) + C20 (I1b - 3)^2 + C30 (I1b - 3)^3, prm = (C10, C20, C30)
-        with I1b = J^(-2/3) I1, I2b = J^(-4/3) I2 the isochoric invariants, so the deviatoric and
-        volumetric responses separate as in the incompressible fits of seed 001.
-        """
-        J, I1, trC2 = invariants(F)
-        FinvT = wp.transpose(wp.inverse(F))
-        Jm23 = wp.pow(J, scalar(minus_two_thirds))
-        dI1b = Jm23 * (scalar(2.0) * F - (scalar(2.0) / scalar(3.0)) * I1 * FinvT)  # dI1b/dF
-        P = K * J * (J - scalar(1.0)) * FinvT
-        if model == 0:
-            P = P + scalar(0.5) * G * dI1b
-        elif model == 1:
-            I2 = scalar(0.5) * (I1 * I1 - trC2)
-            FC = F * (wp.transpose(F) * F)
-            dI2b = Jm23 * Jm23 * (scalar(2.0) * (I1 * F - FC) - (scalar(4.0) / scalar(3.0)) * I2 * FinvT)
-            P = P + prm[0] * dI1b + prm[1] * dI2b
-        else:
-            e = Jm23 * I1 - scalar(3.0)
-            P = P + (prm[0] + scalar(2.0) * prm[1] * e + scalar(3.0) * prm[2] * e * e) * dI1b
-        return P
-
-    @wp.func
-    def elastic_energy(F: mat, model: int, G: scalar, K: scalar, prm: v3):
-        """Strain energy density per reference volume matching :func:`elastic_stress`."""
-        J, I1, trC2 = invariants(F)
-        Jm23 = wp.pow(J, scalar(minus_two_thirds))
-        e = Jm23 * I1 - scalar(3.0)
-        W = scalar(0.5) * K * (J - scalar(1.0)) * (J - scalar(1.0))
-        if model == 0:
-            W = W + scalar(0.5) * G * e
-        elif model == 1:
-            I2 = scalar(0.5) * (I1 * I1 - trC2)
-            W = W + prm[0] * e + prm[1] * (Jm23 * Jm23 * I2 - scalar(3.0))
-        else:
-            W = W + prm[0] * e + prm[1] * e * e + prm[2] * e * e * e
-        return W
+    elastic = make_material_functions(dim, scalar)
+    elastic_stress = elastic["elastic_stress"]
+    elastic_energy = elastic["elastic_energy"]
 
     @wp.func
     def inplane(b: v3):
@@ -220,11 +176,14 @@ def make_kernels(dim: int, scalar):
         grid_clamp: wp.array(dtype=wp.int32),
         error: wp.array(dtype=wp.int32),
         total: int,
+        ct: ContactGrid,
     ):
         """Particle-to-grid transfer of mass, momentum and the stress impulse. ``x`` are the positions the grid
         weights are taken at: the current ones (updated Lagrangian, ``total`` = 0) or the reference ones (total
         Lagrangian, ``total`` = 1: the grid is the reference configuration's, and the node force takes the first
-        Piola stress P instead of the Kirchhoff stress P F^T)."""
+        Piola stress P instead of the Kirchhoff stress P F^T). With contact (``ct.active``) each node has two
+        velocity fields (:mod:`magsoro.mpm.contact`): the particle scatters into its own, and adds its share of
+        that field's mass gradient."""
         p = wp.tid()
         inv_dx = scalar(1.0) / dx
         base, fx = local_coords(x[p], grid_lo, inv_dx)
@@ -268,8 +227,11 @@ def make_kernels(dim: int, scalar):
         first = flat_index(base, shape)
         for q in range(NS):
             weight, o, idx = stencil_node(q, w0, w1, w2, first, shape)
-            wp.atomic_add(grid_p, idx, weight * (mv + (A * o - Afx)))
-            wp.atomic_add(grid_m, idx, weight * mp)
+            slot = idx + field_of(ct, p, idx) * ct.n_nodes
+            wp.atomic_add(grid_p, slot, weight * (mv + (A * o - Afx)))
+            wp.atomic_add(grid_m, slot, weight * mp)
+            if ct.active != 0:
+                wp.atomic_add(ct.grad_m, slot, (weight * mp) * (o - fx))
             if is_clamped != 0:
                 grid_clamp[idx] = 1
 
@@ -291,13 +253,11 @@ def make_kernels(dim: int, scalar):
                 vt = vt * (wp.max(vt_norm + mu * vn, scalar(0.0)) / vt_norm)
         return vt + cvel
 
-    @wp.kernel
-    def grid_update(
-        grid_p: wp.array(dtype=vec),
-        grid_m: wp.array(dtype=scalar),
-        grid_clamp: wp.array(dtype=wp.int32),
-        org: ivec,
-        shape: ivec,
+    @wp.func
+    def node_velocity(
+        momentum: vec,
+        m: scalar,
+        pos: vec,
         domain_lo: vec,
         domain_hi: vec,
         wall_mode: int,
@@ -309,19 +269,10 @@ def make_kernels(dim: int, scalar):
         colliders: wp.array(dtype=wp.float64),
         n_colliders: int,
         plane_z: wp.float64,
-        grid_v: wp.array(dtype=vec),
     ):
-        idx = wp.tid()
-        m = grid_m[idx]
-        if m <= scalar(0.0) or grid_clamp[idx] != 0:
-            grid_v[idx] = vec()
-            return
+        """Velocity of one field of a node after damping, gravity, the domain walls and the rigid colliders."""
         # damping f = -c p (seed 000 eq 17), integrated exactly over the step so any c is stable
-        vel = grid_p[idx] / m * damping_factor + dt * gravity
-        n = node_of_flat(idx, shape) + org
-        pos = vec()
-        for a in range(dim):
-            pos[a] = domain_lo[a] + scalar(n[a]) * dx
+        vel = momentum / m * damping_factor + dt * gravity
         # domain walls: nodes within two cells of a wall may not move into it
         for a in range(dim):
             normal = vec()
@@ -343,6 +294,52 @@ def make_kernels(dim: int, scalar):
                     mode = int(colliders[row + 1])
                     mu = scalar(colliders[row + 2])
                     vel = contact(vel, inplane(v3(cvel)), inplane(v3(nrm)), mode, mu)
+        return vel
+
+    @wp.kernel
+    def grid_update(
+        grid_p: wp.array(dtype=vec),
+        grid_m: wp.array(dtype=scalar),
+        grid_clamp: wp.array(dtype=wp.int32),
+        org: ivec,
+        shape: ivec,
+        domain_lo: vec,
+        domain_hi: vec,
+        wall_mode: int,
+        wall_friction: scalar,
+        dx: scalar,
+        dt: scalar,
+        damping_factor: scalar,
+        gravity: vec,
+        colliders: wp.array(dtype=wp.float64),
+        n_colliders: int,
+        plane_z: wp.float64,
+        grid_v: wp.array(dtype=vec),
+        ct: ContactGrid,
+    ):
+        """Node velocities. With contact, a node's second field (slot idx + n_nodes) gets its own velocity and the
+        two are corrected for contact (:mod:`magsoro.mpm.contact`)."""
+        idx = wp.tid()
+        m = grid_m[idx]
+        held = grid_clamp[idx] != 0
+        n = node_of_flat(idx, shape) + org
+        pos = vec()
+        for a in range(dim):
+            pos[a] = domain_lo[a] + scalar(n[a]) * dx
+        vel = vec()
+        if m > scalar(0.0) and not held:
+            vel = node_velocity(grid_p[idx], m, pos, domain_lo, domain_hi, wall_mode, wall_friction, dx, dt,
+                                damping_factor, gravity, colliders, n_colliders, plane_z)
+        if ct.active != 0:
+            slot = idx + ct.n_nodes
+            m1 = grid_m[slot]
+            vel1 = vec()
+            if m1 > scalar(0.0) and not held:
+                vel1 = node_velocity(grid_p[slot], m1, pos, domain_lo, domain_hi, wall_mode, wall_friction, dx, dt,
+                                     damping_factor, gravity, colliders, n_colliders, plane_z)
+                if m > scalar(0.0):
+                    vel, vel1 = resolve_contact(vel, vel1, m, m1, ct.grad_m[idx], ct.grad_m[slot], ct.mu[idx], ct.gap)
+            grid_v[slot] = vel1
         grid_v[idx] = vel
 
     @wp.kernel
@@ -367,6 +364,7 @@ def make_kernels(dim: int, scalar):
         grid_r: wp.array(dtype=vec),
         x_cur: wp.array(dtype=vec),
         total: int,
+        ct: ContactGrid,
     ):
         """Grid-to-particle transfer: new x, v, C. With ``remap`` = 0 F is updated from the same node velocities
         ("grid"); otherwise F_out is left to :func:`remap_F`, and the particle's new affine velocity field
@@ -396,7 +394,7 @@ def make_kernels(dim: int, scalar):
             first = flat_index(base, shape)
             for q in range(NS):
                 weight, o, idx = stencil_node(q, w0, w1, w2, first, shape)
-                wgv = weight * grid_v[idx]
+                wgv = weight * grid_v[idx + field_of(ct, p, idx) * ct.n_nodes]
                 new_v = new_v + wgv
                 S = S + wp.outer(wgv, o)
             # C = (4/dx^2) sum w v_i (x_i - x_p)^T = (4/dx) (sum w v_i o^T - v fx^T)
@@ -420,7 +418,8 @@ def make_kernels(dim: int, scalar):
                 Cfx = Cd * fx
                 for q in range(NS):  # new_v added per node, as in p2g
                     weight, o, idx = stencil_node(q, w0, w1, w2, first, shape)
-                    wp.atomic_add(grid_r, idx, (weight * mp) * (new_v + (Cd * o - Cfx)))
+                    slot = idx + field_of(ct, p, idx) * ct.n_nodes
+                    wp.atomic_add(grid_r, slot, (weight * mp) * (new_v + (Cd * o - Cfx)))
             for a in range(dim):
                 if not wp.isfinite(xc[a]) or not wp.isfinite(new_v[a]):
                     ok = False
@@ -452,12 +451,17 @@ def make_kernels(dim: int, scalar):
         grid_m: wp.array(dtype=scalar),
         grid_clamp: wp.array(dtype=wp.int32),
         grid_w: wp.array(dtype=vec),
+        n_nodes: int,
     ):
         """Node velocities of the remap: the scattered momenta over the first transfer's node masses (same
-        particles, same positions), at rest on held nodes. Once per node instead of once per stencil entry."""
+        particles, same positions), at rest on held nodes. Once per slot (node and field) instead of once per
+        stencil entry; slots from ``n_nodes`` on are the contact fields of the nodes."""
         idx = wp.tid()
         m = grid_m[idx]
-        if m > scalar(0.0) and grid_clamp[idx] == 0:
+        node = idx
+        if node >= n_nodes:
+            node = idx - n_nodes
+        if m > scalar(0.0) and grid_clamp[node] == 0:
             grid_w[idx] = grid_r[idx] / m
         else:
             grid_w[idx] = vec()
@@ -474,6 +478,7 @@ def make_kernels(dim: int, scalar):
         F_in: wp.array(dtype=mat),
         F_out: wp.array(dtype=mat),
         error: wp.array(dtype=wp.int32),
+        ct: ContactGrid,
     ):
         """F update from the remapped node velocities ``grid_w`` (:func:`remap_node_velocity`): F + dt (grad v) F
         at the particle's position at the start of the step, the same stencil as the first gather."""
@@ -491,7 +496,7 @@ def make_kernels(dim: int, scalar):
         first = flat_index(base, shape)
         for q in range(NS):
             weight, o, idx = stencil_node(q, w0, w1, w2, first, shape)
-            wv = weight * grid_w[idx]
+            wv = weight * grid_w[idx + field_of(ct, p, idx) * ct.n_nodes]
             sv = sv + wv
             S = S + wp.outer(wv, o)
         # as in g2p: (4/dx^2) sum w v_i (x_i - x_p)^T = (4/dx) (S - (sum w v_i) fx^T)
@@ -516,6 +521,9 @@ def make_kernels(dim: int, scalar):
         g2p=g2p,
         reset_reductions=reset_reductions,
         stress_kernel=stress_kernel,
+        ContactGrid=ContactGrid,
+        contact_scan=ct_ns["contact_scan"],
+        contact_classify=ct_ns["contact_classify"],
         vec=vec,
         mat=mat,
         ivec=ivec,

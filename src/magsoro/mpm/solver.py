@@ -21,11 +21,13 @@ from dataclasses import dataclass, field
 import numpy as np
 import warp as wp
 
-from magsoro import MU0
+from magsoro.constants import MU0
 from magsoro.errors import SimulationError
 from magsoro.fields.device import FieldEvaluator
 from magsoro.mpm.colliders import COLLIDER_STRIDE, MODES, Collider, collider_table
 from magsoro.mpm.kernels import make_kernels
+from magsoro.mpm.materials import LAWS, describe_codes
+from magsoro.mpm.timestep import cfl_time_step
 
 PRECISIONS = {"float32": (wp.float32, np.float32), "float64": (wp.float64, np.float64)}
 
@@ -128,7 +130,7 @@ class Model:
     2 C10), used for the time step. See :func:`magsoro.mpm.kernels.make_kernels` (elastic_stress).
     """
 
-    MATERIAL_MODELS = {"neo-hookean": 0, "mooney-rivlin": 1, "yeoh": 2}
+    MATERIAL_MODELS = {name: law.code for name, law in LAWS.items()}
 
     def __init__(
         self,
@@ -148,6 +150,7 @@ class Model:
         device: str | None = "cpu",
         material_model=None,
         material_params=None,
+        contact_group=None,
     ):
         if precision not in PRECISIONS:
             raise ValueError(f"precision must be one of {sorted(PRECISIONS)}, got {precision!r}")
@@ -189,12 +192,18 @@ class Model:
         self.shear = wp.array(h["shear_modulus"].astype(s), dtype=self.scalar, device=dev)
         self.bulk = wp.array(h["bulk_modulus"].astype(s), dtype=self.scalar, device=dev)
         self.Br = wp.array(h["remanence"].astype(s), dtype=k["v3"], device=dev)
-        if not np.all(np.isin(h["material_model"], [0, 1, 2])):
-            raise ValueError("material_model must be 0 (Neo-Hookean), 1 (Mooney-Rivlin) or 2 (Yeoh)")
+        if not np.all(np.isin(h["material_model"], list(self.MATERIAL_MODELS.values()))):
+            raise ValueError(f"material_model must be {describe_codes()}")
         self.material_model = wp.array(h["material_model"], dtype=wp.int32, device=dev)
         self.material_params = wp.array(h["material_params"].astype(s), dtype=k["v3"], device=dev)
         self.body = wp.array(h["body"], dtype=wp.int32, device=dev)
         self.clamped = wp.array(h["clamped"].astype(np.int32), dtype=wp.int32, device=dev)
+        # contact groups (magsoro.mpm.contact): bodies that move as one piece share one; default one per body
+        group = h["body"] if contact_group is None else np.broadcast_to(np.asarray(contact_group, dtype=np.int32), (n,)).copy()
+        if np.any(group < 0):
+            raise ValueError("contact_group must be >= 0")
+        h["contact_group"] = group
+        self.contact_group = wp.array(group, dtype=wp.int32, device=dev)
 
     def wave_speed(self, field_magnitude: float = 0.0) -> float:
         """Largest elastic wave speed sqrt((K + 4G/3 + |B||Br|/mu0) / rho) over particles, m/s.
@@ -236,6 +245,43 @@ class Control:
 
 
 @dataclass
+class ContactSettings:
+    """Contact between contact groups and within one (:mod:`magsoro.mpm.contact`).
+
+    friction: (G, G) Coulomb coefficients between groups (symmetric; entry (g, g) is group g's self-contact);
+    ``STICKY`` (any negative value) makes a pair share one velocity field, i.e. stick and never separate.
+    self_contact: split a node into two fields where one group's particles there come from layers more than
+    about 2 x ``fold_spread`` cells apart in the reference configuration. fold_spread: in cells. gap: two fields
+    of a node touch when their local centroids are less than ``gap`` cells apart (touching flat surfaces give about
+    1.3 at 2 particles per cell, a corner passing over a surface more): larger gaps add drag at leading edges."""
+
+    friction: np.ndarray
+    self_contact: bool = False
+    fold_spread: float = 1.5
+    gap: float = 1.5
+
+    STICKY = -1.0
+
+    def __post_init__(self):
+        f = np.atleast_2d(np.asarray(self.friction, dtype=np.float64))
+        if f.ndim != 2 or f.shape[0] != f.shape[1]:
+            raise ValueError(f"contact friction must be a square (groups x groups) table, got shape {f.shape}")
+        if not np.all(np.isfinite(f)):
+            raise ValueError("contact friction must be finite (negative for sticky)")
+        if not np.allclose(f, f.T):
+            raise ValueError("contact friction table must be symmetric")
+        if not (self.fold_spread > 0 and np.isfinite(self.fold_spread)):
+            raise ValueError(f"fold_spread must be finite and > 0 cells, got {self.fold_spread}")
+        self.friction = f
+
+    def active(self, groups: int) -> bool:
+        """True when some pair of the ``groups`` groups present can separate or slide (else one field does)."""
+        f = self.friction[:groups, :groups]
+        between = f[~np.eye(groups, dtype=bool)] if groups > 1 else np.zeros(0)
+        return bool(np.any(between >= 0) or (self.self_contact and np.any(np.diag(f) >= 0)))
+
+
+@dataclass
 class SolverSettings:
     """Numerical settings. damping c in 1/s (f = -c p); gravity m/s^2 (dim components); walls: domain-boundary
     contact mode; grid_margin: free cells kept around the particles; plane_z: z of the 2D plane for fields;
@@ -246,7 +292,8 @@ class SolverSettings:
     taken at the current positions) or "total" (total Lagrangian: weights, node forces and the velocity gradient
     are taken on the reference configuration, F grows by dt grad_X v, no colliders; a node is held when at least
     half of its mass comes from clamped particles, so a clamp acts at the clamped region's face; see
-    docs/engine.md); threads: CPU threads a step is split over (None: automatic, see :func:`resolve_threads`;
+    docs/engine.md); contact: :class:`ContactSettings` (None: every body moves in one velocity field, sticky);
+    threads: CPU threads a step is split over (None: automatic, see :func:`resolve_threads`;
     ignored on CUDA)."""
 
     damping: float = 0.0
@@ -259,6 +306,7 @@ class SolverSettings:
     velocity_gradient: str = "remap"
     formulation: str = "updated"
     threads: int | None = None
+    contact: ContactSettings | None = None
 
 
 class Solver:
@@ -295,6 +343,21 @@ class Solver:
         # CPU threads: each takes a contiguous range of particles, scatters into a grid of its own (thread 0 into
         # the shared one) and keeps its own bounds and top speed; the grids are summed node by node
         self.threads = resolve_threads(st.threads, dev, model.n_particles)
+        # contact: two velocity fields per node (magsoro.mpm.contact). Its scan and transfers index the particle
+        # arrays globally, so a CPU step with contact runs on one thread.
+        groups = int(model.host["contact_group"].max()) + 1
+        self._contact = st.contact is not None and st.contact.active(groups)
+        if self._contact:
+            if self._total:
+                raise ValueError("formulation 'total' keeps the grid on the reference configuration, where contact "
+                                 "between bodies cannot act; use formulation 'updated' for contact")
+            fr = st.contact.friction
+            if fr.shape[0] < groups:
+                raise ValueError(f"contact friction table is {fr.shape[0]} x {fr.shape[0]}, the model has {groups} contact groups")
+            self._contact_friction = wp.array(fr[:groups, :groups].ravel().astype(model.np_scalar), dtype=sc, device=dev)
+            self._contact_groups = groups
+            self.threads = 1
+        self._fields_per_node = 2 if self._contact else 1
         cuts = np.linspace(0, model.n_particles, self.threads + 1).round().astype(int)
         self._ranges = [(int(cuts[t]), int(cuts[t + 1])) for t in range(self.threads)]
         self._workers = _Workers(self.threads - 1) if self.threads > 1 else None
@@ -367,10 +430,22 @@ class Solver:
         if need > self.capacity:
             cap = int(need * 1.3) + 64  # slack so a slowly growing body does not reallocate every refit
             k, dev, sc = self.k, self.device, self.scalar
-            self.grid_p = wp.zeros(cap, dtype=k["vec"], device=dev)
-            self.grid_v = wp.zeros(cap, dtype=k["vec"], device=dev)
-            self.grid_m = wp.zeros(cap, dtype=sc, device=dev)
+            nf = self._fields_per_node  # slots per node: one per velocity field
+            self.grid_p = wp.zeros(nf * cap, dtype=k["vec"], device=dev)
+            self.grid_v = wp.zeros(nf * cap, dtype=k["vec"], device=dev)
+            self.grid_m = wp.zeros(nf * cap, dtype=sc, device=dev)
             self.grid_clamp = wp.zeros(cap, dtype=wp.int32, device=dev)
+            if self._contact:
+                dim = self.dim
+                self._ct_split = wp.zeros(cap, dtype=wp.int32, device=dev)
+                self._ct_gmin = wp.zeros(cap, dtype=wp.int32, device=dev)
+                self._ct_gmax = wp.zeros(cap, dtype=wp.int32, device=dev)
+                self._ct_xbar = wp.zeros(cap, dtype=k["vec"], device=dev)
+                self._ct_axis = wp.zeros(cap, dtype=k["vec"], device=dev)
+                self._ct_mu = wp.zeros(cap, dtype=sc, device=dev)
+                self._ct_grad = wp.zeros(2 * cap, dtype=k["vec"], device=dev)
+                fold = self.settings.contact.self_contact
+                self._ct_moments = wp.zeros(cap * (1 + dim + dim * dim) if fold else 1, dtype=sc, device=dev)
             self._thread_grids = [
                 (wp.zeros(cap, dtype=k["vec"], device=dev), wp.zeros(cap, dtype=sc, device=dev)) for _ in range(self.threads - 1)
             ]
@@ -379,7 +454,14 @@ class Solver:
         self.refits += 1
         self._grid_version += 1
         self._launch_sets.clear()
-        self._grid_views = [self.grid_p[:need], self.grid_m[:need], self.grid_clamp[:need]]
+        slots = self._fields_per_node * need
+        self._grid_views = [self.grid_p[:slots], self.grid_m[:slots], self.grid_clamp[:need]]
+        if self._contact:
+            # zeroed each step (the views after the first three); the group bounds are reset apart
+            self._grid_views += [self._ct_grad[: 2 * need]]
+            if self.settings.contact.self_contact:
+                self._grid_views += [self._ct_moments[: need * (1 + self.dim + self.dim * self.dim)]]
+            self._ct_group_views = [self._ct_gmin[:need], self._ct_gmax[:need]]
         self._thread_grid_views = [(gp[:need], gm[:need]) for gp, gm in self._thread_grids]
         if self._on_cpu:
             self._grid_np = [v.numpy() for v in self._grid_views] + [a.numpy() for pair in self._thread_grid_views for a in pair]
@@ -449,6 +531,16 @@ class Solver:
         grid_p = [self.grid_p] + [gp for gp, _ in self._thread_grids]
         grid_m = [self.grid_m] + [gm for _, gm in self._thread_grids]
         x_grid = self._X0 if self._total else state_in.x  # the positions the grid weights are taken at
+        ct = k["ContactGrid"]()
+        ct.active = 0
+        ct.n_nodes = 0
+        if self._contact:
+            ct.active = 1
+            ct.n_nodes = n_act
+            ct.gap = sc(st.contact.gap)
+            ct.group, ct.X = m.contact_group, m.X0
+            ct.split, ct.gmin, ct.xbar, ct.axis = self._ct_split, self._ct_gmin, self._ct_xbar, self._ct_axis
+            ct.mu, ct.grad_m = self._ct_mu, self._ct_grad
 
         def particles(kernel, inputs_of):
             out = []
@@ -466,7 +558,7 @@ class Solver:
                     cut(m.Br), cut(m.clamped),
                     k["v3"](), 1 if has_gradient else 0, cut(self.B_particle), cut(self.G_particle),
                     grid_lo, shape, sc(m.dx), sc(0.0),
-                    grid_p[t], grid_m[t], self.grid_clamp, self.error, 1 if self._total else 0,
+                    grid_p[t], grid_m[t], self.grid_clamp, self.error, 1 if self._total else 0, ct,
                 ],
             ),
             "grid_update": wp.launch(
@@ -478,7 +570,7 @@ class Solver:
                     MODES[st.walls], sc(st.wall_friction), sc(m.dx), sc(0.0),
                     sc(1.0), self.gravity,
                     self._collider_array, len(control.colliders), wp.float64(st.plane_z),
-                    self.grid_v,
+                    self.grid_v, ct,
                 ],
                 device=dev,
                 record_cmd=True,
@@ -494,7 +586,7 @@ class Solver:
                     cut(x_grid), cut(state_in.F),
                     cut(state_out.x), cut(state_out.v), cut(state_out.C), cut(state_out.F),
                     self._thread_bounds[t], self._thread_speed[t], self.error, 1 if self._remap else 0, cut(m.mass), grid_p[t],
-                    cut(state_in.x), 1 if self._total else 0,
+                    cut(state_in.x), 1 if self._total else 0, ct,
                 ],
             ),
             "sum_mass": [
@@ -510,13 +602,25 @@ class Solver:
             "_scalars": None,
             "_p2g_B": _param_index(k["p2g"], "B_uniform"),
         }
+        if self._contact:
+            c = st.contact
+            fold = 1 if c.self_contact else 0
+            L["contact"] = [
+                wp.launch(k["contact_scan"], dim=m.n_particles, device=dev, record_cmd=True, inputs=[
+                    state_in.x, m.X0, m.mass, m.contact_group, grid_lo, shape, sc(m.dx), fold,
+                    self._ct_gmin, self._ct_gmax, self._ct_moments]),
+                wp.launch(k["contact_classify"], dim=n_act, device=dev, record_cmd=True, inputs=[
+                    self._ct_gmin, self._ct_gmax, self._ct_moments, fold, sc((c.fold_spread * m.dx) ** 2),
+                    self._contact_friction, self._contact_groups,
+                    self._ct_split, self._ct_xbar, self._ct_axis, self._ct_mu]),
+            ]
         if self._remap:
             # second half of the remap: g2p has scattered the new affine velocities into grid_p (free after the
             # grid update); node velocities go to grid_v (free after g2p), and F is gathered from them
             L["remap_nodes"] = wp.launch(
                 k["remap_node_velocity"],
-                dim=n_act,
-                inputs=[self.grid_p, self.grid_m, self.grid_clamp, self.grid_v],
+                dim=self._fields_per_node * n_act,
+                inputs=[self.grid_p, self.grid_m, self.grid_clamp, self.grid_v, n_act],
                 device=dev,
                 record_cmd=True,
             )
@@ -524,7 +628,7 @@ class Solver:
                 k["remap_F"],
                 lambda t, cut: [
                     cut(state_in.x), cut(m.clamped), grid_lo, shape, sc(m.dx), sc(0.0), self.grid_v,
-                    cut(state_in.F), cut(state_out.F), self.error,
+                    cut(state_in.F), cut(state_out.F), self.error, ct,
                 ],
             )
         return L
@@ -573,7 +677,7 @@ class Solver:
         if field_magnitude is None:
             field_magnitude = self.field_magnitude(control) if control is not None else 0.0
         c = self.model.wave_speed(field_magnitude)
-        return self.settings.cfl * self.model.dx / (c + max_speed)
+        return cfl_time_step(self.settings.cfl, self.model.dx, c, max_speed)
 
     def field_magnitude(self, control: Control, t: float = 0.0) -> float:
         """Largest |B| (T) the sources give at the reference particle positions (uniform profiles: their peak)."""
@@ -656,6 +760,11 @@ class Solver:
                 view.zero_()
             self.error.zero_()
         tick = self._phase("other", tick)
+        if self._contact:
+            for v, fill in zip(self._ct_group_views, (2**31 - 1, -1)):
+                v.fill_(fill)
+            for one in L["contact"]:
+                one.launch()
         self._parallel(L["p2g"])
         for one in L["sum_mass"]:
             one.launch()
@@ -675,7 +784,7 @@ class Solver:
             if self._on_cpu:
                 self._grid_np[0].fill(0)
                 for i in range(len(self._thread_grid_views)):
-                    self._grid_np[3 + 2 * i].fill(0)
+                    self._grid_np[len(self._grid_views) + 2 * i].fill(0)
             else:
                 self._grid_views[0].zero_()
                 for gp, _ in self._thread_grid_views:

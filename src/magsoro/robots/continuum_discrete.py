@@ -9,7 +9,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from magsoro import MU0
+from magsoro.constants import MU0
 from magsoro.robots.base import Context, FrameRecorder, ReproduceResult, Robot, RobotError, scene_data, simulation
 from magsoro.robots.continuum_soft import (Row, drive, level_keyframes, probe_by_name, settle_row, twin_mape_rows,
                                            twin_outputs)

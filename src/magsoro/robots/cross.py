@@ -11,11 +11,11 @@ deformed strip, gravity), the large-deflection form of the paper's cantilever ar
 
 from __future__ import annotations
 
-import math
 import time
 
 import numpy as np
 
+from magsoro.constants import MU0
 from magsoro.robots.base import (
     Context, FrameRecorder, ReproduceResult, Robot, plot_curve, scene_data, simulation, write_csv,
 )
@@ -30,7 +30,6 @@ MOVE = 0.02
 FRAME_EVERY = 0.02
 MID_Z = 0.001      # m: mid-plane of the 2 mm cross lying on the plate
 ARM_LENGTH, ARM_WIDTH, THICKNESS, HALF_CORE = 0.010, 0.004, 0.002, 0.002   # m, scenes/cross.toml
-MU0 = 4e-7 * math.pi
 TOL_ROD = 0.20   # mean relative difference: dx = 1 mm leaves 2 cells through the thickness (~10 % stiff)
 
 

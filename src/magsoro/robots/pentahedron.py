@@ -24,6 +24,7 @@ import math
 
 import numpy as np
 
+from magsoro.constants import MU0
 from magsoro.robots.base import (Context, FrameRecorder, ReproduceResult, Robot, RobotError, plot_curve,
                                  scene_data, simulation, write_csv)
 
@@ -134,9 +135,6 @@ def row(name: str, quantity: str, reference: float, value: float, error: float, 
 
 
 # -- reduced model: a folding strip as a planar elastica ------------------------------------------------------
-MU0 = 4e-7 * math.pi
-
-
 def material_constants(sim, body: str) -> dict:
     """Young's modulus E, Poisson's ratio nu, density rho and |Br| of a body as the engine has them (Pa, -, kg/m^3,
     T), from its shear and bulk moduli."""

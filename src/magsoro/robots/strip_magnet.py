@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from magsoro import MU0
+from magsoro.constants import MU0
 from magsoro.robots.base import Context, FrameRecorder, ReproduceResult, Robot, RobotError, plot_curve, scene_data, simulation, write_csv
 from magsoro.robots.continuum_soft import Row, Schedule, body_mask, body_material, drive, mape, settle_row
 

@@ -17,7 +17,7 @@ from dataclasses import dataclass, field as dc_field
 
 import numpy as np
 
-from magsoro import MU0
+from magsoro.constants import MU0
 from magsoro.errors import SceneError, SimulationError
 from magsoro.rod._shooting import ConvergenceFailure, Loads, Shooter, ShootingState
 from magsoro.rod.magnetisation import Magnetisation, _vec3

@@ -38,8 +38,9 @@ from magsoro.geometry.primitives import (
     fill_lattice,
 )
 from magsoro.materials.library import MaterialLibraryError, get_material, load_library
+from magsoro.mpm.materials import DEFAULT_LAW, LAWS, PARAMETER_KEYS
 from magsoro.mpm.colliders import Collider
-from magsoro.mpm.solver import Control, Model, SolverSettings
+from magsoro.mpm.solver import Control, ContactSettings, Model, SolverSettings
 from magsoro.scene.schema import Scene
 
 
@@ -139,9 +140,6 @@ def make_collider(spec, dim: int, plane_z: float):
     raise SceneError(f"unknown collider type {spec.type!r}")
 
 
-ENGINE_MODELS = {"neo-hookean": 0, "mooney-rivlin": 1, "yeoh": 2}
-
-
 def resolve_material(spec, base_dir, key: str, library: dict | None = None) -> dict:
     """Material of a body as engine numbers: model id, initial shear modulus, bulk modulus, params, density,
     and the library remanence (T, 0 when not from the library).
@@ -163,9 +161,9 @@ def resolve_material(spec, base_dir, key: str, library: dict | None = None) -> d
             entry = get_material(spec.library, library)
         except MaterialLibraryError as exc:
             raise SceneError(f"{lib_key}: {exc}") from None
-        values.update(model="neo-hookean", density=entry.density, shear_modulus=entry.shear_modulus)
+        values.update(model=DEFAULT_LAW, density=entry.density, shear_modulus=entry.shear_modulus)
         remanence = entry.remanence
-        if spec.model not in (None, "neo-hookean"):
+        if spec.model not in (None, DEFAULT_LAW):
             values.pop("shear_modulus")  # the library's modulus is Neo-Hookean; another model needs its own constants
     if spec.file is not None:
         import tomllib
@@ -178,41 +176,29 @@ def resolve_material(spec, base_dir, key: str, library: dict | None = None) -> d
         except tomllib.TOMLDecodeError as exc:
             raise SceneError(f"{key}.file: '{path}' is not valid TOML: {exc}") from None
         model = entry.get("model")
-        if model not in ENGINE_MODELS:
-            raise SceneError(f"{key}.file: '{path}' holds model {model!r}; the engine supports {', '.join(ENGINE_MODELS)}")
+        if model not in LAWS:
+            raise SceneError(f"{key}.file: '{path}' holds model {model!r}; the engine supports {', '.join(LAWS)}")
         values["model"] = model
         if "density" in entry:
             values["density"] = entry["density"]
-        params = entry.get("parameters", {})
-        if model == "neo-hookean":
-            values["shear_modulus"] = 2.0 * params["C10"] if "C10" in params else entry.get("shear_modulus")
-        else:
-            for name in ("C10", "C01", "C20", "C30"):
-                if name in params:
-                    values[name] = params[name]
-    for name in ("model", "density", "shear_modulus", "C10", "C01", "C20", "C30", "bulk_modulus"):
+        values.update(LAWS[model].from_material_file(entry))
+    for name in ("model", "density", *PARAMETER_KEYS, "bulk_modulus"):
         v = getattr(spec, name)
         if v is not None:
             values[name] = v
-    model = values.get("model", "neo-hookean")
+    model = values.get("model", DEFAULT_LAW)
+    law = LAWS[model]
     if values.get("density") is None:
         raise SceneError(f"{key}.density: required (kg/m^3), inline or in the material file")
     try:
-        if model == "neo-hookean":
-            G = float(values["shear_modulus"])
-            params = (0.0, 0.0, 0.0)
-        elif model == "mooney-rivlin":
-            params = (float(values["C10"]), float(values.get("C01", 0.0)), 0.0)
-            G = 2.0 * (params[0] + params[1])
-        else:
-            params = (float(values["C10"]), float(values.get("C20", 0.0)), float(values.get("C30", 0.0)))
-            G = 2.0 * params[0]
+        params = law.pack(values)
+        G = law.initial_shear_modulus(values)
     except (KeyError, TypeError) as exc:
         raise SceneError(f"{key}: model '{model}' lacks parameter {exc}") from None
     if not G > 0:
         raise SceneError(f"{key}: the initial shear modulus must be > 0 Pa, got {G}")
     K = float(values.get("bulk_modulus") or 20.0 * G)
-    return {"model": ENGINE_MODELS[model], "shear_modulus": G, "bulk_modulus": K, "params": params, "density": float(values["density"]), "remanence": remanence}
+    return {"model": law.code, "shear_modulus": G, "bulk_modulus": K, "params": params, "density": float(values["density"]), "remanence": remanence}
 
 
 def make_magnetization(spec, remanence: float | None, base_dir, key: str):
@@ -459,6 +445,82 @@ class Built:
     fill_report: list[dict] = field(default_factory=list)
 
 
+def contact_groups(scene: Scene, X: np.ndarray, body_id: np.ndarray) -> np.ndarray:
+    """Contact group of each body: bodies that touch or overlap in the reference configuration (particles on
+    neighbouring lattice sites) and the parts of a robot are bonded into one group, numbered from 0 in the order
+    of their first body. Returns (n_bodies,) int."""
+    sim = scene.simulation
+    dim = sim.dim
+    h = sim.dx / sim.particles_per_cell
+    lo = np.asarray(sim.domain_lo, dtype=np.float64)[:dim]
+    n = len(scene.bodies)
+    parent = list(range(n))
+
+    def root(a):
+        while parent[a] != a:
+            parent[a] = parent[parent[a]]
+            a = parent[a]
+        return a
+
+    def unite(a, b):
+        parent[root(b)] = root(a)
+
+    parts = [i for i, b in enumerate(scene.bodies) if not (getattr(b, "_key", None) or "bodies[").startswith("bodies[")]
+    for i in parts[1:]:
+        unite(parts[0], i)
+    sites = [_lattice_index(X[body_id == i], lo, h) for i in range(n)]
+    span = np.max([np.abs(s).max() for s in sites if len(s)] + [1]) * 2 + 5
+
+    def code(i):
+        c = np.zeros(len(i), dtype=np.int64)
+        for a in range(dim):
+            c = c * span + (i[:, a] + span // 2)
+        return c
+
+    codes = [code(s) for s in sites]
+    for a in range(n):
+        for b in range(a + 1, n):
+            if root(a) == root(b) or not len(sites[a]) or not len(sites[b]):
+                continue
+            for axis in range(dim):
+                for step in (-1, 1):
+                    shifted = sites[b].copy()
+                    shifted[:, axis] += step
+                    if np.isin(code(shifted), codes[a]).any():
+                        unite(a, b)
+                        break
+                if root(a) == root(b):
+                    break
+    roots = {}
+    return np.array([roots.setdefault(root(i), len(roots)) for i in range(n)], dtype=np.int32)
+
+
+def contact_settings(scene: Scene, groups: np.ndarray, names: list[str], source: str) -> ContactSettings:
+    """Friction table between contact groups from the [contact] table ('sticky' -> ContactSettings.STICKY)."""
+    c = scene.contact
+
+    def value(f):
+        return ContactSettings.STICKY if f == "sticky" else float(f)
+
+    g = int(groups.max()) + 1 if len(groups) else 1
+    table = np.full((g, g), value(c.friction))
+    for i, pair in enumerate(c.pairs):
+        key = f"contact.pairs[{i}].bodies"
+        for name in pair.bodies:
+            if name not in names:
+                raise SceneError(f"{source}: {key}: no body named '{name}'; bodies: {', '.join(names)}")
+        a, b = (names.index(nm) for nm in pair.bodies)
+        ga, gb = int(groups[a]), int(groups[b])
+        if a != b and ga == gb:
+            raise SceneError(
+                f"{source}: {key}: bodies '{pair.bodies[0]}' and '{pair.bodies[1]}' touch in the reference "
+                f"configuration (or are parts of one robot) and move as one piece; leave a gap of one particle "
+                f"spacing between them for contact, or remove the pair"
+            )
+        table[ga, gb] = table[gb, ga] = value(pair.friction)
+    return ContactSettings(table, self_contact=c.self_contact, fold_spread=c.fold_spread)
+
+
 def build(scene: Scene, device: str | None = None, source: str = "scene", magnetization=None) -> Built:
     """Fill bodies with particles and assemble Model, Control, SolverSettings and probes.
 
@@ -487,10 +549,12 @@ def build(scene: Scene, device: str | None = None, source: str = "scene", magnet
         if not inside.any():
             raise SceneError(f"{source}: clamps[{i}].region: holds no particle; check the region against the bodies")
         clamped |= inside
+    body_group = contact_groups(scene, X, body_id)
+    contact = contact_settings(scene, body_group, names, source)
     model = Model(
         X, p.volumes, p.density, p.shear_modulus, p.bulk_modulus, p.remanence, body_id, clamped,
         dx=dx, domain_lo=lo, domain_hi=hi, precision=sim.precision, device=device or sim.device,
-        material_model=p.material_model, material_params=p.material_params,
+        material_model=p.material_model, material_params=p.material_params, contact_group=body_group[body_id],
     )
     report = p.report
     p_vel = p.velocity
@@ -506,6 +570,11 @@ def build(scene: Scene, device: str | None = None, source: str = "scene", magnet
             f"{source}: simulation.formulation = 'total' keeps the grid on the reference configuration, where "
             f"colliders cannot act; remove the {len(colliders)} collider(s) or use formulation = 'updated'"
         )
+    if sim.formulation == "total" and contact.active(int(body_group.max()) + 1):
+        raise SceneError(
+            f"{source}: simulation.formulation = 'total' keeps the grid on the reference configuration, where "
+            f"contact between bodies cannot act; use formulation = 'updated', or contact.friction = 'sticky'"
+        )
     settings = SolverSettings(
         damping=sim.damping,
         gravity=tuple(sim.gravity) if sim.gravity is not None else (0.0,) * dim,
@@ -516,6 +585,7 @@ def build(scene: Scene, device: str | None = None, source: str = "scene", magnet
         velocity_gradient=sim.velocity_gradient,
         formulation=sim.formulation,
         threads=sim.threads,
+        contact=contact,
     )
     probes = []
     masses = model.host["mass"]

@@ -12,6 +12,8 @@ from typing import Annotated, Literal, Union
 
 from pydantic import BaseModel, ConfigDict, Discriminator, Field, PrivateAttr, Tag, model_validator
 
+from magsoro.mpm.materials import DEFAULT_LAW, LAW_NAMES, LAWS, PARAMETER_KEYS
+
 Vec = list[float]
 
 
@@ -127,6 +129,9 @@ SHAPES_2D = ("rectangle", "polygon", "arc")
 
 
 # ---------------------------------------------------------------- bodies
+MaterialModel = Literal[LAW_NAMES]  # the laws of magsoro.mpm.materials
+
+
 class Material(Strict):
     """Material of a body: a compressible hyperelastic solid with volumetric energy K/2 (J - 1)^2.
 
@@ -137,7 +142,7 @@ class Material(Strict):
 
     library: str | None = Field(default=None, description="Name of a material library entry (magsoro materials list); keys given here override it. A bare string `material = \"NAME\"` means the same.")
     file: str | None = Field(default=None, description="Material entry TOML (from magsoro fit-material), relative to the scene file.")
-    model: Literal["neo-hookean", "mooney-rivlin", "yeoh"] | None = Field(default=None, description="Constitutive model. Default 'neo-hookean' (or the file's).")
+    model: MaterialModel | None = Field(default=None, description=f"Constitutive model. Default '{DEFAULT_LAW}' (or the file's).")
     density: float | None = Field(default=None, gt=0, description="Mass density, kg/m^3 (required here or in the file).")
     shear_modulus: float | None = Field(default=None, gt=0, description="Neo-Hookean shear modulus G, Pa.")
     C10: float | None = Field(default=None, gt=0, description="Mooney-Rivlin / Yeoh C10, Pa.")
@@ -152,19 +157,18 @@ class Material(Strict):
             raise ValueError("give either library or file, not both")
         if self.file is not None or self.library is not None:
             return self  # completed against the file or library entry when the scene is built
-        model = self.model or "neo-hookean"
+        model = self.model or DEFAULT_LAW
+        law = LAWS[model]
         if self.density is None:
             raise ValueError("density is required (kg/m^3)")
-        needs = {"neo-hookean": ["shear_modulus"], "mooney-rivlin": ["C10", "C01"], "yeoh": ["C10"]}[model]
-        missing = [k for k in needs if getattr(self, k) is None]
+        missing = [k for k in law.required if getattr(self, k) is None]
         if missing:
             raise ValueError(f"model '{model}' needs {', '.join(missing)}")
-        unused = {"neo-hookean": ["C10", "C01", "C20", "C30"], "mooney-rivlin": ["shear_modulus", "C20", "C30"], "yeoh": ["shear_modulus", "C01"]}[model]
-        given = [k for k in unused if getattr(self, k) is not None]
+        given = [k for k in PARAMETER_KEYS if k not in law.keys and getattr(self, k) is not None]
         if given:
             raise ValueError(f"model '{model}' does not use {', '.join(given)}")
-        if model == "mooney-rivlin" and self.C10 + self.C01 <= 0:
-            raise ValueError("mooney-rivlin needs C10 + C01 > 0")
+        if law.initial_shear_modulus({k: getattr(self, k) for k in law.keys if getattr(self, k) is not None}) <= 0:
+            raise ValueError(f"{model} needs {law.constraint}")
         return self
 
 
@@ -598,6 +602,31 @@ class Simulation(Strict):
     )
 
 
+Friction = Annotated[
+    Union[Annotated[float, Field(ge=0, allow_inf_nan=False)], Literal["sticky"]],
+    Field(description="Coulomb coefficient (>= 0), or 'sticky' (one velocity field: the bodies stick and never separate)."),
+]
+
+
+class ContactPair(Strict):
+    """Friction of one pair of bodies (or, with the same name twice, of a body's self-contact)."""
+
+    bodies: list[str] = Field(min_length=2, max_length=2, description="The two body (or robot part) names.")
+    friction: Friction = Field(description="Coulomb coefficient (>= 0) or 'sticky'.")
+
+
+class Contact(Strict):
+    """Contact between bodies and between parts of one body that fold onto each other: two velocity fields per
+    grid node, Coulomb friction, free separation (docs/engine.md, "Contact"). Bodies that touch or overlap in the
+    reference configuration, and the parts of a robot, are bonded: they move as one piece (one contact group);
+    leave a gap of at least one particle spacing between bodies that should touch."""
+
+    friction: Friction = Field(default=0.0, description="Coulomb coefficient for every pair of bodies (and for self-contact). Default 0: frictionless, not sticky; 'sticky' gives one velocity field for all (the behaviour before contact existed).")
+    self_contact: bool = Field(default=False, description="Let layers of one body that fold onto each other touch with friction instead of merging (costs one more pass over the particles per step).")
+    fold_spread: float = Field(default=1.5, gt=0, le=10, allow_inf_nan=False, description="Self-contact: a node is split into two layers when the reference positions of the body's particles there spread (largest standard deviation) more than this many cells, i.e. layers more than about twice as far apart before folding.")
+    pairs: list[ContactPair] = Field(default_factory=list, description="Per-pair overrides ([[contact.pairs]] tables).")
+
+
 class Output(Strict):
     """What a run writes."""
 
@@ -628,6 +657,7 @@ class Scene(Strict):
     fields: list[AnyField] = Field(default_factory=list, description="Field sources ([[fields]] tables); they add up.")
     probes: list[AnyProbe] = Field(default_factory=list, description="Recorded quantities ([[probes]] tables).")
     output: Output = Field(default_factory=Output)
+    contact: Contact = Field(default_factory=Contact, description="[contact] table: friction between bodies and self-contact.")
     name: str | None = Field(default=None, description="Scene title.")
     preview: Preview | None = Field(default=None, description="[preview] table: coarser settings for `magsoro run --preview`.")
     _base_dir: object = PrivateAttr(default=None)

@@ -93,7 +93,7 @@ def execute_run(run: dict, run_dir: str, scene_file: str, device: str | None = N
 
 def _write_failure(out: Path, run: dict, sweep_info: dict, exc: BaseException, wall: float, writer=None) -> None:
     """run.json with status 'failed' for an error outside the stepping loop (build, recorder, a bug)."""
-    from magsoro import __version__
+    from magsoro._version import __version__
     from magsoro.errors import MagsoroError
     from magsoro.io.files import atomic_write_json
 

@@ -35,7 +35,7 @@ from pathlib import Path
 
 import numpy as np
 
-from magsoro import MU0
+from magsoro.constants import MU0
 from magsoro.validation.registry import CaseResult, Context, Row, register
 
 #: Normalised fields Br B / (mu0 G) of the acceptance sweep (seed 000 Fig 2b spans 0 to 0.02).

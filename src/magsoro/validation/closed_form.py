@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from magsoro import MU0
+from magsoro.constants import MU0
 from magsoro.validation.registry import CaseResult, Context, Row, register, relative_error
 
 

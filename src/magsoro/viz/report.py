@@ -18,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
-from magsoro import __version__
+from magsoro._version import __version__
 from magsoro.errors import MagsoroError
 from magsoro.io.files import atomic_write_text
 

@@ -1,0 +1,166 @@
+"""Material registry (magsoro.mpm.materials): every law's stress is the derivative of its energy, its initial
+shear modulus is the small-strain slope of its shear stress, and the scene schema, the scene builder and the
+engine Model take their model names and codes from the registry."""
+
+import functools
+import typing
+
+import numpy as np
+import pytest
+import warp as wp
+from pydantic import ValidationError
+
+from magsoro.mpm.materials import DEFAULT_LAW, LAW_NAMES, LAWS, PARAMETER_KEYS, describe_codes, make_material_functions
+
+LAW_LIST = list(LAWS.values())
+
+
+@functools.cache
+def _kernel(dim):
+    f = make_material_functions(dim, wp.float64)
+    stress, energy = f["elastic_stress"], f["elastic_energy"]
+    mat = wp.types.matrix(shape=(dim, dim), dtype=wp.float64)
+    v3 = wp.types.vector(length=3, dtype=wp.float64)
+
+    @wp.kernel
+    def evaluate(F: wp.array(dtype=mat), model: int, G: wp.float64, K: wp.float64, prm: v3, P: wp.array(dtype=mat), psi: wp.array(dtype=wp.float64)):
+        i = wp.tid()
+        P[i] = stress(F[i], model, G, K, prm)
+        psi[i] = energy(F[i], model, G, K, prm)
+
+    return evaluate
+
+
+def _example(law):
+    return {p.key: p.example for p in law.parameters}
+
+
+def _evaluate(law, Fs):
+    dim = Fs[0].shape[0]
+    params = _example(law)
+    G = law.initial_shear_modulus(params)
+    K = 4.0 * G  # comparable to G, so the isochoric part is not hidden behind the volumetric one
+    F = wp.array(np.asarray(Fs, dtype=np.float64), dtype=wp.types.matrix(shape=(dim, dim), dtype=wp.float64), device="cpu")
+    P = wp.zeros_like(F)
+    psi = wp.zeros(len(Fs), dtype=wp.float64, device="cpu")
+    prm = wp.types.vector(length=3, dtype=wp.float64)(*law.pack(params))
+    wp.launch(_kernel(dim), dim=len(Fs), inputs=[F, law.code, G, K, prm, P, psi], device="cpu")
+    return P.numpy(), psi.numpy()
+
+
+def _test_gradients(dim):
+    rng = np.random.default_rng(11)
+    near = [np.eye(dim) + 0.05 * rng.standard_normal((dim, dim)) for _ in range(4)]
+    stretched = np.diag([1.6, 0.7, 0.85][:dim]) + 0.1 * rng.standard_normal((dim, dim))
+    return near + [stretched]
+
+
+@pytest.mark.parametrize("dim", [2, 3])
+@pytest.mark.parametrize("law", LAW_LIST, ids=lambda law: law.name)
+def test_stress_is_energy_derivative(law, dim):
+    Fs = _test_gradients(dim)
+    assert all(np.linalg.det(F) > 0.3 for F in Fs)
+    P, _ = _evaluate(law, Fs)
+    h = 1e-6
+    for n, F in enumerate(Fs):
+        perturbed = []
+        for i in range(dim):
+            for j in range(dim):
+                for s in (+1, -1):
+                    Fp = F.copy()
+                    Fp[i, j] += s * h
+                    perturbed.append(Fp)
+        _, psi = _evaluate(law, perturbed)
+        fd = ((psi[0::2] - psi[1::2]) / (2 * h)).reshape(dim, dim)
+        rel = np.abs(fd - P[n]).max() / np.abs(P[n]).max()
+        assert rel < 1e-6, (law.name, n, rel)
+
+
+@pytest.mark.parametrize("dim", [2, 3])
+@pytest.mark.parametrize("law", LAW_LIST, ids=lambda law: law.name)
+def test_initial_shear_modulus_is_small_strain_slope(law, dim):
+    P, psi = _evaluate(law, [np.eye(dim)])
+    assert np.abs(P[0]).max() < 1e-9 * law.initial_shear_modulus(_example(law)) and abs(psi[0]) < 1e-6
+    gamma = 1e-5
+    F = np.eye(dim)
+    F[0, 1] = gamma  # simple shear, J = 1
+    P, _ = _evaluate(law, [F])
+    assert P[0][0, 1] / gamma == pytest.approx(law.initial_shear_modulus(_example(law)), rel=1e-6)
+
+
+def test_registry_shape():
+    assert sorted(law.code for law in LAW_LIST) == list(range(len(LAW_LIST)))
+    assert DEFAULT_LAW in LAWS
+    for law in LAW_LIST:
+        assert law.required and set(law.required) <= set(law.keys)
+        assert len(law.pack(_example(law))) == 3
+        assert law.initial_shear_modulus(_example(law)) > 0
+    for dim in (2, 3):
+        for scalar in (wp.float32, wp.float64):
+            assert set(make_material_functions(dim, scalar)["laws"]) == set(LAWS)
+    assert describe_codes() == "0 (Neo-Hookean), 1 (Mooney-Rivlin) or 2 (Yeoh)"
+
+
+def test_schema_takes_the_registry_names():
+    from magsoro.scene.schema import Material
+
+    allowed = tuple(a for a in typing.get_args(Material.model_fields["model"].annotation) if a is not type(None))
+    assert allowed == (typing.Literal[LAW_NAMES],)
+    assert typing.get_args(allowed[0]) == LAW_NAMES == ("neo-hookean", "mooney-rivlin", "yeoh")
+    for key in PARAMETER_KEYS:  # a law's new parameter key needs its Material field
+        assert key in Material.model_fields, key
+    for law in LAW_LIST:
+        assert f"'{law.name}'" in Material.__doc__  # named in the docs/scenes.md text
+        required = {k: v for k, v in _example(law).items() if k in law.required}
+        assert Material(density=1000.0, model=law.name, **required).model == law.name
+        Material(density=1000.0, model=law.name, **_example(law))
+        others = [k for k in PARAMETER_KEYS if k not in law.keys]
+        if others:
+            with pytest.raises(ValidationError, match=f"model '{law.name}' does not use {others[0]}"):
+                Material(density=1000.0, model=law.name, **required, **{others[0]: 1.0e5})
+        missing = dict(required)
+        missing.pop(law.required[0])
+        with pytest.raises(ValidationError, match=f"model '{law.name}' needs {law.required[0]}"):
+            Material(density=1000.0, model=law.name, **missing)
+    with pytest.raises(ValidationError, match=r"mooney-rivlin needs C10 \+ C01 > 0"):
+        Material(density=1000.0, model="mooney-rivlin", C10=1.0e4, C01=-1.0e4)
+
+
+def test_unknown_model_lists_the_registry_names():
+    import copy
+
+    from magsoro.errors import SceneError
+    from magsoro.scene import parse_scene
+    from magsoro.scene.schema import Material
+    from tests.test_scene_cli import BASE
+
+    with pytest.raises(ValidationError) as err:
+        Material(density=1000.0, model="ogden3", C10=1.0e4)
+    assert "Input should be 'neo-hookean', 'mooney-rivlin' or 'yeoh'" in str(err.value)
+    d = copy.deepcopy(BASE)
+    d["bodies"][0]["material"] = {"density": 1000.0, "model": "ogden3", "C10": 1.0e4}
+    with pytest.raises(SceneError) as err:
+        parse_scene(d)
+    message = str(err.value)
+    assert "bodies[0].material.model" in message and all(f"'{name}'" in message for name in LAW_NAMES), message
+
+
+@pytest.mark.parametrize("law", LAW_LIST, ids=lambda law: law.name)
+def test_scene_and_engine_use_the_registry(law):
+    from magsoro.mpm.solver import Model
+    from magsoro.scene.build import resolve_material
+    from magsoro.scene.schema import Material
+
+    mat = resolve_material(Material(density=1000.0, model=law.name, **_example(law)), None, "bodies[0].material")
+    G = law.initial_shear_modulus(_example(law))
+    assert mat["model"] == law.code and mat["shear_modulus"] == G and mat["params"] == law.pack(_example(law))
+    assert mat["bulk_modulus"] == 20.0 * G
+    assert Model.MATERIAL_MODELS[law.name] == law.code
+
+
+def test_model_refuses_unknown_codes():
+    from magsoro.mpm.solver import Model
+
+    with pytest.raises(ValueError, match=r"material_model must be 0 \(Neo-Hookean\), 1 \(Mooney-Rivlin\) or 2 \(Yeoh\)"):
+        Model(np.zeros((1, 2)), 1e-6, 1000.0, 1e5, 2e6, np.zeros(3), 0, False, dx=1e-3, domain_lo=(-0.01, -0.01),
+              domain_hi=(0.01, 0.01), material_model=len(LAWS))
