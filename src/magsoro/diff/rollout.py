@@ -20,14 +20,13 @@ Design variables enter through arrays with ``requires_grad=True``:
 The error / bounds / max_speed outputs of the kernels are scratch arrays without gradients.
 """
 
-import math
-
 import numpy as np
 import warp as wp
 
 from magsoro.errors import MagsoroError
 from magsoro.fields.device import accumulate_kernel
 from magsoro.mpm.colliders import COLLIDER_STRIDE, MODES, collider_table
+from magsoro.mpm.solver import grid_settings
 
 
 class DiffError(MagsoroError):
@@ -135,7 +134,7 @@ class Rollout:
         self._no_contact.active = 0
         self._no_contact.n_nodes = 0
         # one-element arrays, never read while inactive: the tape visits every array of a struct argument
-        nc, one_v = self._no_contact, lambda dt: wp.zeros(1, dtype=dt, device=m.device)
+        nc, one_v = self._no_contact, lambda dtype: wp.zeros(1, dtype=dtype, device=m.device)
         nc.group, nc.split, nc.gmin = one_v(wp.int32), one_v(wp.int32), one_v(wp.int32)
         nc.X, nc.xbar, nc.axis, nc.grad_m = (one_v(k["vec"]) for _ in range(4))
         nc.mu = one_v(m.scalar)
@@ -168,13 +167,10 @@ class Rollout:
         self._shape_v = ivec(*[int(s) for s in self.shape])
         self._org_v = ivec(*[int(o) for o in self.org])
         self._grid_lo = vec(*[sc(m.domain_lo[a] + self.org[a] * m.dx) for a in range(dim)])
-        self._domain_lo = vec(*[sc(v) for v in m.domain_lo])
-        self._domain_hi = vec(*[sc(v) for v in m.domain_hi])
         g = np.zeros(dim)
         gin = np.asarray(st.gravity, dtype=np.float64).ravel()
         g[: min(dim, len(gin))] = gin[:dim]
         self._gravity = vec(*[sc(v) for v in g])
-        self._damping = sc(math.exp(-st.damping * self.dt))
         if st.walls not in MODES:
             raise DiffError(f"walls must be one of {sorted(MODES)}, got {st.walls!r}")
         # sources: uniform ones tabulated per step, the others as per-step device parameters
@@ -208,6 +204,11 @@ class Rollout:
         else:
             empty = wp.zeros(COLLIDER_STRIDE, dtype=wp.float64, device=dev)
             self._collider_views = [empty] * self.n_steps
+        # the grid update's settings per step (they differ only in the collider table)
+        if self.n_colliders:
+            self._grid_settings = [grid_settings(m, st, self._gravity, v, self.n_colliders, self.dt) for v in self._collider_views]
+        else:
+            self._grid_settings = [grid_settings(m, st, self._gravity, self._collider_views[0], 0, self.dt)] * self.n_steps
         # scratch without gradients
         self.error = wp.zeros(2, dtype=wp.int32, device=dev)
         self.bounds = wp.zeros(2 * dim, dtype=sc, device=dev)
@@ -273,9 +274,7 @@ class Rollout:
         wp.launch(
             k["grid_update"], dim=self.n_nodes,
             inputs=[
-                dst.grid_p, dst.grid_m, dst.grid_clamp, self._org_v, self._shape_v,
-                self._domain_lo, self._domain_hi, MODES[st.walls], sc(st.wall_friction), sc(m.dx), dt,
-                self._damping, self._gravity, self._collider_views[step], self.n_colliders, wp.float64(st.plane_z),
+                dst.grid_p, dst.grid_m, dst.grid_clamp, self._org_v, self._shape_v, self._grid_settings[step],
                 dst.grid_v, self._no_contact,
             ],
             device=dev,

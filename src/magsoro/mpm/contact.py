@@ -2,7 +2,7 @@
 
 Method (multi-field grid contact, after Bardenhagen et al. 2001, with the fields chosen per node):
 
-1. Scan (particles): every node records the smallest and largest contact group that reaches it; with self-contact
+1. Scan (particles, ``contact_scan`` in :mod:`magsoro.mpm.kernels`, on the transfers' stencil): every node records the smallest and largest contact group that reaches it; with self-contact
    on it also sums m, m X and m X X^T of the reference positions X of the particles that reach it.
 2. Classify (nodes): a node is *split* into two fields when two groups meet there (field 0 = the smallest group,
    field 1 = every other) or, for self-contact, when the reference positions of its particles spread over more
@@ -40,8 +40,6 @@ def make_contact(dim: int, scalar):
     """Contact struct, device functions and kernels for ``dim`` in (2, 3) and ``scalar`` in (wp.float32, wp.float64)."""
     vec = wp.types.vector(length=dim, dtype=scalar)
     mat = wp.types.matrix(shape=(dim, dim), dtype=scalar)
-    ivec = wp.types.vector(length=dim, dtype=wp.int32)
-    NS = 3**dim
 
     @wp.struct
     class ContactGrid:
@@ -125,67 +123,6 @@ def make_contact(dim: int, scalar):
         return wp.dot(v, cov * v), v
 
     @wp.kernel
-    def contact_scan(
-        x: wp.array(dtype=vec),
-        X: wp.array(dtype=vec),
-        mass: wp.array(dtype=scalar),
-        group: wp.array(dtype=wp.int32),
-        grid_lo: vec,
-        shape: ivec,
-        dx: scalar,
-        fold: int,
-        gmin: wp.array(dtype=wp.int32),
-        gmax: wp.array(dtype=wp.int32),
-        moments: wp.array(dtype=scalar),
-    ):
-        """Step 1: groups per node; with ``fold`` also the reference-position moments (1 + dim + dim^2 per node
-        in ``moments``: m, m X, m X X^T)."""
-        p = wp.tid()
-        inv_dx = scalar(1.0) / dx
-        xg = (x[p] - grid_lo) * inv_dx
-        base = ivec()
-        fx = vec()
-        for a in range(dim):
-            b = int(wp.floor(xg[a] - scalar(0.5)))
-            base[a] = b
-            fx[a] = xg[a] - scalar(b)
-        for a in range(dim):
-            if base[a] < 0 or base[a] + 2 >= shape[a]:
-                return  # p2g flags it
-        g = group[p]
-        Xp = X[p]
-        mp = mass[p]
-        stride = 1 + dim + dim * dim
-        for q in range(NS):
-            o = ivec()
-            weight = scalar(1.0)
-            for a in range(dim):
-                r = q
-                for _ in range(dim - 1 - a):
-                    r = r // 3
-                o[a] = r % 3
-                d = fx[a] - scalar(o[a])  # distance from the node in cells (0.5 .. 1.5 for o = 0, ...)
-                ad = wp.abs(d)
-                if ad < scalar(0.5):
-                    weight = weight * (scalar(0.75) - ad * ad)
-                else:
-                    weight = weight * scalar(0.5) * (scalar(1.5) - ad) * (scalar(1.5) - ad)
-            n = base + o
-            idx = n[0]
-            for a in range(1, dim):
-                idx = idx * shape[a] + n[a]
-            wp.atomic_min(gmin, idx, g)
-            wp.atomic_max(gmax, idx, g)
-            if fold != 0:
-                wm = weight * mp
-                row = idx * stride
-                wp.atomic_add(moments, row, wm)
-                for a in range(dim):
-                    wp.atomic_add(moments, row + 1 + a, wm * Xp[a])
-                    for b in range(dim):
-                        wp.atomic_add(moments, row + 1 + dim + a * dim + b, wm * Xp[a] * Xp[b])
-
-    @wp.kernel
     def contact_classify(
         gmin: wp.array(dtype=wp.int32),
         gmax: wp.array(dtype=wp.int32),
@@ -231,4 +168,4 @@ def make_contact(dim: int, scalar):
                     mu[idx] = c
         split[idx] = s
 
-    return dict(ContactGrid=ContactGrid, field_of=field_of, resolve=resolve, contact_scan=contact_scan, contact_classify=contact_classify)
+    return dict(ContactGrid=ContactGrid, field_of=field_of, resolve=resolve, contact_classify=contact_classify)

@@ -16,6 +16,7 @@ import warp as wp
 from magsoro.constants import MU0
 from magsoro.mpm.colliders import COLLIDER_STRIDE, collider_sdf
 from magsoro.mpm.contact import make_contact
+from magsoro.mpm.materials import make_material_functions
 
 # Unroll the 3^dim-node stencil loops (27 in 3D): constant offsets let the compiler fold the weight selection.
 wp.set_module_options({"max_unroll": 32})
@@ -43,11 +44,8 @@ def make_kernels(dim: int, scalar):
     resolve_contact = ct_ns["resolve"]
     # Constants are computed here in double precision: literal arithmetic inside a kernel runs in float32.
     inv_mu0 = 1.0 / MU0
-    minus_two_thirds = -2.0 / 3.0
 
     # Constitutive laws (stress and energy of each registered law): see magsoro.mpm.materials
-    from magsoro.mpm.materials import make_material_functions
-
     elastic = make_material_functions(dim, scalar)
     elastic_stress = elastic["elastic_stress"]
     elastic_energy = elastic["elastic_energy"]
@@ -253,46 +251,50 @@ def make_kernels(dim: int, scalar):
                 vt = vt * (wp.max(vt_norm + mu * vn, scalar(0.0)) / vt_norm)
         return vt + cvel
 
+    @wp.struct
+    class GridSettings:
+        """What the grid update applies to a node's free velocity: the step dt (s), the damping factor
+        exp(-c dt) of f = -c p, gravity (m/s^2), the domain walls (box lo .. hi, m; contact mode and friction of
+        nodes within two cells of a wall), the grid spacing dx (m) and the rigid colliders (flat float64 table of
+        ``n_colliders`` rows, :mod:`magsoro.mpm.colliders`; ``plane_z``: the z of a 2D scene's plane, m)."""
+
+        dt: scalar
+        damping_factor: scalar
+        gravity: vec
+        dx: scalar
+        domain_lo: vec
+        domain_hi: vec
+        wall_mode: int
+        wall_friction: scalar
+        colliders: wp.array(dtype=wp.float64)
+        n_colliders: int
+        plane_z: wp.float64
+
     @wp.func
-    def node_velocity(
-        momentum: vec,
-        m: scalar,
-        pos: vec,
-        domain_lo: vec,
-        domain_hi: vec,
-        wall_mode: int,
-        wall_friction: scalar,
-        dx: scalar,
-        dt: scalar,
-        damping_factor: scalar,
-        gravity: vec,
-        colliders: wp.array(dtype=wp.float64),
-        n_colliders: int,
-        plane_z: wp.float64,
-    ):
+    def node_velocity(momentum: vec, m: scalar, pos: vec, gs: GridSettings):
         """Velocity of one field of a node after damping, gravity, the domain walls and the rigid colliders."""
         # damping f = -c p (seed 000 eq 17), integrated exactly over the step so any c is stable
-        vel = momentum / m * damping_factor + dt * gravity
+        vel = momentum / m * gs.damping_factor + gs.dt * gs.gravity
         # domain walls: nodes within two cells of a wall may not move into it
         for a in range(dim):
             normal = vec()
-            if pos[a] < domain_lo[a] + scalar(2.0) * dx:
+            if pos[a] < gs.domain_lo[a] + scalar(2.0) * gs.dx:
                 normal[a] = scalar(1.0)
-                vel = contact(vel, vec(), normal, wall_mode, wall_friction)
-            if pos[a] > domain_hi[a] - scalar(2.0) * dx:
+                vel = contact(vel, vec(), normal, gs.wall_mode, gs.wall_friction)
+            if pos[a] > gs.domain_hi[a] - scalar(2.0) * gs.dx:
                 normal[a] = scalar(-1.0)
-                vel = contact(vel, vec(), normal, wall_mode, wall_friction)
+                vel = contact(vel, vec(), normal, gs.wall_mode, gs.wall_friction)
         # rigid colliders: a node with signed distance <= 0 is in contact
-        if n_colliders > 0:
-            p3 = wp.vec3d(wp.float64(pos[0]), wp.float64(pos[1]), plane_z)
+        if gs.n_colliders > 0:
+            p3 = wp.vec3d(wp.float64(pos[0]), wp.float64(pos[1]), gs.plane_z)
             if wp.static(dim == 3):
                 p3 = wp.vec3d(wp.float64(pos[0]), wp.float64(pos[1]), wp.float64(pos[2]))
-            for c in range(n_colliders):
-                phi, nrm, cvel = collider_sdf(colliders, c, p3)
+            for c in range(gs.n_colliders):
+                phi, nrm, cvel = collider_sdf(gs.colliders, c, p3)
                 if phi <= wp.float64(0.0):
                     row = c * COLLIDER_STRIDE
-                    mode = int(colliders[row + 1])
-                    mu = scalar(colliders[row + 2])
+                    mode = int(gs.colliders[row + 1])
+                    mu = scalar(gs.colliders[row + 2])
                     vel = contact(vel, inplane(v3(cvel)), inplane(v3(nrm)), mode, mu)
         return vel
 
@@ -303,17 +305,7 @@ def make_kernels(dim: int, scalar):
         grid_clamp: wp.array(dtype=wp.int32),
         org: ivec,
         shape: ivec,
-        domain_lo: vec,
-        domain_hi: vec,
-        wall_mode: int,
-        wall_friction: scalar,
-        dx: scalar,
-        dt: scalar,
-        damping_factor: scalar,
-        gravity: vec,
-        colliders: wp.array(dtype=wp.float64),
-        n_colliders: int,
-        plane_z: wp.float64,
+        gs: GridSettings,
         grid_v: wp.array(dtype=vec),
         ct: ContactGrid,
     ):
@@ -325,18 +317,16 @@ def make_kernels(dim: int, scalar):
         n = node_of_flat(idx, shape) + org
         pos = vec()
         for a in range(dim):
-            pos[a] = domain_lo[a] + scalar(n[a]) * dx
+            pos[a] = gs.domain_lo[a] + scalar(n[a]) * gs.dx
         vel = vec()
         if m > scalar(0.0) and not held:
-            vel = node_velocity(grid_p[idx], m, pos, domain_lo, domain_hi, wall_mode, wall_friction, dx, dt,
-                                damping_factor, gravity, colliders, n_colliders, plane_z)
+            vel = node_velocity(grid_p[idx], m, pos, gs)
         if ct.active != 0:
             slot = idx + ct.n_nodes
             m1 = grid_m[slot]
             vel1 = vec()
             if m1 > scalar(0.0) and not held:
-                vel1 = node_velocity(grid_p[slot], m1, pos, domain_lo, domain_hi, wall_mode, wall_friction, dx, dt,
-                                     damping_factor, gravity, colliders, n_colliders, plane_z)
+                vel1 = node_velocity(grid_p[slot], m1, pos, gs)
                 if m > scalar(0.0):
                     vel, vel1 = resolve_contact(vel, vel1, m, m1, ct.grad_m[idx], ct.grad_m[slot], ct.mu[idx], ct.gap)
             grid_v[slot] = vel1
@@ -431,6 +421,45 @@ def make_kernels(dim: int, scalar):
             wp.atomic_max(bounds, dim + a, xp[a])
 
     @wp.kernel
+    def contact_scan(
+        x: wp.array(dtype=vec),
+        X: wp.array(dtype=vec),
+        mass: wp.array(dtype=scalar),
+        group: wp.array(dtype=wp.int32),
+        grid_lo: vec,
+        shape: ivec,
+        dx: scalar,
+        fold: int,
+        gmin: wp.array(dtype=wp.int32),
+        gmax: wp.array(dtype=wp.int32),
+        moments: wp.array(dtype=scalar),
+    ):
+        """Contact step 1 (:mod:`magsoro.mpm.contact`): the smallest and largest contact group reaching each node;
+        with ``fold`` also the reference-position moments m, m X, m X X^T (1 + dim + dim^2 per node)."""
+        p = wp.tid()
+        base, fx = local_coords(x[p], grid_lo, scalar(1.0) / dx)
+        if outside_block(base, shape):
+            return  # p2g flags it
+        w0, w1, w2 = bspline_weights(fx)
+        g = group[p]
+        Xp = X[p]
+        mp = mass[p]
+        stride = 1 + dim + dim * dim
+        first = flat_index(base, shape)
+        for q in range(NS):
+            weight, o, idx = stencil_node(q, w0, w1, w2, first, shape)
+            wp.atomic_min(gmin, idx, g)
+            wp.atomic_max(gmax, idx, g)
+            if fold != 0:
+                wm = weight * mp
+                row = idx * stride
+                wp.atomic_add(moments, row, wm)
+                for a in range(dim):
+                    wp.atomic_add(moments, row + 1 + a, wm * Xp[a])
+                    for b in range(dim):
+                        wp.atomic_add(moments, row + 1 + dim + a * dim + b, wm * Xp[a] * Xp[b])
+
+    @wp.kernel
     def reset_reductions(bounds: wp.array(dtype=scalar), max_speed: wp.array(dtype=scalar), big: scalar):
         for a in range(dim):
             bounds[a] = big
@@ -522,7 +551,8 @@ def make_kernels(dim: int, scalar):
         reset_reductions=reset_reductions,
         stress_kernel=stress_kernel,
         ContactGrid=ContactGrid,
-        contact_scan=ct_ns["contact_scan"],
+        GridSettings=GridSettings,
+        contact_scan=contact_scan,
         contact_classify=ct_ns["contact_classify"],
         vec=vec,
         mat=mat,

@@ -69,6 +69,26 @@ def resolve_threads(requested: int | None, device: str, n_particles: int) -> int
     return int(min(requested, n_particles))
 
 
+def grid_settings(model: "Model", settings: "SolverSettings", gravity, colliders, n_colliders: int, dt: float):
+    """The grid update's :class:`GridSettings` struct (kernels.py): step, damping factor exp(-c dt), gravity (the
+    kernels' vector), domain walls, grid spacing and the collider table ``colliders`` with ``n_colliders`` rows."""
+    sc = model.scalar
+    vec = model.kernels["vec"]
+    gs = model.kernels["GridSettings"]()
+    gs.dt = sc(dt)
+    gs.damping_factor = sc(math.exp(-settings.damping * dt))
+    gs.gravity = gravity
+    gs.dx = sc(model.dx)
+    gs.domain_lo = vec(*[sc(v) for v in model.domain_lo])
+    gs.domain_hi = vec(*[sc(v) for v in model.domain_hi])
+    gs.wall_mode = MODES[settings.walls]
+    gs.wall_friction = sc(settings.wall_friction)
+    gs.colliders = colliders
+    gs.n_colliders = n_colliders
+    gs.plane_z = wp.float64(settings.plane_z)
+    return gs
+
+
 def _param_index(kernel, name: str) -> int:
     """Position of a kernel argument, for Launch.set_param_at_index (cheaper than setting it by name)."""
     return [a.label for a in kernel.adj.args].index(name)
@@ -127,7 +147,7 @@ class Model:
     bulk_modulus (N,) Pa; remanence (N, 3) T in the reference frame; body (N,) int; clamped (N,) bool.
     material_model (N,) int: 0 Neo-Hookean (default), 1 Mooney-Rivlin, 2 Yeoh, with material_params (N, 3) Pa:
     (C10, C01, 0) or (C10, C20, C30); shear_modulus is then the initial shear modulus (2 C10 + 2 C01 or
-    2 C10), used for the time step. See :func:`magsoro.mpm.kernels.make_kernels` (elastic_stress).
+    2 C10), used for the time step. The laws and their codes: :mod:`magsoro.mpm.materials`.
     """
 
     MATERIAL_MODELS = {name: law.code for name, law in LAWS.items()}
@@ -531,6 +551,7 @@ class Solver:
         grid_p = [self.grid_p] + [gp for gp, _ in self._thread_grids]
         grid_m = [self.grid_m] + [gm for _, gm in self._thread_grids]
         x_grid = self._X0 if self._total else state_in.x  # the positions the grid weights are taken at
+        gs = grid_settings(m, st, self.gravity, self._collider_array, len(control.colliders), 0.0)
         ct = k["ContactGrid"]()
         ct.active = 0
         ct.n_nodes = 0
@@ -566,10 +587,7 @@ class Solver:
                 dim=n_act,
                 inputs=[
                     self.grid_p, self.grid_m, self._held if self._total else self.grid_clamp, org, shape,
-                    vec(*[sc(v) for v in m.domain_lo]), vec(*[sc(v) for v in m.domain_hi]),
-                    MODES[st.walls], sc(st.wall_friction), sc(m.dx), sc(0.0),
-                    sc(1.0), self.gravity,
-                    self._collider_array, len(control.colliders), wp.float64(st.plane_z),
+                    gs,
                     self.grid_v, ct,
                 ],
                 device=dev,
@@ -601,6 +619,7 @@ class Solver:
             "_arrays": (state_in.x, state_in.v, state_in.C, state_in.F, state_out.x, state_out.v, state_out.C, state_out.F),
             "_scalars": None,
             "_p2g_B": _param_index(k["p2g"], "B_uniform"),
+            "_grid_settings": gs,  # dt and damping factor change with the step
         }
         if self._contact:
             c = st.contact
@@ -746,8 +765,10 @@ class Solver:
                 dt_s = sc(dt)
                 for one in L["p2g"]:
                     one.set_param_by_name("dt", dt_s)
-                L["grid_update"].set_param_by_name("dt", dt_s)
-                L["grid_update"].set_param_by_name("damping_factor", sc(math.exp(-st.damping * dt)))
+                gs = L["_grid_settings"]
+                gs.dt = dt_s
+                gs.damping_factor = sc(math.exp(-st.damping * dt))
+                L["grid_update"].set_param_by_name("gs", gs)
                 for one in L["g2p"] + L.get("remap_F", []):
                     one.set_param_by_name("dt", dt_s)
             L["_scalars"] = scalars
