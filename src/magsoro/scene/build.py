@@ -266,6 +266,21 @@ def _lattice_index(pts, lo, h):
     return np.rint((pts - lo) / h - 0.5).astype(np.int64)
 
 
+def _site_coder(sites: list[np.ndarray]):
+    """A function giving integer lattice sites (M, dim) unique int64 codes (for np.isin), valid for every site in
+    ``sites`` and their neighbours one site away."""
+    span = np.max(np.concatenate([np.abs(i).max(axis=0, keepdims=True) for i in sites if len(i)]), axis=0) * 2 + 5
+    off = span // 2 + 1
+
+    def code(i):
+        c = np.zeros(len(i), dtype=np.int64)
+        for a in range(i.shape[1]):
+            c = c * span[a] + (i[:, a] + off[a])
+        return c
+
+    return code
+
+
 def fill_bodies(scene: Scene, source: str = "scene", magnetization=None) -> Particles:
     """Fill every body with particles on the grid-aligned lattice and give them material and remanence.
 
@@ -369,15 +384,7 @@ def _resolve_overlaps(scene, per_body, report, lo, h, source):
     if len(per_body) < 2:
         return
     idx = [_lattice_index(pb["pts"], lo[: pb["pts"].shape[1]], h) for pb in per_body]
-    span = np.max(np.concatenate([np.abs(i).max(axis=0, keepdims=True) for i in idx]), axis=0) * 2 + 3
-    off = span // 2 + 1
-
-    def code(i):
-        c = np.zeros(len(i), dtype=np.int64)
-        for a in range(i.shape[1]):
-            c = c * span[a] + (i[:, a] + off[a])
-        return c
-
+    code = _site_coder(idx)
     codes = [code(i) for i in idx]
     bodies = scene.bodies
     for a in range(len(per_body)):
@@ -469,28 +476,15 @@ def contact_groups(scene: Scene, X: np.ndarray, body_id: np.ndarray) -> np.ndarr
     for i in parts[1:]:
         unite(parts[0], i)
     sites = [_lattice_index(X[body_id == i], lo, h) for i in range(n)]
-    span = np.max([np.abs(s).max() for s in sites if len(s)] + [1]) * 2 + 5
-
-    def code(i):
-        c = np.zeros(len(i), dtype=np.int64)
-        for a in range(dim):
-            c = c * span + (i[:, a] + span // 2)
-        return c
-
+    code = _site_coder(sites)
     codes = [code(s) for s in sites]
+    steps = np.concatenate([np.eye(dim, dtype=np.int64), -np.eye(dim, dtype=np.int64)])
+    # each body's face neighbours: the sites one lattice step away from one of its particles
+    halo = [np.unique(code((s[:, None, :] + steps[None]).reshape(-1, dim))) for s in sites]
     for a in range(n):
         for b in range(a + 1, n):
-            if root(a) == root(b) or not len(sites[a]) or not len(sites[b]):
-                continue
-            for axis in range(dim):
-                for step in (-1, 1):
-                    shifted = sites[b].copy()
-                    shifted[:, axis] += step
-                    if np.isin(code(shifted), codes[a]).any():
-                        unite(a, b)
-                        break
-                if root(a) == root(b):
-                    break
+            if root(a) != root(b) and np.isin(halo[b], codes[a]).any():
+                unite(a, b)
     roots = {}
     return np.array([roots.setdefault(root(i), len(roots)) for i in range(n)], dtype=np.int32)
 
