@@ -30,6 +30,19 @@ def make_block_model(lo, hi, dx, ppc=2, *, density=1000.0, G=1e5, K=None, Br=(0,
     )
 
 
+def run_solver(model, control, settings, dt, steps):
+    """Step a one-thread Solver ``steps`` times by ``dt`` from the reference state; returns the final State."""
+    from magsoro.mpm.solver import Solver
+
+    settings.threads = 1
+    solver = Solver(model, settings)
+    a, b = solver.new_state(), solver.new_state()
+    for _ in range(steps):
+        solver.step(a, b, control, dt)
+        a, b = b, a
+    return a
+
+
 @pytest.fixture
 def block_model():
     return make_block_model

@@ -6,6 +6,8 @@ import sys
 
 import numpy as np
 
+from tests.conftest import run_solver
+
 
 def test_bench_json_keys_and_medians():
     out = subprocess.run(
@@ -65,13 +67,7 @@ def test_sweep_batch_copies_move_like_the_walker_alone():
     from magsoro.mpm.solver import Control, Solver
 
     def run(model, control, settings, dt, steps=150):
-        settings.threads = 1
-        solver = Solver(model, settings)
-        a, b = solver.new_state(), solver.new_state()
-        for _ in range(steps):
-            solver.step(a, b, control, dt)
-            a, b = b, a
-        return a.x.numpy() - model.host["positions"]
+        return run_solver(model, control, settings, dt, steps).x.numpy() - model.host["positions"]
 
     single = build("walker", precision="float64")
     dt = Solver(single[0], single[2]).stable_dt(single[1])

@@ -18,22 +18,18 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+if __name__ == "__main__":  # run as a script (--write): the tests package is not on the path
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+from tests.conftest import run_solver  # noqa: E402
+
 DATA = Path(__file__).parent / "data" / "pinned_trajectories.npz"
 ROOT = Path(__file__).resolve().parents[1]
 
 
 def _solver_run(name: str, steps: int, dt: float) -> dict:
     from magsoro.bench.scenes import build
-    from magsoro.mpm.solver import Solver
 
-    model, control, settings = build(name, device="cpu", precision="float64")
-    settings.threads = 1
-    solver = Solver(model, settings)
-    a, b = solver.new_state(), solver.new_state()
-    for _ in range(steps):
-        solver.step(a, b, control, dt)
-        a, b = b, a
-    return a.numpy()
+    return run_solver(*build(name, device="cpu", precision="float64"), dt, steps).numpy()
 
 
 def _cube_dipole() -> dict:

@@ -1,10 +1,13 @@
-"""Neo-Hookean first Piola stress against central differences of its strain energy (the same device code)."""
+"""First Piola stress of every registered material law (magsoro.mpm.materials) against central differences of
+its strain energy, through the engine's own device code; initial shear moduli against small-strain slopes."""
 
 import numpy as np
 import pytest
 import warp as wp
 
 from magsoro.mpm.kernels import make_kernels
+from magsoro.mpm.materials import LAWS
+from magsoro.validation.closed_form import central_difference_stress
 
 
 def _evaluate(dim, Fs, G, K, model=0, prm=(0.0, 0.0, 0.0)):
@@ -16,11 +19,14 @@ def _evaluate(dim, Fs, G, K, model=0, prm=(0.0, 0.0, 0.0)):
     return P.numpy(), psi.numpy()
 
 
-MODELS = {
-    "neo-hookean": (0, (0.0, 0.0, 0.0)),
-    "mooney-rivlin": (1, (1.1e5, 0.4e5, 0.0)),
-    "yeoh": (2, (1.2e5, -2.0e3, 4.0e2)),
-}
+LAW_LIST = list(LAWS.values())
+
+
+def _example(law):
+    return {p.key: p.example for p in law.parameters}
+
+
+MODELS = {law.name: (law.code, law.pack(_example(law))) for law in LAW_LIST}
 
 
 @pytest.mark.parametrize("dim", [2, 3])
@@ -35,15 +41,7 @@ def test_stress_is_energy_derivative(dim, name):
     P, _ = _evaluate(dim, Fs, G, K, model, prm)
     h = 1e-6
     for n, F in enumerate(Fs):
-        perturbed = []
-        for i in range(dim):
-            for j in range(dim):
-                for s in (+1, -1):
-                    Fp = F.copy()
-                    Fp[i, j] += s * h
-                    perturbed.append(Fp)
-        _, psi = _evaluate(dim, perturbed, G, K, model, prm)
-        fd = ((psi[0::2] - psi[1::2]) / (2 * h)).reshape(dim, dim)
+        fd = central_difference_stress(lambda Fs_: _evaluate(dim, Fs_, G, K, model, prm)[1], F, h)
         rel = np.abs(fd - P[n]).max() / np.abs(P[n]).max()
         assert rel < 1e-5, (n, rel)
 
@@ -83,3 +81,42 @@ def test_yeoh_stiffens_under_large_stretch():
     Pn, _ = _evaluate(3, [F], 2.4e5, 5e6, 0, (0, 0, 0))
     Py, _ = _evaluate(3, [F], 0.0, 5e6, 2, (1.2e5, 0.0, 4.0e2))
     assert Py[0][0, 0] > Pn[0][0, 0]
+
+
+def _evaluate_law(law, Fs):
+    """Stress and energy of ``law`` at its example parameters, G its initial shear modulus, K = 4 G (comparable to
+    G, so the isochoric part is not hidden behind the volumetric one)."""
+    params = _example(law)
+    G = law.initial_shear_modulus(params)
+    return _evaluate(Fs[0].shape[0], Fs, G, 4.0 * G, law.code, law.pack(params))
+
+
+def _near_and_stretched(dim):
+    rng = np.random.default_rng(11)
+    near = [np.eye(dim) + 0.05 * rng.standard_normal((dim, dim)) for _ in range(4)]
+    stretched = np.diag([1.6, 0.7, 0.85][:dim]) + 0.1 * rng.standard_normal((dim, dim))
+    return near + [stretched]
+
+
+@pytest.mark.parametrize("dim", [2, 3])
+@pytest.mark.parametrize("law", LAW_LIST, ids=lambda law: law.name)
+def test_stress_is_energy_derivative_near_rest_and_stretched(law, dim):
+    Fs = _near_and_stretched(dim)
+    assert all(np.linalg.det(F) > 0.3 for F in Fs)
+    P, _ = _evaluate_law(law, Fs)
+    for n, F in enumerate(Fs):
+        fd = central_difference_stress(lambda Fs_: _evaluate_law(law, Fs_)[1], F, 1e-6)
+        rel = np.abs(fd - P[n]).max() / np.abs(P[n]).max()
+        assert rel < 1e-6, (law.name, n, rel)
+
+
+@pytest.mark.parametrize("dim", [2, 3])
+@pytest.mark.parametrize("law", LAW_LIST, ids=lambda law: law.name)
+def test_initial_shear_modulus_is_small_strain_slope(law, dim):
+    P, psi = _evaluate_law(law, [np.eye(dim)])
+    assert np.abs(P[0]).max() < 1e-9 * law.initial_shear_modulus(_example(law)) and abs(psi[0]) < 1e-6
+    gamma = 1e-5
+    F = np.eye(dim)
+    F[0, 1] = gamma  # simple shear, J = 1
+    P, _ = _evaluate_law(law, [F])
+    assert P[0][0, 1] / gamma == pytest.approx(law.initial_shear_modulus(_example(law)), rel=1e-6)

@@ -153,6 +153,21 @@ def _stress_and_energy(dim, Fs, G, K):
     return P.numpy(), psi.numpy()
 
 
+def central_difference_stress(energy, F: np.ndarray, h: float = 1e-6) -> np.ndarray:
+    """dW/dF (dim, dim) by central differences of step ``h`` in each component of F; ``energy`` maps a list of
+    deformation gradients to their strain energy densities (an array)."""
+    dim = F.shape[0]
+    perturbed = []
+    for i in range(dim):
+        for j in range(dim):
+            for s in (+1, -1):
+                Fp = F.copy()
+                Fp[i, j] += s * h
+                perturbed.append(Fp)
+    psi = np.asarray(energy(perturbed))
+    return ((psi[0::2] - psi[1::2]) / (2 * h)).reshape(dim, dim)
+
+
 @register("neo_hookean", "Neo-Hookean stress = derivative of its energy; small-strain moduli G and K + 4G/3",
           cost="~2 s")
 def neo_hookean(ctx: Context) -> CaseResult:
@@ -166,15 +181,7 @@ def neo_hookean(ctx: Context) -> CaseResult:
         h = 1e-6  # central-difference step in F
         worst, ref_at, val_at = 0.0, 0.0, 0.0
         for n, F in enumerate(Fs):
-            perturbed = []
-            for i in range(dim):
-                for j in range(dim):
-                    for s in (+1, -1):
-                        Fp = F.copy()
-                        Fp[i, j] += s * h
-                        perturbed.append(Fp)
-            _, psi = _stress_and_energy(dim, perturbed, G, K)
-            fd = ((psi[0::2] - psi[1::2]) / (2 * h)).reshape(dim, dim)
+            fd = central_difference_stress(lambda Fs_: _stress_and_energy(dim, Fs_, G, K)[1], F, h)
             rel = float(np.abs(fd - P[n]).max() / np.abs(P[n]).max())
             if rel >= worst:
                 idx = np.unravel_index(np.abs(fd - P[n]).argmax(), fd.shape)
