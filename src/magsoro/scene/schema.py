@@ -8,9 +8,10 @@ always have 3 (the field is three-dimensional even when the body is planar).
 
 from __future__ import annotations
 
+import math
 from typing import Annotated, Literal, Union
 
-from pydantic import BaseModel, ConfigDict, Discriminator, Field, PrivateAttr, Tag, model_validator
+from pydantic import BaseModel, ConfigDict, Discriminator, Field, PlainValidator, PrivateAttr, Tag, model_validator
 
 from magsoro.mpm.materials import DEFAULT_LAW, LAW_NAMES, LAWS, PARAMETER_KEYS
 
@@ -602,10 +603,16 @@ class Simulation(Strict):
     )
 
 
-Friction = Annotated[
-    Union[Annotated[float, Field(ge=0, allow_inf_nan=False)], Literal["sticky"]],
-    Field(description="Coulomb coefficient (>= 0), or 'sticky' (one velocity field: the bodies stick and never separate)."),
-]
+def _friction(value):
+    """A Coulomb coefficient (finite, >= 0) or 'sticky', with one message for both forms."""
+    if value == "sticky":
+        return value
+    if isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value) and value >= 0:
+        return float(value)
+    raise ValueError("must be a finite Coulomb coefficient >= 0 or 'sticky'")
+
+
+Friction = Annotated[Union[float, Literal["sticky"]], PlainValidator(_friction, json_schema_input_type=Union[float, Literal["sticky"]])]
 
 
 class ContactPair(Strict):
