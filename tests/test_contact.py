@@ -1,7 +1,6 @@
 """Contact between bodies: the [contact] table, contact groups and the two-field grid contact (docs/engine.md)."""
 
 import copy
-import math
 
 import numpy as np
 import pytest
@@ -10,48 +9,7 @@ from magsoro.errors import SceneError
 from magsoro.scene import parse_scene
 from magsoro.scene.build import build
 from magsoro.simulation import Simulation
-
-G_EARTH = 9.81
-
-
-def _slope_scene(mu, support: str, dx=2.5e-4, tilt_deg=30.0, precision="float32") -> dict:
-    """A 4 x 2 mm block (2D) resting one particle spacing above either a clamped elastic slab or a half-space
-    collider, gravity tilted by ``tilt_deg`` so the block is on a slope; friction ``mu`` for the pair."""
-    h = dx / 2
-    th = math.radians(tilt_deg)
-    scene = {
-        "simulation": {"dim": 2, "dx": dx, "domain_lo": [-0.02, -0.004], "domain_hi": [0.02, 0.01], "duration": 0.05,
-                       "gravity": [G_EARTH * math.sin(th), -G_EARTH * math.cos(th)], "precision": precision},
-        "bodies": [{"name": "block", "shape": {"type": "rectangle", "center": [-0.005, 1e-3 + 2 * h], "size": [4e-3, 2e-3]},
-                    "material": {"density": 1100.0, "shear_modulus": 3e5}}],
-        "contact": {"friction": mu},
-        "output": {"particles": False},
-    }
-    if support == "slab":
-        scene["bodies"].append({"name": "slab", "shape": {"type": "rectangle", "center": [0.0, -1e-3], "size": [0.036, 2e-3]},
-                                "material": {"density": 1100.0, "shear_modulus": 3e5}})
-        scene["clamps"] = [{"region": {"type": "rectangle", "center": [0.0, -1.75e-3], "size": [0.04, 0.5e-3]}}]
-    else:
-        scene["colliders"] = [{"type": "half_space", "point": [0.0, 0.0], "normal": [0.0, 1.0], "mode": "friction", "friction": mu}]
-    return scene
-
-
-def _block_track(scene: dict, t_end: float, every: float = 1e-3):
-    sim = Simulation(parse_scene(scene))
-    blk = sim.model.host["body"] == 0
-    m = sim.model.host["mass"][blk]
-    ts, xs = [], []
-    while sim.time < t_end - 1e-12:
-        sim.advance_to(min(t_end, sim.time + every))
-        x = sim.state.x.numpy()[blk]
-        ts.append(sim.time)
-        xs.append(np.average(x, axis=0, weights=m))
-    return np.array(ts), np.array(xs), sim
-
-
-def _acceleration(ts, xs, t_from):
-    sel = ts > t_from
-    return 2.0 * np.polyfit(ts[sel], xs[sel, 0], 2)[0]
+from magsoro.validation.contact import DX, G_EARTH, acceleration, block_track, slope_reference, slope_scene
 
 
 # -- scene interface and contact groups -------------------------------------------------------------------------
@@ -122,10 +80,10 @@ def test_frictionless_block_slides_on_a_body_and_a_sticky_one_does_not():
     """Coarse (dx 0.5 mm) block on a clamped slab, 30 degree slope, 15 ms: frictionless it accelerates at g sin 30
     within 3 % (the coarse grid's leading-edge drag); with the old single velocity field ('sticky') it does not
     move along the slope (less than a tenth of a cell)."""
-    ts, xs, _ = _block_track(_slope_scene(0.0, "slab", dx=5e-4), 0.015)
-    a = _acceleration(ts, xs, 0.004)
+    ts, xs, _ = block_track(slope_scene(0.0, "slab", dx=5e-4), 0.015)
+    a = acceleration(ts, xs, 0.004)
     assert a == pytest.approx(G_EARTH * 0.5, rel=0.03)
-    ts, xs, _ = _block_track(_slope_scene("sticky", "slab", dx=5e-4), 0.015)
+    ts, xs, _ = block_track(slope_scene("sticky", "slab", dx=5e-4), 0.015)
     assert abs(xs[-1, 0] - xs[0, 0]) < 0.1 * 5e-4
 
 
@@ -134,9 +92,9 @@ def test_frictionless_block_slides_on_a_body_and_a_sticky_one_does_not():
 def test_block_on_slope_friction_02_slides_at_coulomb_rate(support):
     """g (sin 30 - 0.2 cos 30) = 3.206 m/s^2: within 2 % on the collider, 5 % on the elastic slab (measured
     -0.02 % and -0.6 %; fitted over 10-40 ms after the block has settled)."""
-    ts, xs, _ = _block_track(_slope_scene(0.2, support), 0.04)
-    a_ref = G_EARTH * (math.sin(math.radians(30)) - 0.2 * math.cos(math.radians(30)))
-    assert _acceleration(ts, xs, 0.01) == pytest.approx(a_ref, rel=0.02 if support == "collider" else 0.05)
+    ts, xs, _ = block_track(slope_scene(0.2, support), 0.04)
+    a_ref = slope_reference(0.2)
+    assert acceleration(ts, xs, 0.01) == pytest.approx(a_ref, rel=0.02 if support == "collider" else 0.05)
 
 
 @pytest.mark.slow
@@ -146,13 +104,15 @@ def test_block_on_slope_friction_02_slides_at_coulomb_rate(support):
         "collider",
         pytest.param("slab", marks=pytest.mark.xfail(strict=True, reason=(
             "open (issue 'Engine 2.0'): on the elastic slab the block slides 0.36 mm (1.4 cells) in 40 ms at "
-            "friction 0.7; the acceptance asks for less than a quarter cell"))),
+            "friction 0.7, against less than a quarter cell asked. It starts one cell above the contact range and "
+            "falls along the slope without friction for about 3 ms, then stops by 33 ms. Started within the "
+            "contact range it stays (0.02 mm), but friction 0.2 then comes out 15 % high (docs/engine.md, Contact)"))),
     ],
 )
 def test_block_on_slope_friction_07_stays(support):
     """tan 30 = 0.577 < 0.7: the block stays; it moves less than a quarter cell along the slope in 40 ms."""
-    ts, xs, _ = _block_track(_slope_scene(0.7, support), 0.04)
-    assert abs(xs[-1, 0] - xs[0, 0]) < 0.25 * 2.5e-4
+    ts, xs, _ = block_track(slope_scene(0.7, support), 0.04)
+    assert abs(xs[-1, 0] - xs[0, 0]) < 0.25 * DX
 
 
 @pytest.mark.slow
@@ -163,7 +123,7 @@ def test_no_adhesion_block_pulled_off_a_slab():
     dx, h = 2.5e-4, 1.25e-4
     # dipole 20 mm above the block at the end: gradient about 0.7 T/m, pull about 5 x the block's weight
     far, near = [-0.005, 0.5, 0.0], [-0.005, 0.0213, 0.0]
-    scene = _slope_scene(0.3, "slab", tilt_deg=0.0)
+    scene = slope_scene(0.3, "slab", tilt_deg=0.0)
     scene["bodies"][0]["magnetization"] = [0.0, 0.1, 0.0]
     scene["fields"] = [{"type": "dipole", "moment": [0.0, 0.18, 0.0], "position": far,
                         "path": {"times": [0.0, 0.01, 0.02], "positions": [far, far, near]}}]

@@ -15,7 +15,7 @@ def _num(v: float) -> str:
 
 def _inputs(inputs: dict) -> str:
     """Compact one-line form of a row's inputs: keys that tell rows of one case apart."""
-    keep = ("bn", "psi_deg", "dim", "formulation", "t_over_dx", "coarser_t_over_dx", "cfl")
+    keep = ("bn", "psi_deg", "dim", "formulation", "t_over_dx", "coarser_t_over_dx", "cfl", "support", "friction", "start_sites")
     items = [(k, v) for k, v in inputs.items() if k in keep] or list(inputs.items())[:2]
     out = []
     for k, v in items:
