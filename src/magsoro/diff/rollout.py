@@ -26,7 +26,7 @@ import warp as wp
 from magsoro.errors import MagsoroError
 from magsoro.fields.device import accumulate_kernel
 from magsoro.mpm.colliders import COLLIDER_STRIDE, MODES, collider_table
-from magsoro.mpm.solver import grid_settings
+from magsoro.mpm.solver import contact_grid, grid_settings
 
 
 class DiffError(MagsoroError):
@@ -130,14 +130,7 @@ class Rollout:
             raise ValueError("the differentiable rollout has no contact between bodies or self-contact; give the scene "
                              "contact.friction = 'sticky' (one velocity field) or a single body")
         self.k = k = m.kernels
-        self._no_contact = k["ContactGrid"]()  # inactive: one velocity field per node
-        self._no_contact.active = 0
-        self._no_contact.n_nodes = 0
-        # one-element arrays, never read while inactive: the tape visits every array of a struct argument
-        nc, one_v = self._no_contact, lambda dtype: wp.zeros(1, dtype=dtype, device=m.device)
-        nc.group, nc.split, nc.gmin = one_v(wp.int32), one_v(wp.int32), one_v(wp.int32)
-        nc.X, nc.xbar, nc.axis, nc.grad_m = (one_v(k["vec"]) for _ in range(4))
-        nc.mu = one_v(m.scalar)
+        self._no_contact = contact_grid(m)  # one velocity field per node
         self.dim, self.dev, self.sc = m.dim, m.device, m.scalar
         self.dt = float(dt)
         self.n_steps = int(n_steps)

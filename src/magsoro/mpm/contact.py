@@ -59,16 +59,17 @@ def make_contact(dim: int, scalar):
         grad_m: wp.array(dtype=vec)  # per slot: mass gradient sum m_p w_ip (x_i - x_p) / dx, kg
 
     @wp.func
-    def field_of(ct: ContactGrid, p: int, idx: int):
-        """Field (0 or 1) particle ``p`` belongs to at node ``idx``."""
+    def field_of(ct: wp.array(dtype=ContactGrid), p: int, idx: int):
+        """Field (0 or 1) particle ``p`` belongs to at node ``idx``. The kernels take the struct as a one-element
+        array: a struct argument is copied for every thread of a CPU launch, an array of it is not."""
         f = int(0)
-        if ct.active != 0:
-            s = ct.split[idx]
+        if ct[0].active != 0:
+            s = ct[0].split[idx]
             if s == BODIES:
-                if ct.group[p] != ct.gmin[idx]:
+                if ct[0].group[p] != ct[0].gmin[idx]:
                     f = 1
             elif s == FOLD:
-                if wp.dot(ct.X[p] - ct.xbar[idx], ct.axis[idx]) > scalar(0.0):
+                if wp.dot(ct[0].X[p] - ct[0].xbar[idx], ct[0].axis[idx]) > scalar(0.0):
                     f = 1
         return f
 

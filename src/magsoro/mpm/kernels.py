@@ -28,10 +28,42 @@ FRICTION = 2
 
 
 @functools.cache
-def make_kernels(dim: int, scalar):
-    """Return a namespace of kernels and functions for ``dim`` in (2, 3) and ``scalar`` in (wp.float32, wp.float64)."""
+def grid_settings_struct(dim: int, scalar):
+    """The grid update's settings struct for ``dim`` and ``scalar`` (one class for both kernel variants)."""
+    vec = wp.types.vector(length=dim, dtype=scalar)
+
+    @wp.struct
+    class GridSettings:
+        """What the grid update applies to a node's free velocity: the step dt (s), the damping factor
+        exp(-c dt) of f = -c p, gravity (m/s^2), the domain walls (box lo .. hi, m; contact mode and friction of
+        nodes within two cells of a wall), the grid spacing dx (m) and the rigid colliders (flat float64 table of
+        ``n_colliders`` rows, :mod:`magsoro.mpm.colliders`; ``plane_z``: the z of a 2D scene's plane, m)."""
+
+        dt: scalar
+        damping_factor: scalar
+        gravity: vec
+        dx: scalar
+        domain_lo: vec
+        domain_hi: vec
+        wall_mode: int
+        wall_friction: scalar
+        colliders: wp.array(dtype=wp.float64)
+        n_colliders: int
+        plane_z: wp.float64
+
+    return GridSettings
+
+
+@functools.cache
+def make_kernels(dim: int, scalar, contact: bool = False):
+    """Return a namespace of kernels and functions for ``dim`` in (2, 3) and ``scalar`` in (wp.float32, wp.float64).
+
+    ``contact``: the variant with two velocity fields per node (:mod:`magsoro.mpm.contact`). Without it the
+    kernels never read their contact argument, which on CPU doubled the grid update of a single body (a few
+    nanoseconds per node against about 4 ns for the whole update)."""
     if dim not in (2, 3):
         raise ValueError(f"dim must be 2 or 3, got {dim}")
+    two_fields = bool(contact)  # the name ``contact`` is taken below by the collider velocity projection
     vec = wp.types.vector(length=dim, dtype=scalar)
     mat = wp.types.matrix(shape=(dim, dim), dtype=scalar)
     ivec = wp.types.vector(length=dim, dtype=wp.int32)
@@ -42,6 +74,13 @@ def make_kernels(dim: int, scalar):
     ContactGrid = ct_ns["ContactGrid"]
     field_of = ct_ns["field_of"]
     resolve_contact = ct_ns["resolve"]
+
+    @wp.func
+    def slot_of(ct: wp.array(dtype=ContactGrid), p: int, idx: int):
+        """Grid slot of particle ``p``'s velocity field at node ``idx``: the node itself without contact."""
+        if wp.static(two_fields):
+            return idx + field_of(ct, p, idx) * ct[0].n_nodes
+        return idx
     # Constants are computed here in double precision: literal arithmetic inside a kernel runs in float32.
     inv_mu0 = 1.0 / MU0
 
@@ -174,12 +213,12 @@ def make_kernels(dim: int, scalar):
         grid_clamp: wp.array(dtype=wp.int32),
         error: wp.array(dtype=wp.int32),
         total: int,
-        ct: ContactGrid,
+        ct: wp.array(dtype=ContactGrid),
     ):
         """Particle-to-grid transfer of mass, momentum and the stress impulse. ``x`` are the positions the grid
         weights are taken at: the current ones (updated Lagrangian, ``total`` = 0) or the reference ones (total
         Lagrangian, ``total`` = 1: the grid is the reference configuration's, and the node force takes the first
-        Piola stress P instead of the Kirchhoff stress P F^T). With contact (``ct.active``) each node has two
+        Piola stress P instead of the Kirchhoff stress P F^T). In the contact variant each node has two
         velocity fields (:mod:`magsoro.mpm.contact`): the particle scatters into its own, and adds its share of
         that field's mass gradient."""
         p = wp.tid()
@@ -225,11 +264,11 @@ def make_kernels(dim: int, scalar):
         first = flat_index(base, shape)
         for q in range(NS):
             weight, o, idx = stencil_node(q, w0, w1, w2, first, shape)
-            slot = idx + field_of(ct, p, idx) * ct.n_nodes
+            slot = slot_of(ct, p, idx)
             wp.atomic_add(grid_p, slot, weight * (mv + (A * o - Afx)))
             wp.atomic_add(grid_m, slot, weight * mp)
-            if ct.active != 0:
-                wp.atomic_add(ct.grad_m, slot, (weight * mp) * (o - fx))
+            if wp.static(two_fields):
+                wp.atomic_add(ct[0].grad_m, slot, (weight * mp) * (o - fx))
             if is_clamped != 0:
                 grid_clamp[idx] = 1
 
@@ -251,24 +290,7 @@ def make_kernels(dim: int, scalar):
                 vt = vt * (wp.max(vt_norm + mu * vn, scalar(0.0)) / vt_norm)
         return vt + cvel
 
-    @wp.struct
-    class GridSettings:
-        """What the grid update applies to a node's free velocity: the step dt (s), the damping factor
-        exp(-c dt) of f = -c p, gravity (m/s^2), the domain walls (box lo .. hi, m; contact mode and friction of
-        nodes within two cells of a wall), the grid spacing dx (m) and the rigid colliders (flat float64 table of
-        ``n_colliders`` rows, :mod:`magsoro.mpm.colliders`; ``plane_z``: the z of a 2D scene's plane, m)."""
-
-        dt: scalar
-        damping_factor: scalar
-        gravity: vec
-        dx: scalar
-        domain_lo: vec
-        domain_hi: vec
-        wall_mode: int
-        wall_friction: scalar
-        colliders: wp.array(dtype=wp.float64)
-        n_colliders: int
-        plane_z: wp.float64
+    GridSettings = grid_settings_struct(dim, scalar)
 
     @wp.func
     def node_velocity(momentum: vec, m: scalar, pos: vec, gs: GridSettings):
@@ -307,13 +329,17 @@ def make_kernels(dim: int, scalar):
         shape: ivec,
         gs: GridSettings,
         grid_v: wp.array(dtype=vec),
-        ct: ContactGrid,
+        ct: wp.array(dtype=ContactGrid),
     ):
         """Node velocities. With contact, a node's second field (slot idx + n_nodes) gets its own velocity and the
         two are corrected for contact (:mod:`magsoro.mpm.contact`)."""
         idx = wp.tid()
         m = grid_m[idx]
         held = grid_clamp[idx] != 0
+        if wp.static(not two_fields):
+            if m <= scalar(0.0) or held:
+                grid_v[idx] = vec()  # empty or held node: most of the grid block
+                return
         n = node_of_flat(idx, shape) + org
         pos = vec()
         for a in range(dim):
@@ -321,14 +347,14 @@ def make_kernels(dim: int, scalar):
         vel = vec()
         if m > scalar(0.0) and not held:
             vel = node_velocity(grid_p[idx], m, pos, gs)
-        if ct.active != 0:
-            slot = idx + ct.n_nodes
+        if wp.static(two_fields):
+            slot = idx + ct[0].n_nodes
             m1 = grid_m[slot]
             vel1 = vec()
             if m1 > scalar(0.0) and not held:
                 vel1 = node_velocity(grid_p[slot], m1, pos, gs)
                 if m > scalar(0.0):
-                    vel, vel1 = resolve_contact(vel, vel1, m, m1, ct.grad_m[idx], ct.grad_m[slot], ct.mu[idx], ct.gap)
+                    vel, vel1 = resolve_contact(vel, vel1, m, m1, ct[0].grad_m[idx], ct[0].grad_m[slot], ct[0].mu[idx], ct[0].gap)
             grid_v[slot] = vel1
         grid_v[idx] = vel
 
@@ -354,7 +380,7 @@ def make_kernels(dim: int, scalar):
         grid_r: wp.array(dtype=vec),
         x_cur: wp.array(dtype=vec),
         total: int,
-        ct: ContactGrid,
+        ct: wp.array(dtype=ContactGrid),
     ):
         """Grid-to-particle transfer: new x, v, C. With ``remap`` = 0 F is updated from the same node velocities
         ("grid"); otherwise F_out is left to :func:`remap_F`, and the particle's new affine velocity field
@@ -384,7 +410,7 @@ def make_kernels(dim: int, scalar):
             first = flat_index(base, shape)
             for q in range(NS):
                 weight, o, idx = stencil_node(q, w0, w1, w2, first, shape)
-                wgv = weight * grid_v[idx + field_of(ct, p, idx) * ct.n_nodes]
+                wgv = weight * grid_v[slot_of(ct, p, idx)]
                 new_v = new_v + wgv
                 S = S + wp.outer(wgv, o)
             # C = (4/dx^2) sum w v_i (x_i - x_p)^T = (4/dx) (sum w v_i o^T - v fx^T)
@@ -408,7 +434,7 @@ def make_kernels(dim: int, scalar):
                 Cfx = Cd * fx
                 for q in range(NS):  # new_v added per node, as in p2g
                     weight, o, idx = stencil_node(q, w0, w1, w2, first, shape)
-                    slot = idx + field_of(ct, p, idx) * ct.n_nodes
+                    slot = slot_of(ct, p, idx)
                     wp.atomic_add(grid_r, slot, (weight * mp) * (new_v + (Cd * o - Cfx)))
             for a in range(dim):
                 if not wp.isfinite(xc[a]) or not wp.isfinite(new_v[a]):
@@ -507,7 +533,7 @@ def make_kernels(dim: int, scalar):
         F_in: wp.array(dtype=mat),
         F_out: wp.array(dtype=mat),
         error: wp.array(dtype=wp.int32),
-        ct: ContactGrid,
+        ct: wp.array(dtype=ContactGrid),
     ):
         """F update from the remapped node velocities ``grid_w`` (:func:`remap_node_velocity`): F + dt (grad v) F
         at the particle's position at the start of the step, the same stencil as the first gather."""
@@ -525,7 +551,7 @@ def make_kernels(dim: int, scalar):
         first = flat_index(base, shape)
         for q in range(NS):
             weight, o, idx = stencil_node(q, w0, w1, w2, first, shape)
-            wv = weight * grid_w[idx + field_of(ct, p, idx) * ct.n_nodes]
+            wv = weight * grid_w[slot_of(ct, p, idx)]
             sv = sv + wv
             S = S + wp.outer(wv, o)
         # as in g2p: (4/dx^2) sum w v_i (x_i - x_p)^T = (4/dx) (S - (sum w v_i) fx^T)

@@ -89,6 +89,17 @@ def grid_settings(model: "Model", settings: "SolverSettings", gravity, colliders
     return gs
 
 
+def contact_grid(model: "Model", **fields) -> wp.array:
+    """The kernels' contact argument: a one-element array of :class:`magsoro.mpm.contact` ContactGrid with
+    ``fields`` set; with none, contact is off (one velocity field per node)."""
+    ct = model.kernels["ContactGrid"]()
+    ct.active = 0
+    ct.n_nodes = 0
+    for key, value in fields.items():
+        setattr(ct, key, value)
+    return wp.array([ct], dtype=model.kernels["ContactGrid"], device=model.device)
+
+
 def _param_index(kernel, name: str) -> int:
     """Position of a kernel argument, for Launch.set_param_at_index (cheaper than setting it by name)."""
     return [a.label for a in kernel.adj.args].index(name)
@@ -377,6 +388,7 @@ class Solver:
             self._contact_friction = wp.array(fr[:groups, :groups].ravel().astype(model.np_scalar), dtype=sc, device=dev)
             self._contact_groups = groups
             self.threads = 1
+            self.k = make_kernels(dim, sc, contact=True)
         self._fields_per_node = 2 if self._contact else 1
         cuts = np.linspace(0, model.n_particles, self.threads + 1).round().astype(int)
         self._ranges = [(int(cuts[t]), int(cuts[t + 1])) for t in range(self.threads)]
@@ -552,16 +564,12 @@ class Solver:
         grid_m = [self.grid_m] + [gm for _, gm in self._thread_grids]
         x_grid = self._X0 if self._total else state_in.x  # the positions the grid weights are taken at
         gs = grid_settings(m, st, self.gravity, self._collider_array, len(control.colliders), 0.0)
-        ct = k["ContactGrid"]()
-        ct.active = 0
-        ct.n_nodes = 0
+        ct = contact_grid(m)
         if self._contact:
-            ct.active = 1
-            ct.n_nodes = n_act
-            ct.gap = sc(st.contact.gap)
-            ct.group, ct.X = m.contact_group, m.X0
-            ct.split, ct.gmin, ct.xbar, ct.axis = self._ct_split, self._ct_gmin, self._ct_xbar, self._ct_axis
-            ct.mu, ct.grad_m = self._ct_mu, self._ct_grad
+            ct = contact_grid(
+                m, active=1, n_nodes=n_act, gap=sc(st.contact.gap), group=m.contact_group, X=m.X0, split=self._ct_split,
+                gmin=self._ct_gmin, xbar=self._ct_xbar, axis=self._ct_axis, mu=self._ct_mu, grad_m=self._ct_grad,
+            )
 
         def particles(kernel, inputs_of):
             out = []
@@ -620,6 +628,7 @@ class Solver:
             "_scalars": None,
             "_p2g_B": _param_index(k["p2g"], "B_uniform"),
             "_grid_settings": gs,  # dt and damping factor change with the step
+            "_contact_grid": ct,  # referenced by pointer from the recorded launches
         }
         if self._contact:
             c = st.contact
