@@ -106,7 +106,7 @@ def test_block_on_slope_friction_02_slides_at_coulomb_rate(support):
             "open (issue 'Engine 2.0'): on the elastic slab the block slides 0.36 mm (1.4 cells) in 40 ms at "
             "friction 0.7, against less than a quarter cell asked. It starts one cell above the contact range and "
             "falls along the slope without friction for about 3 ms, then stops by 33 ms. Started within the "
-            "contact range it stays (0.02 mm), but friction 0.2 then comes out 15 % high (docs/engine.md, Contact)"))),
+            "contact range it stays (0.02 mm), but at friction 0.2 it then slides 15 % slower than Coulomb (docs/engine.md, Contact)"))),
     ],
 )
 def test_block_on_slope_friction_07_stays(support):
