@@ -20,6 +20,8 @@ Design variables enter through arrays with ``requires_grad=True``:
 The error / bounds / max_speed outputs of the kernels are scratch arrays without gradients.
 """
 
+from dataclasses import replace
+
 import numpy as np
 import warp as wp
 
@@ -122,6 +124,9 @@ class Rollout:
         m = self.model = built.model
         self.control = built.control
         st = self.settings = built.settings
+        if st.formulation == "total" and st.formulation_auto:
+            # the scene did not ask for a form: the rollout's kernels are the updated-Lagrangian ones
+            st = self.settings = replace(st, formulation="updated", formulation_auto=False)
         if st.formulation != "updated":
             raise ValueError(f"the differentiable rollout runs the updated-Lagrangian engine only; the scene asks for "
                              f"simulation.formulation = {st.formulation!r}")
@@ -131,6 +136,7 @@ class Rollout:
                              "contact.friction = 'sticky' (one velocity field) or a single body")
         self.k = k = m.kernels
         self._no_contact = contact_grid(m)  # one velocity field per node
+        self._no_shift = wp.zeros(1, dtype=k["vec"], device=m.device)  # grid_update's node displacements (total form only)
         self.dim, self.dev, self.sc = m.dim, m.device, m.scalar
         self.dt = float(dt)
         self.n_steps = int(n_steps)
@@ -268,7 +274,7 @@ class Rollout:
             k["grid_update"], dim=self.n_nodes,
             inputs=[
                 dst.grid_p, dst.grid_m, dst.grid_clamp, self._org_v, self._shape_v, self._grid_settings[step],
-                dst.grid_v, self._no_contact,
+                dst.grid_v, self._no_contact, self._no_shift,
             ],
             device=dev,
         )

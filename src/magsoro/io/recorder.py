@@ -43,6 +43,7 @@ class RunWriter:
             "precision": sim.model.precision,
             "dim": sim.model.dim,
             "n_particles": sim.model.n_particles,
+            "formulation": sim.solver.settings.formulation,
             "bodies": sim.built.fill_report,
             "started": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
             "scene": scene_echo,

@@ -37,7 +37,10 @@ def grid_settings_struct(dim: int, scalar):
         """What the grid update applies to a node's free velocity: the step dt (s), the damping factor
         exp(-c dt) of f = -c p, gravity (m/s^2), the domain walls (box lo .. hi, m; contact mode and friction of
         nodes within two cells of a wall), the grid spacing dx (m) and the rigid colliders (flat float64 table of
-        ``n_colliders`` rows, :mod:`magsoro.mpm.colliders`; ``plane_z``: the z of a 2D scene's plane, m)."""
+        ``n_colliders`` rows, :mod:`magsoro.mpm.colliders`; ``plane_z``: the z of a 2D scene's plane, m).
+        ``node_shift`` = 1 (total Lagrangian): walls and colliders act at the nodes' current positions, the
+        reference node plus the mass-weighted displacement of its particles (:func:`node_displacement`), and a
+        node is in contact with a collider from signed distance ``collider_skin`` (m) down."""
 
         dt: scalar
         damping_factor: scalar
@@ -50,6 +53,8 @@ def grid_settings_struct(dim: int, scalar):
         colliders: wp.array(dtype=wp.float64)
         n_colliders: int
         plane_z: wp.float64
+        node_shift: int
+        collider_skin: wp.float64
 
     return GridSettings
 
@@ -306,14 +311,14 @@ def make_kernels(dim: int, scalar, contact: bool = False):
             if pos[a] > gs.domain_hi[a] - scalar(2.0) * gs.dx:
                 normal[a] = scalar(-1.0)
                 vel = contact(vel, vec(), normal, gs.wall_mode, gs.wall_friction)
-        # rigid colliders: a node with signed distance <= 0 is in contact
+        # rigid colliders: a node with signed distance <= collider_skin is in contact
         if gs.n_colliders > 0:
             p3 = wp.vec3d(wp.float64(pos[0]), wp.float64(pos[1]), gs.plane_z)
             if wp.static(dim == 3):
                 p3 = wp.vec3d(wp.float64(pos[0]), wp.float64(pos[1]), wp.float64(pos[2]))
             for c in range(gs.n_colliders):
                 phi, nrm, cvel = collider_sdf(gs.colliders, c, p3)
-                if phi <= wp.float64(0.0):
+                if phi <= gs.collider_skin:
                     row = c * COLLIDER_STRIDE
                     mode = int(gs.colliders[row + 1])
                     mu = scalar(gs.colliders[row + 2])
@@ -330,9 +335,12 @@ def make_kernels(dim: int, scalar, contact: bool = False):
         gs: GridSettings,
         grid_v: wp.array(dtype=vec),
         ct: wp.array(dtype=ContactGrid),
+        grid_u: wp.array(dtype=vec),
     ):
         """Node velocities. With contact, a node's second field (slot idx + n_nodes) gets its own velocity and the
-        two are corrected for contact (:mod:`magsoro.mpm.contact`)."""
+        two are corrected for contact (:mod:`magsoro.mpm.contact`). With ``gs.node_shift`` the node sits at its
+        reference position plus ``grid_u[idx] / m`` (mass-weighted particle displacement) for walls and
+        colliders."""
         idx = wp.tid()
         m = grid_m[idx]
         held = grid_clamp[idx] != 0
@@ -344,6 +352,8 @@ def make_kernels(dim: int, scalar, contact: bool = False):
         pos = vec()
         for a in range(dim):
             pos[a] = gs.domain_lo[a] + scalar(n[a]) * gs.dx
+        if gs.node_shift != 0 and m > scalar(0.0):
+            pos = pos + grid_u[idx] / m
         vel = vec()
         if m > scalar(0.0) and not held:
             vel = node_velocity(grid_p[idx], m, pos, gs)
@@ -445,6 +455,30 @@ def make_kernels(dim: int, scalar, contact: bool = False):
         for a in range(dim):
             wp.atomic_min(bounds, a, xp[a])
             wp.atomic_max(bounds, dim + a, xp[a])
+
+    @wp.kernel
+    def node_displacement(
+        X: wp.array(dtype=vec),
+        x: wp.array(dtype=vec),
+        mass: wp.array(dtype=scalar),
+        grid_lo: vec,
+        shape: ivec,
+        dx: scalar,
+        grid_u: wp.array(dtype=vec),
+    ):
+        """Total Lagrangian: scatter each particle's mass-weighted displacement m (x - X) to the reference grid,
+        so that node i sits at X_i + sum w m u / sum w m in the current configuration, where the walls and
+        colliders act on it (exact for a rigid translation; first order in the displacement gradient)."""
+        p = wp.tid()
+        base, fx = local_coords(X[p], grid_lo, scalar(1.0) / dx)
+        if outside_block(base, shape):
+            return  # p2g flags it
+        w0, w1, w2 = bspline_weights(fx)
+        mu = mass[p] * (x[p] - X[p])
+        first = flat_index(base, shape)
+        for q in range(NS):
+            weight, o, idx = stencil_node(q, w0, w1, w2, first, shape)
+            wp.atomic_add(grid_u, idx, weight * mu)
 
     @wp.kernel
     def contact_scan(
@@ -579,6 +613,7 @@ def make_kernels(dim: int, scalar, contact: bool = False):
         ContactGrid=ContactGrid,
         GridSettings=GridSettings,
         contact_scan=contact_scan,
+        node_displacement=node_displacement,
         contact_classify=ct_ns["contact_classify"],
         vec=vec,
         mat=mat,

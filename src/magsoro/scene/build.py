@@ -559,16 +559,14 @@ def build(scene: Scene, device: str | None = None, source: str = "scene", magnet
         except ValueError as exc:
             raise SceneError(f"{source}: fields[{i}]: {exc}") from None
     colliders = [make_collider(c, dim, sim.plane_z) for c in scene.colliders]
-    if sim.formulation == "total" and colliders:
+    touching = contact.active(int(body_group.max()) + 1)
+    if sim.formulation == "total" and touching:
         raise SceneError(
             f"{source}: simulation.formulation = 'total' keeps the grid on the reference configuration, where "
-            f"colliders cannot act; remove the {len(colliders)} collider(s) or use formulation = 'updated'"
+            f"contact between bodies cannot act; use formulation = 'updated' or 'auto', or contact.friction = 'sticky'"
         )
-    if sim.formulation == "total" and contact.active(int(body_group.max()) + 1):
-        raise SceneError(
-            f"{source}: simulation.formulation = 'total' keeps the grid on the reference configuration, where "
-            f"contact between bodies cannot act; use formulation = 'updated', or contact.friction = 'sticky'"
-        )
+    # 'auto': the form that settles, unless bodies (or parts of one) touch each other
+    formulation = ("updated" if touching else "total") if sim.formulation == "auto" else sim.formulation
     settings = SolverSettings(
         damping=sim.damping,
         gravity=tuple(sim.gravity) if sim.gravity is not None else (0.0,) * dim,
@@ -577,7 +575,8 @@ def build(scene: Scene, device: str | None = None, source: str = "scene", magnet
         cfl=sim.cfl,
         plane_z=sim.plane_z,
         velocity_gradient=sim.velocity_gradient,
-        formulation=sim.formulation,
+        formulation=formulation,
+        formulation_auto=sim.formulation == "auto",
         threads=sim.threads,
         contact=contact,
     )

@@ -586,13 +586,14 @@ class Simulation(Strict):
         "the grid; no creep of loaded bodies) or 'grid' (momentum-update node velocities; about half the cost per step on CPU, "
         "stressed bodies creep at a rate set by the time step, docs/engine.md).",
     )
-    formulation: Literal["updated", "total"] = Field(
-        default="updated",
-        description="MPM formulation: 'updated' (updated Lagrangian: the grid weights follow the particles; contact, "
-        "colliders and self-contact work) or 'total' (total Lagrangian: the grid stays on the reference configuration, "
-        "so bodies that stay in one piece settle to a static shape without the slow drift of loaded slender bodies, "
-        "and a clamp holds the nodes whose mass is mostly clamped, i.e. acts at the clamped region's face; no "
-        "colliders, walls or self-contact; docs/engine.md).",
+    formulation: Literal["auto", "updated", "total"] = Field(
+        default="auto",
+        description="MPM formulation: 'total' (total Lagrangian: the grid stays on the reference configuration, so "
+        "loaded bodies settle to a static shape that does not depend on the time step; colliders and walls act at the "
+        "nodes' current positions; a clamp holds the nodes whose mass is mostly clamped, i.e. acts at the clamped "
+        "region's face), 'updated' (updated Lagrangian: the grid weights follow the particles; needed for contact "
+        "between bodies and self-contact; loaded slender bodies creep slowly) or 'auto' (total, unless the scene has "
+        "contact between bodies or self-contact, then updated; run.json names the one used). docs/engine.md.",
     )
     threads: int | None = Field(
         default=None,
