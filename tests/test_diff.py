@@ -118,13 +118,17 @@ def test_checkpointed_gradients_equal_single_segment(tmp_path):
 
 
 def test_rollout_matches_engine(tmp_path):
-    """The differentiable rollout reproduces the engine's trajectory (same kernels, same dt)."""
+    """The differentiable rollout reproduces the engine's trajectory (same kernels, same dt) in the updated form,
+    the one its kernels run (the scene's 'auto' runs the engine in the total form)."""
+    from magsoro.scene import load_scene
     from magsoro.simulation import Simulation
 
     path = scene_file(tmp_path, ("uniform", "dipole"))
     prob = Problem(path, TIP, ["magnetisation"])
     x = prob.final_state()["x"]
-    sim = Simulation.from_file(path, device="cpu")
+    scene = load_scene(path)
+    scene.simulation.formulation = "updated"
+    sim = Simulation(scene, device="cpu")
     for _ in range(prob.n_steps):
         sim.step(prob.dt)
     xe = sim.state.x.numpy()

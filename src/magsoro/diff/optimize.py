@@ -121,6 +121,9 @@ class Problem:
         data["simulation"]["duration"] = float(self.duration)
         if self.scene.simulation.precision != data["simulation"].get("precision", "float32"):
             data["simulation"]["precision"] = self.scene.simulation.precision
+        # the design was optimised with the rollout's (updated-Lagrangian) kernels: a re-run of the written scene
+        # reproduces it only in that form, which an 'auto' scene would not choose for one body
+        data["simulation"]["formulation"] = self.rollout.settings.formulation
         path.write_text(f"# written by magsoro optimize from {self.scene_path.name}\n" + dumps(data))
         return path
 

@@ -28,7 +28,8 @@ import warp as wp
 from magsoro.errors import MagsoroError
 from magsoro.fields.device import accumulate_kernel
 from magsoro.mpm.colliders import COLLIDER_STRIDE, MODES, collider_table
-from magsoro.mpm.solver import contact_grid, grid_settings
+from magsoro.mpm.kernels import F_FROM_GRID, F_FROM_REMAP
+from magsoro.mpm.solver import bodies_array, contact_grid, grid_settings
 
 
 class DiffError(MagsoroError):
@@ -93,6 +94,18 @@ class _Slot:
 
     def state_arrays(self):
         return (self.x, self.v, self.C, self.F)
+
+    def structs(self, k, rollout) -> dict:
+        """The kernels' argument structs over this slot's arrays (one-element arrays, made once)."""
+        if getattr(self, "_structs", None) is None:
+            grid = k["GridArrays"]()
+            grid.p, grid.m, grid.clamp = self.grid_p, self.grid_m, self.grid_clamp
+            out = k["Particles"]()
+            out.x, out.v, out.C, out.F = self.x, self.v, self.C, self.F
+            dev = rollout.dev
+            self._structs = {"grid": wp.array([grid], dtype=k["GridArrays"], device=dev),
+                             "out": wp.array([out], dtype=k["Particles"], device=dev)}
+        return self._structs
 
     def grad_arrays(self):
         out = [self.x, self.v, self.C, self.F, self.B, self.grid_p, self.grid_m, self.grid_v, self.grid_q]
@@ -212,6 +225,12 @@ class Rollout:
         self.error = wp.zeros(2, dtype=wp.int32, device=dev)
         self.bounds = wp.zeros(2 * dim, dtype=sc, device=dev)
         self.max_speed = wp.zeros(1, dtype=sc, device=dev)
+        checks = k["Checks"]()
+        checks.bounds, checks.max_speed, checks.error = self.bounds, self.max_speed, self.error
+        self._checks = wp.array([checks], dtype=k["Checks"], device=dev)
+        self._bodies = bodies_array(m)
+        self._block = k["Block"]()
+        self._block.lo, self._block.shape, self._block.dx = self._grid_lo, self._shape_v, sc(m.dx)
         self.G_zero = wp.zeros(n, dtype=k["m3"], device=dev)
         f64 = sc == wp.float64
         self._fill = _fill_uniform_f64 if f64 else _fill_uniform_f32
@@ -259,15 +278,14 @@ class Rollout:
         else:
             wp.launch(self._fill, dim=n, inputs=[self.B_uniform, step, dst.B], device=dev)
             B_particle, G_particle = dst.B, self.G_zero
+        applied = k["Applied"]()
+        applied.has_gradient = 1
+        applied.B, applied.G = B_particle, G_particle
+        structs = dst.structs(k, self)
         wp.launch(
             k["p2g"], dim=n,
-            inputs=[
-                src.x, src.v, src.C, src.F,
-                m.vol0, m.mass, m.shear, m.bulk, m.material_model, m.material_params, m.Br, m.clamped,
-                k["v3"](), 1, B_particle, G_particle,
-                self._grid_lo, self._shape_v, sc(m.dx), dt,
-                dst.grid_p, dst.grid_m, dst.grid_clamp, self.error, 0, self._no_contact,
-            ],
+            inputs=[src.x, src.v, src.C, src.F, self._bodies, applied, self._block, dt, structs["grid"], self.error, 0,
+                    self._no_contact],
             device=dev,
         )
         wp.launch(
@@ -278,21 +296,18 @@ class Rollout:
             ],
             device=dev,
         )
+        f_update = F_FROM_REMAP if remap else F_FROM_GRID
         wp.launch(
             k["g2p"], dim=n,
-            inputs=[
-                dst.grid_v, m.clamped, self._grid_lo, self._shape_v, sc(m.dx), dt,
-                src.x, src.F, dst.x, dst.v, dst.C, dst.F,
-                self.bounds, self.max_speed, self.error, 1 if remap else 0, m.mass, dst.grid_q, src.x, 0, self._no_contact,
-            ],
+            inputs=[dst.grid_v, self._bodies, self._block, dt, src.x, src.x, src.F, structs["out"], self._checks, f_update,
+                    dst.grid_q, self._no_contact],
             device=dev,
         )
         if remap:  # the engine's velocity-gradient remap (docs/engine.md), same kernels
             wp.launch(k["remap_node_velocity"], dim=self.n_nodes,
                       inputs=[dst.grid_q, dst.grid_m, dst.grid_clamp, dst.grid_w, self.n_nodes], device=dev)
             wp.launch(k["remap_F"], dim=n,
-                      inputs=[src.x, m.clamped, self._grid_lo, self._shape_v, sc(m.dx), dt, dst.grid_w, src.F, dst.F,
-                              self.error, self._no_contact],
+                      inputs=[src.x, m.clamped, self._block, dt, dst.grid_w, src.F, dst.F, self.error, self._no_contact],
                       device=dev)
 
     def _run_segment(self, seg: int) -> int:

@@ -25,7 +25,7 @@ from magsoro.constants import MU0
 from magsoro.errors import SimulationError
 from magsoro.fields.device import FieldEvaluator
 from magsoro.mpm.colliders import COLLIDER_STRIDE, MODES, Collider, collider_table
-from magsoro.mpm.kernels import make_kernels
+from magsoro.mpm.kernels import F_FROM_GRID, F_FROM_REMAP, F_TOTAL, make_kernels
 from magsoro.mpm.materials import LAWS, describe_codes
 from magsoro.mpm.timestep import cfl_time_step
 
@@ -99,6 +99,17 @@ def grid_settings(model: "Model", settings: "SolverSettings", gravity, colliders
     return gs
 
 
+def bodies_array(model: "Model", cut=lambda arr: arr) -> wp.array:
+    """The kernels' per-particle constants (:mod:`magsoro.mpm.stencil` Bodies) of ``model`` as a one-element
+    array, over the slice ``cut`` of its particles (a CPU thread's share; default all)."""
+    k = model.kernels
+    b = k["Bodies"]()
+    b.vol0, b.mass, b.shear, b.bulk = cut(model.vol0), cut(model.mass), cut(model.shear), cut(model.bulk)
+    b.material_model, b.material_params = cut(model.material_model), cut(model.material_params)
+    b.Br, b.clamped = cut(model.Br), cut(model.clamped)
+    return wp.array([b], dtype=k["Bodies"], device=model.device)
+
+
 def contact_grid(model: "Model", **fields) -> wp.array:
     """The kernels' contact argument: a one-element array of :class:`magsoro.mpm.contact` ContactGrid with
     ``fields`` set; with none, contact is off (one velocity field per node)."""
@@ -108,11 +119,6 @@ def contact_grid(model: "Model", **fields) -> wp.array:
     for key, value in fields.items():
         setattr(ct, key, value)
     return wp.array([ct], dtype=model.kernels["ContactGrid"], device=model.device)
-
-
-def _param_index(kernel, name: str) -> int:
-    """Position of a kernel argument, for Launch.set_param_at_index (cheaper than setting it by name)."""
-    return [a.label for a in kernel.adj.args].index(name)
 
 
 class _Workers:
@@ -567,14 +573,16 @@ class Solver:
 
     def _record_launches(self, state_in: State, state_out: State, control: Control, has_gradient: bool) -> dict:
         """Pack every kernel's arguments once (Warp's recorded launches) for this pair of states; a step then only
-        updates the scalars that change. Packing all arguments on each launch costs more than the kernels
-        themselves for small robots. Particle kernels get one launch per thread, over that thread's slice."""
+        updates the values that change. Packing all arguments on each launch costs more than the kernels
+        themselves for small robots. Particle kernels get one launch per thread, over that thread's slice, with
+        argument structs of the thread's slices (:mod:`magsoro.mpm.stencil`)."""
         m, k, st, dev, sc = self.model, self.k, self.settings, self.device, self.scalar
-        vec, ivec = k["vec"], k["ivec"]
-        shape = ivec(*[int(s) for s in self.shape])
-        org = ivec(*[int(o) for o in self.org])
-        grid_lo = vec(*[sc(m.domain_lo[a] + self.org[a] * m.dx) for a in range(self.dim)])
         n_act = self.n_active
+        block = k["Block"]()
+        block.lo = k["vec"](*[sc(m.domain_lo[a] + self.org[a] * m.dx) for a in range(self.dim)])
+        block.shape = k["ivec"](*[int(s) for s in self.shape])
+        block.dx = sc(m.dx)
+        org = k["ivec"](*[int(o) for o in self.org])
         grid_p = [self.grid_p] + [gp for gp, _ in self._thread_grids]
         grid_m = [self.grid_m] + [gm for _, gm in self._thread_grids]
         x_grid = self._X0 if self._total else state_in.x  # the positions the grid weights are taken at
@@ -585,100 +593,75 @@ class Solver:
                 m, active=1, n_nodes=n_act, gap=sc(st.contact.gap), group=m.contact_group, X=m.X0, split=self._ct_split,
                 gmin=self._ct_gmin, xbar=self._ct_xbar, axis=self._ct_axis, mu=self._ct_mu, grad_m=self._ct_grad,
             )
+        f_update = F_TOTAL if self._total else (F_FROM_REMAP if self._remap else F_FROM_GRID)
+        threads = []  # per thread: its slice of the particle arrays and its argument structs
+        for t, (a, b) in enumerate(self._ranges):
+            cut = (lambda arr, a=a, b=b: arr[a:b]) if self.threads > 1 else (lambda arr: arr)
+            applied = k["Applied"]()
+            applied.has_gradient = 1 if has_gradient else 0
+            applied.B, applied.G = cut(self.B_particle), cut(self.G_particle)
+            grid = k["GridArrays"]()
+            grid.p, grid.m, grid.clamp = grid_p[t], grid_m[t], self.grid_clamp
+            out = k["Particles"]()
+            out.x, out.v, out.C, out.F = cut(state_out.x), cut(state_out.v), cut(state_out.C), cut(state_out.F)
+            checks = k["Checks"]()
+            checks.bounds, checks.max_speed, checks.error = self._thread_bounds[t], self._thread_speed[t], self.error
+            threads.append(dict(
+                t=t, cut=cut, n=b - a, applied=applied, bodies=bodies_array(m, cut),
+                grid=wp.array([grid], dtype=k["GridArrays"], device=dev),
+                out=wp.array([out], dtype=k["Particles"], device=dev),
+                checks=wp.array([checks], dtype=k["Checks"], device=dev),
+            ))
 
         def particles(kernel, inputs_of):
-            out = []
-            for t, (a, b) in enumerate(self._ranges):
-                cut = (lambda arr: arr[a:b]) if self.threads > 1 else (lambda arr: arr)
-                out.append(wp.launch(kernel, dim=b - a, inputs=inputs_of(t, cut), device=dev, record_cmd=True))
-            return out
+            return [wp.launch(kernel, dim=th["n"], inputs=inputs_of(th, th["cut"]), device=dev, record_cmd=True)
+                    for th in threads]
+
+        def nodes(kernel, inputs, n=n_act):
+            return wp.launch(kernel, dim=n, inputs=inputs, device=dev, record_cmd=True)
 
         L = {
-            "p2g": particles(
-                k["p2g"],
-                lambda t, cut: [
-                    cut(x_grid), cut(state_in.v), cut(state_in.C), cut(state_in.F),
-                    cut(m.vol0), cut(m.mass), cut(m.shear), cut(m.bulk), cut(m.material_model), cut(m.material_params),
-                    cut(m.Br), cut(m.clamped),
-                    k["v3"](), 1 if has_gradient else 0, cut(self.B_particle), cut(self.G_particle),
-                    grid_lo, shape, sc(m.dx), sc(0.0),
-                    grid_p[t], grid_m[t], self.grid_clamp, self.error, 1 if self._total else 0, ct,
-                ],
-            ),
-            "grid_update": wp.launch(
-                k["grid_update"],
-                dim=n_act,
-                inputs=[
-                    self.grid_p, self.grid_m, self._held if self._total else self.grid_clamp, org, shape,
-                    gs,
-                    self.grid_v, ct, self.grid_u,
-                ],
-                device=dev,
-                record_cmd=True,
-            ),
-            "reset": [
-                wp.launch(k["reset_reductions"], dim=1, inputs=[self._thread_bounds[t], self._thread_speed[t], sc(1e30)], device=dev, record_cmd=True)
-                for t in range(self.threads)
-            ],
-            "g2p": particles(
-                k["g2p"],
-                lambda t, cut: [
-                    self.grid_v, cut(m.clamped), grid_lo, shape, sc(m.dx), sc(0.0),
-                    cut(x_grid), cut(state_in.F),
-                    cut(state_out.x), cut(state_out.v), cut(state_out.C), cut(state_out.F),
-                    self._thread_bounds[t], self._thread_speed[t], self.error, 1 if self._remap else 0, cut(m.mass), grid_p[t],
-                    cut(state_in.x), 1 if self._total else 0, ct,
-                ],
-            ),
-            "sum_mass": [
-                wp.launch(k["add_grid"], dim=n_act, inputs=[self.grid_p, grid_p[t], self.grid_m, grid_m[t], 1], device=dev, record_cmd=True)
-                for t in range(1, self.threads)
-            ],
-            "sum_momentum": [
-                wp.launch(k["add_grid"], dim=n_act, inputs=[self.grid_p, grid_p[t], self.grid_m, grid_m[t], 0], device=dev, record_cmd=True)
-                for t in range(1, self.threads)
-            ],
-            # keep the states' arrays alive: the set is found again by their ids
+            "p2g": particles(k["p2g"], lambda th, cut: [
+                cut(x_grid), cut(state_in.v), cut(state_in.C), cut(state_in.F), th["bodies"], th["applied"], block,
+                sc(0.0), th["grid"], self.error, 1 if self._total else 0, ct]),
+            "grid_update": nodes(k["grid_update"], [
+                self.grid_p, self.grid_m, self._held if self._total else self.grid_clamp, org, block.shape, gs,
+                self.grid_v, ct, self.grid_u]),
+            "reset": [nodes(k["reset_reductions"], [self._thread_bounds[t], self._thread_speed[t], sc(1e30)], 1)
+                      for t in range(self.threads)],
+            "g2p": particles(k["g2p"], lambda th, cut: [
+                self.grid_v, th["bodies"], block, sc(0.0), cut(x_grid), cut(state_in.x), cut(state_in.F), th["out"],
+                th["checks"], f_update, grid_p[th["t"]], ct]),
+            "sum_mass": [nodes(k["add_grid"], [self.grid_p, grid_p[t], self.grid_m, grid_m[t], 1]) for t in range(1, self.threads)],
+            "sum_momentum": [nodes(k["add_grid"], [self.grid_p, grid_p[t], self.grid_m, grid_m[t], 0]) for t in range(1, self.threads)],
+            # keep the states' arrays and the argument structs alive: the set is found again by the arrays' ids
             "_arrays": (state_in.x, state_in.v, state_in.C, state_in.F, state_out.x, state_out.v, state_out.C, state_out.F),
+            "_threads": threads,
             "_scalars": None,
-            "_p2g_B": _param_index(k["p2g"], "B_uniform"),
             "_grid_settings": gs,  # dt and damping factor change with the step
             "_contact_grid": ct,  # referenced by pointer from the recorded launches
         }
         if self._total:
-            L["node_displacement"] = wp.launch(
-                k["node_displacement"], dim=m.n_particles, device=dev, record_cmd=True,
-                inputs=[self._X0, state_in.x, m.mass, grid_lo, shape, sc(m.dx), self.grid_u],
-            )
+            L["node_displacement"] = nodes(k["node_displacement"], [self._X0, state_in.x, m.mass, block, self.grid_u],
+                                           m.n_particles)
         if self._contact:
             c = st.contact
             fold = 1 if c.self_contact else 0
             L["contact"] = [
-                wp.launch(k["contact_scan"], dim=m.n_particles, device=dev, record_cmd=True, inputs=[
-                    state_in.x, m.X0, m.mass, m.contact_group, grid_lo, shape, sc(m.dx), fold,
-                    self._ct_gmin, self._ct_gmax, self._ct_moments]),
-                wp.launch(k["contact_classify"], dim=n_act, device=dev, record_cmd=True, inputs=[
-                    self._ct_gmin, self._ct_gmax, self._ct_moments, fold, sc((c.fold_spread * m.dx) ** 2),
-                    self._contact_friction, self._contact_groups,
-                    self._ct_split, self._ct_xbar, self._ct_axis, self._ct_mu]),
+                nodes(k["contact_scan"], [state_in.x, m.X0, m.mass, m.contact_group, block, fold,
+                                          self._ct_gmin, self._ct_gmax, self._ct_moments], m.n_particles),
+                nodes(k["contact_classify"], [self._ct_gmin, self._ct_gmax, self._ct_moments, fold,
+                                              sc((c.fold_spread * m.dx) ** 2), self._contact_friction, self._contact_groups,
+                                              self._ct_split, self._ct_xbar, self._ct_axis, self._ct_mu]),
             ]
         if self._remap:
             # second half of the remap: g2p has scattered the new affine velocities into grid_p (free after the
             # grid update); node velocities go to grid_v (free after g2p), and F is gathered from them
-            L["remap_nodes"] = wp.launch(
-                k["remap_node_velocity"],
-                dim=self._fields_per_node * n_act,
-                inputs=[self.grid_p, self.grid_m, self.grid_clamp, self.grid_v, n_act],
-                device=dev,
-                record_cmd=True,
-            )
-            L["remap_F"] = particles(
-                k["remap_F"],
-                lambda t, cut: [
-                    cut(state_in.x), cut(m.clamped), grid_lo, shape, sc(m.dx), sc(0.0), self.grid_v,
-                    cut(state_in.F), cut(state_out.F), self.error, ct,
-                ],
-            )
+            L["remap_nodes"] = nodes(k["remap_node_velocity"], [self.grid_p, self.grid_m, self.grid_clamp, self.grid_v, n_act],
+                                     self._fields_per_node * n_act)
+            L["remap_F"] = particles(k["remap_F"], lambda th, cut: [
+                cut(state_in.x), cut(m.clamped), block, sc(0.0), self.grid_v, cut(state_in.F), cut(state_out.F),
+                self.error, ct])
         return L
 
     def _launch_set(self, state_in: State, state_out: State, control: Control, has_gradient: bool) -> dict:
@@ -746,58 +729,94 @@ class Solver:
 
     # -- stepping -------------------------------------------------------------------------------------------
     def step(self, state_in: State, state_out: State, control: Control, dt: float) -> None:
-        """Advance ``state_in`` by ``dt`` seconds into ``state_out``. Raises SimulationError on a bad state."""
-        m, k, st, dev, sc = self.model, self.k, self.settings, self.device, self.scalar
+        """Advance ``state_in`` by ``dt`` seconds into ``state_out``. Raises SimulationError on a bad state.
+
+        Phases (docs/engine.md, "Per step"): check the particles against the grid block and the domain; evaluate
+        the drives (fields, colliders) at t; scatter (contact scan, p2g, node displacements); node velocities;
+        gather (g2p and the remap); read the error flags."""
         t = state_in.time
         tick = time.perf_counter() if self.phase_times is not None else 0.0
-        lo, hi = self._particle_bounds(state_in)
-        # inside the safe box of the current grid block (NaN compares false): no refit, inside the domain
-        if self._safe_lo is None or not ((lo >= self._safe_lo).all() and (hi < self._safe_hi).all()):
-            if not (np.all(np.isfinite(lo)) and np.all(np.isfinite(hi))):
-                raise SimulationError("particle positions are not finite", state_in.step, t)
-            if np.any(lo < m.domain_lo) or np.any(hi > m.domain_hi):
-                raise SimulationError(
-                    f"a particle left the domain [{m.domain_lo.tolist()}, {m.domain_hi.tolist()}] m "
-                    f"(particles span {lo.tolist()} to {hi.tolist()}); enlarge simulation.domain or check the drives",
-                    state_in.step,
-                    t,
-                )
-            if not self._fits(lo, hi):
-                self._refit(lo, hi)
+        self._check_and_fit(state_in)
         fields = self._fields(control)
         b0 = fields.uniform_value(t)
         if fields.has_gradient:
             fields.evaluate(state_in.x, self.B_particle, self.G_particle, t)
+        self._update_colliders(control, t)
+        L = self._launch_set(state_in, state_out, control, fields.has_gradient)
+        self._set_step_values(L, b0, dt)
+        self._clear_grid()
+        tick = self._phase("other", tick)
+        self._scatter(L)
+        tick = self._phase("p2g", tick)
+        self._update_grid(L)
+        tick = self._phase("grid", tick)
+        self._gather(L)
+        tick = self._phase("g2p", tick)
+        self._bounds_valid = True
+        state_out.time = t + dt
+        state_out.step = state_in.step + 1
+        err = self._error_np if self._on_cpu else self.error.numpy()
+        self._phase("other", tick)
+        self._raise_on_error(err, state_in)
+
+    # -- the phases of a step -------------------------------------------------------------------------------
+    def _check_and_fit(self, state_in: State) -> None:
+        """Particles inside the safe box of the current grid block (NaN compares false) need no refit and no
+        domain check; otherwise check them and refit the block when they do not fit it."""
+        lo, hi = self._particle_bounds(state_in)
+        if self._safe_lo is not None and (lo >= self._safe_lo).all() and (hi < self._safe_hi).all():
+            return
+        m, t = self.model, state_in.time
+        if not (np.all(np.isfinite(lo)) and np.all(np.isfinite(hi))):
+            raise SimulationError("particle positions are not finite", state_in.step, t)
+        if np.any(lo < m.domain_lo) or np.any(hi > m.domain_hi):
+            raise SimulationError(
+                f"a particle left the domain [{m.domain_lo.tolist()}, {m.domain_hi.tolist()}] m "
+                f"(particles span {lo.tolist()} to {hi.tolist()}); enlarge simulation.domain or check the drives",
+                state_in.step,
+                t,
+            )
+        if not self._fits(lo, hi):
+            self._refit(lo, hi)
+
+    def _update_colliders(self, control: Control, t: float) -> None:
+        """The collider table at time t, copied to the device only when it changed (resting colliders: no copy)."""
         if control.colliders:
             table = collider_table(control.colliders, t)
             if self._collider_array is None or self._collider_array.shape[0] != len(table):
-                self._collider_array = wp.array(table, dtype=wp.float64, device=dev)
+                self._collider_array = wp.array(table, dtype=wp.float64, device=self.device)
                 self._collider_host = table
                 self._launch_sets.clear()
-            elif not np.array_equal(table, self._collider_host):  # resting colliders: no copy
+            elif not np.array_equal(table, self._collider_host):
                 self._collider_array.assign(table)
                 self._collider_host = table
         elif self._collider_array is None:
-            self._collider_array = wp.zeros(COLLIDER_STRIDE, dtype=wp.float64, device=dev)
-        L = self._launch_set(state_in, state_out, control, fields.has_gradient)
-        # per-step values: field and time step (set only when they change)
+            self._collider_array = wp.zeros(COLLIDER_STRIDE, dtype=wp.float64, device=self.device)
+
+    def _set_step_values(self, L: dict, b0, dt: float) -> None:
+        """Uniform field, time step and damping factor of the recorded launches, set only when they change."""
+        st, sc, k = self.settings, self.scalar, self.k
         scalars = (tuple(float(b) for b in b0), float(dt), float(st.damping))
-        if L["_scalars"] != scalars:
-            if L["_scalars"] is None or L["_scalars"][0] != scalars[0]:
-                b_uniform = k["v3"](*[sc(b) for b in b0])
-                for one in L["p2g"]:
-                    one.set_param_at_index(L["_p2g_B"], b_uniform)
-            if L["_scalars"] is None or L["_scalars"][1:] != scalars[1:]:
-                dt_s = sc(dt)
-                for one in L["p2g"]:
-                    one.set_param_by_name("dt", dt_s)
-                gs = L["_grid_settings"]
-                gs.dt = dt_s
-                gs.damping_factor = sc(math.exp(-st.damping * dt))
-                L["grid_update"].set_param_by_name("gs", gs)
-                for one in L["g2p"] + L.get("remap_F", []):
-                    one.set_param_by_name("dt", dt_s)
-            L["_scalars"] = scalars
+        if L["_scalars"] == scalars:
+            return
+        if L["_scalars"] is None or L["_scalars"][0] != scalars[0]:
+            b_uniform = k["v3"](*[sc(b) for b in b0])
+            for one, th in zip(L["p2g"], L["_threads"]):
+                th["applied"].B_uniform = b_uniform
+                one.set_param_by_name("applied", th["applied"])
+        if L["_scalars"] is None or L["_scalars"][1:] != scalars[1:]:
+            dt_s = sc(dt)
+            for one in L["p2g"] + L["g2p"] + L.get("remap_F", []):
+                one.set_param_by_name("dt", dt_s)
+            gs = L["_grid_settings"]
+            gs.dt = dt_s
+            gs.damping_factor = sc(math.exp(-st.damping * dt))
+            L["grid_update"].set_param_by_name("gs", gs)
+        L["_scalars"] = scalars
+
+    def _clear_grid(self) -> None:
+        """Zero the grid arrays a step scatters into and the error flags (CPU: through numpy views, a Warp call
+        costs more than the work here)."""
         if self._on_cpu:
             for view in self._grid_np:
                 view.fill(0)
@@ -806,7 +825,10 @@ class Solver:
             for view in self._grid_views:
                 view.zero_()
             self.error.zero_()
-        tick = self._phase("other", tick)
+
+    def _scatter(self, L: dict) -> None:
+        """Contact scan (with contact), p2g on every thread, the threads' grids summed, node displacements (total
+        Lagrangian)."""
         if self._contact:
             for v, fill in zip(self._ct_group_views, (2**31 - 1, -1)):
                 v.fill_(fill)
@@ -817,7 +839,9 @@ class Solver:
             one.launch()
         if self._total:
             L["node_displacement"].launch()
-        tick = self._phase("p2g", tick)
+
+    def _update_grid(self, L: dict) -> None:
+        """Node velocities; then reset the gather's reductions and, for the remap, the grids it scatters into."""
         L["grid_update"].launch()
         if self._on_cpu:
             for b in self._bounds_np:
@@ -838,21 +862,18 @@ class Solver:
                 self._grid_views[0].zero_()
                 for gp, _ in self._thread_grid_views:
                     gp.zero_()
-        tick = self._phase("grid", tick)
+
+    def _gather(self, L: dict) -> None:
+        """g2p on every thread; with the remap (counted in the g2p phase) the node momenta rebuilt from the
+        particles' new affine velocities over the first transfer's node masses and held-node flags, then F."""
         self._parallel(L["g2p"])
         if self._remap:
-            # velocity-gradient remap (counted in the g2p phase): node momenta rebuilt from the particles' new
-            # affine velocities over the first transfer's node masses and held-node flags, then F from them
             for one in L["sum_momentum"]:
                 one.launch()
             L["remap_nodes"].launch()
             self._parallel(L["remap_F"])
-        tick = self._phase("g2p", tick)
-        self._bounds_valid = True
-        state_out.time = t + dt
-        state_out.step = state_in.step + 1
-        err = self._error_np if self._on_cpu else self.error.numpy()
-        self._phase("other", tick)
+
+    def _raise_on_error(self, err, state_in: State) -> None:
         if err[0]:
             # cannot happen while the margin exceeds the per-step motion; a refit at the next step would hide
             # lost mass, so stop instead
@@ -860,7 +881,7 @@ class Solver:
                 "a particle moved outside the active grid block within one step; the time step is too large "
                 "for the particle speed (lower simulation.dt or simulation.cfl)",
                 state_in.step,
-                t,
+                state_in.time,
             )
         if err[1]:
             self._bounds_valid = False
@@ -869,5 +890,5 @@ class Solver:
                 "time step too large for the material stiffness (lower simulation.dt or simulation.cfl), or a "
                 "field too strong for the grid spacing (refine simulation.dx or raise damping)",
                 state_in.step,
-                t,
+                state_in.time,
             )

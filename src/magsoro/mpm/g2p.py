@@ -1,0 +1,190 @@
+"""Grid-to-particle kernels: the gather of velocity and affine velocity, the position and F updates, the
+velocity-gradient remap (docs/engine.md, "Why the remap"), and the host checks' reductions."""
+
+import functools
+
+import warp as wp
+
+from magsoro.mpm.stencil import make_stencil
+
+# Unroll the 3^dim-node stencil loops (27 in 3D): constant offsets let the compiler fold the weight selection.
+wp.set_module_options({"max_unroll": 32})
+
+#: How g2p updates F: from the gathered node velocities, left to the remap, or on the reference grid
+F_FROM_GRID = wp.constant(0)
+F_FROM_REMAP = wp.constant(1)
+F_TOTAL = wp.constant(2)
+
+
+@functools.cache
+def make_g2p(dim: int, scalar, two_fields: bool = False) -> dict:
+    """Gather kernels for ``dim``, ``scalar``; ``two_fields``: the contact variant (:mod:`magsoro.mpm.contact`)."""
+    s = make_stencil(dim, scalar, two_fields)
+    t = s.types
+    vec, mat = t.vec, t.mat
+    Block, Bodies, Particles, Checks = t.Block, t.Bodies, t.Particles, t.Checks
+    ContactGrid = s.ContactGrid
+    NS = s.NS
+    slot_of, bspline_weights = s.slot_of, s.bspline_weights
+    local_coords, outside_block, flat_index, stencil_node = s.local_coords, s.outside_block, s.flat_index, s.stencil_node
+
+    @wp.func
+    def update_F(F_in: wp.array(dtype=mat), F_out: wp.array(dtype=mat), p: int, dtC: mat):
+        """F_out = F + (dt C) F; False when the element inverts (det F <= 0) or F is not finite.
+        F + (dt C) F rather than (I + dt C) F: in float32, 1 + dt C_ii rounds the small increments of a slowly
+        creeping state away, which showed as a steady drift of loaded beams (docs/engine.md)."""
+        Fp = F_in[p]
+        Fn = Fp + dtC * Fp
+        F_out[p] = Fn
+        return wp.determinant(Fn) > scalar(0.0)
+
+    @wp.func
+    def report(checks: wp.array(dtype=Checks), ok: bool, xc: vec, new_v: vec):
+        """Flag a non-finite or inverted particle and take part in the top-speed reduction."""
+        for a in range(dim):
+            if not wp.isfinite(xc[a]) or not wp.isfinite(new_v[a]):
+                ok = False
+        if not ok:
+            wp.atomic_max(checks[0].error, 1, 1)
+        wp.atomic_max(checks[0].max_speed, 0, wp.length(new_v))
+
+    @wp.kernel
+    def g2p(
+        grid_v: wp.array(dtype=vec),
+        bodies: wp.array(dtype=Bodies),
+        block: Block,
+        dt: scalar,
+        x_in: wp.array(dtype=vec),
+        x_cur: wp.array(dtype=vec),
+        F_in: wp.array(dtype=mat),
+        out: wp.array(dtype=Particles),
+        checks: wp.array(dtype=Checks),
+        f_update: int,
+        grid_r: wp.array(dtype=vec),
+        ct: wp.array(dtype=ContactGrid),
+    ):
+        """Grid-to-particle transfer: new x, v, C. With ``f_update`` = F_FROM_GRID F is updated from the same node
+        velocities; with F_FROM_REMAP F is left to :func:`remap_F`, and the particle's new affine velocity field
+        v + C (x_i - x_p) is scattered, mass-weighted, into ``grid_r`` (the first half of the velocity-gradient
+        remap; it needs only this particle's new v and C, so it rides on the same stencil pass).
+
+        ``x_in`` are the positions the grid weights are taken at and ``x_cur`` the particles' current positions,
+        which move by dt v: the same array in the updated-Lagrangian form. In the total-Lagrangian form
+        (F_TOTAL) ``x_in`` holds the reference positions, C is the velocity gradient with respect to them and F
+        grows by dt C; the bounds reduction then covers the reference positions, which the grid block is
+        fitted to."""
+        p = wp.tid()
+        xp = x_in[p]
+        xc = x_cur[p]
+        o = out[0]
+        if bodies[0].clamped[p] != 0:
+            # held particles keep their place and shape
+            o.x[p] = xc
+            o.v[p] = vec()
+            o.C[p] = mat()
+            o.F[p] = F_in[p]
+        else:
+            dx = block.dx
+            inv_dx = scalar(1.0) / dx
+            base, fx = local_coords(xp, block.lo, inv_dx)
+            w0, w1, w2 = bspline_weights(fx)
+            new_v = vec()
+            S = mat()
+            first = flat_index(base, block.shape)
+            for q in range(NS):
+                weight, of, idx = stencil_node(q, w0, w1, w2, first, block.shape)
+                wgv = weight * grid_v[slot_of(ct, p, idx)]
+                new_v = new_v + wgv
+                S = S + wp.outer(wgv, of)
+            # C = (4/dx^2) sum w v_i (x_i - x_p)^T = (4/dx) (S - v fx^T)
+            new_C = (scalar(4.0) * inv_dx) * (S - wp.outer(new_v, fx))
+            xc = xc + dt * new_v
+            o.x[p] = xc
+            if f_update != F_TOTAL:
+                xp = xc
+            o.v[p] = new_v
+            o.C[p] = new_C
+            ok = True
+            if f_update == F_TOTAL:
+                Fn = F_in[p] + dt * new_C
+                o.F[p] = Fn
+                ok = wp.determinant(Fn) > scalar(0.0)
+            elif f_update == F_FROM_GRID:
+                ok = update_F(F_in, o.F, p, dt * new_C)
+            else:
+                mp = bodies[0].mass[p]
+                Cd = new_C * dx
+                Cfx = Cd * fx
+                for q in range(NS):  # new_v added per node, as in p2g
+                    weight, of, idx = stencil_node(q, w0, w1, w2, first, block.shape)
+                    slot = slot_of(ct, p, idx)
+                    wp.atomic_add(grid_r, slot, (weight * mp) * (new_v + (Cd * of - Cfx)))
+            report(checks, ok, xc, new_v)
+        for a in range(dim):
+            wp.atomic_min(checks[0].bounds, a, xp[a])
+            wp.atomic_max(checks[0].bounds, dim + a, xp[a])
+
+    @wp.kernel
+    def reset_reductions(bounds: wp.array(dtype=scalar), max_speed: wp.array(dtype=scalar), big: scalar):
+        for a in range(dim):
+            bounds[a] = big
+            bounds[dim + a] = -big
+        max_speed[0] = scalar(0.0)
+
+    @wp.kernel
+    def remap_node_velocity(
+        grid_r: wp.array(dtype=vec),
+        grid_m: wp.array(dtype=scalar),
+        grid_clamp: wp.array(dtype=wp.int32),
+        grid_w: wp.array(dtype=vec),
+        n_nodes: int,
+    ):
+        """Node velocities of the remap: the scattered momenta over the first transfer's node masses (same
+        particles, same positions), at rest on held nodes. Once per slot (node and field) instead of once per
+        stencil entry; slots from ``n_nodes`` on are the contact fields of the nodes."""
+        idx = wp.tid()
+        m = grid_m[idx]
+        node = idx
+        if node >= n_nodes:
+            node = idx - n_nodes
+        if m > scalar(0.0) and grid_clamp[node] == 0:
+            grid_w[idx] = grid_r[idx] / m
+        else:
+            grid_w[idx] = vec()
+
+    @wp.kernel
+    def remap_F(
+        x: wp.array(dtype=vec),
+        clamped: wp.array(dtype=wp.int32),
+        block: Block,
+        dt: scalar,
+        grid_w: wp.array(dtype=vec),
+        F_in: wp.array(dtype=mat),
+        F_out: wp.array(dtype=mat),
+        error: wp.array(dtype=wp.int32),
+        ct: wp.array(dtype=ContactGrid),
+    ):
+        """F update from the remapped node velocities ``grid_w`` (:func:`remap_node_velocity`): F + dt (grad v) F
+        at the particle's position at the start of the step, the same stencil as the first gather."""
+        p = wp.tid()
+        if clamped[p] != 0:
+            F_out[p] = F_in[p]
+            return
+        inv_dx = scalar(1.0) / block.dx
+        base, fx = local_coords(x[p], block.lo, inv_dx)
+        if outside_block(base, block.shape):
+            return  # outside the grid block: p2g has flagged it, the step is discarded
+        w0, w1, w2 = bspline_weights(fx)
+        S = mat()
+        sv = vec()
+        first = flat_index(base, block.shape)
+        for q in range(NS):
+            weight, of, idx = stencil_node(q, w0, w1, w2, first, block.shape)
+            wv = weight * grid_w[slot_of(ct, p, idx)]
+            sv = sv + wv
+            S = S + wp.outer(wv, of)
+        # as in g2p: (4/dx^2) sum w v_i (x_i - x_p)^T = (4/dx) (S - (sum w v_i) fx^T)
+        if not update_F(F_in, F_out, p, (dt * scalar(4.0) * inv_dx) * (S - wp.outer(sv, fx))):
+            wp.atomic_max(error, 1, 1)
+
+    return dict(g2p=g2p, reset_reductions=reset_reductions, remap_node_velocity=remap_node_velocity, remap_F=remap_F)

@@ -1,0 +1,169 @@
+"""Grid kernels: node velocities from the scattered momenta (damping, gravity, domain walls, rigid colliders,
+contact between velocity fields), and the sum of the CPU threads' private grids.
+
+Colliders come as a flat float64 table, one row of ``COLLIDER_STRIDE`` values each (:mod:`magsoro.mpm.colliders`,
+which also holds the boundary modes: 0 sticky, 1 slip, 2 friction).
+"""
+
+import functools
+
+import warp as wp
+
+from magsoro.mpm.colliders import COLLIDER_STRIDE, collider_sdf
+from magsoro.mpm.contact import make_contact
+from magsoro.mpm.stencil import make_stencil, make_types
+
+
+@functools.cache
+def grid_settings_struct(dim: int, scalar):
+    """The grid update's settings struct for ``dim`` and ``scalar`` (one class for both kernel variants)."""
+    vec = make_types(dim, scalar).vec
+
+    @wp.struct
+    class GridSettings:
+        """What the grid update applies to a node's free velocity: the step dt (s), the damping factor
+        exp(-c dt) of f = -c p, gravity (m/s^2), the domain walls (box lo .. hi, m; contact mode and friction of
+        nodes within two cells of a wall), the grid spacing dx (m) and the rigid colliders (flat float64 table of
+        ``n_colliders`` rows, :mod:`magsoro.mpm.colliders`; ``plane_z``: the z of a 2D scene's plane, m).
+        ``node_shift`` = 1 (total Lagrangian): walls and colliders act at the nodes' current positions, the
+        reference node plus the mass-weighted displacement of its particles (``node_displacement`` in
+        :mod:`magsoro.mpm.p2g`), and a node is in contact with a collider from signed distance
+        ``collider_skin`` (m) down."""
+
+        dt: scalar
+        damping_factor: scalar
+        gravity: vec
+        dx: scalar
+        domain_lo: vec
+        domain_hi: vec
+        wall_mode: int
+        wall_friction: scalar
+        colliders: wp.array(dtype=wp.float64)
+        n_colliders: int
+        plane_z: wp.float64
+        node_shift: int
+        collider_skin: wp.float64
+
+    return GridSettings
+
+
+@functools.cache
+def make_grid(dim: int, scalar, two_fields: bool = False) -> dict:
+    """Node kernels for ``dim``, ``scalar``; ``two_fields``: the contact variant (:mod:`magsoro.mpm.contact`)."""
+    s = make_stencil(dim, scalar, two_fields)
+    t = s.types
+    vec, ivec, v3 = t.vec, t.ivec, t.v3
+    ContactGrid = s.ContactGrid
+    inplane, node_of_flat = s.inplane, s.node_of_flat
+    resolve_contact = make_contact(dim, scalar)["resolve"]
+    GridSettings = grid_settings_struct(dim, scalar)
+
+    @wp.func
+    def project(vel: vec, cvel: vec, normal: vec, mode: int, mu: scalar):
+        """Velocity projection against a rigid surface moving at ``cvel`` with outward unit ``normal``:
+        sticky -> the node moves with the surface; slip -> the approaching normal component is removed;
+        friction -> also the tangential part shrinks by mu |v_n| (Coulomb), stopping when it would reverse."""
+        if mode == 0:
+            return cvel
+        vr = vel - cvel
+        vn = wp.dot(vr, normal)
+        if vn >= scalar(0.0):
+            return vel  # separating: no contact force
+        vt = vr - vn * normal
+        if mode == 2:
+            vt_norm = wp.length(vt)
+            if vt_norm > scalar(0.0):
+                vt = vt * (wp.max(vt_norm + mu * vn, scalar(0.0)) / vt_norm)
+        return vt + cvel
+
+    @wp.func
+    def walls(vel: vec, pos: vec, gs: GridSettings):
+        """Domain walls: nodes within two cells of a wall may not move into it."""
+        for a in range(dim):
+            normal = vec()
+            if pos[a] < gs.domain_lo[a] + scalar(2.0) * gs.dx:
+                normal[a] = scalar(1.0)
+                vel = project(vel, vec(), normal, gs.wall_mode, gs.wall_friction)
+            if pos[a] > gs.domain_hi[a] - scalar(2.0) * gs.dx:
+                normal[a] = scalar(-1.0)
+                vel = project(vel, vec(), normal, gs.wall_mode, gs.wall_friction)
+        return vel
+
+    @wp.func
+    def colliders(vel: vec, pos: vec, gs: GridSettings):
+        """Rigid colliders: a node with signed distance <= collider_skin is in contact."""
+        p3 = wp.vec3d(wp.float64(pos[0]), wp.float64(pos[1]), gs.plane_z)
+        if wp.static(dim == 3):
+            p3 = wp.vec3d(wp.float64(pos[0]), wp.float64(pos[1]), wp.float64(pos[2]))
+        for c in range(gs.n_colliders):
+            phi, nrm, cvel = collider_sdf(gs.colliders, c, p3)
+            if phi <= gs.collider_skin:
+                row = c * COLLIDER_STRIDE
+                mode = int(gs.colliders[row + 1])
+                mu = scalar(gs.colliders[row + 2])
+                vel = project(vel, inplane(v3(cvel)), inplane(v3(nrm)), mode, mu)
+        return vel
+
+    @wp.func
+    def node_velocity(momentum: vec, m: scalar, pos: vec, gs: GridSettings):
+        """Velocity of one field of a node after damping, gravity, the domain walls and the rigid colliders."""
+        # damping f = -c p (seed 000 eq 17), integrated exactly over the step so any c is stable
+        vel = momentum / m * gs.damping_factor + gs.dt * gs.gravity
+        vel = walls(vel, pos, gs)
+        if gs.n_colliders > 0:
+            vel = colliders(vel, pos, gs)
+        return vel
+
+    @wp.kernel
+    def grid_update(
+        grid_p: wp.array(dtype=vec),
+        grid_m: wp.array(dtype=scalar),
+        grid_clamp: wp.array(dtype=wp.int32),
+        org: ivec,
+        shape: ivec,
+        gs: GridSettings,
+        grid_v: wp.array(dtype=vec),
+        ct: wp.array(dtype=ContactGrid),
+        grid_u: wp.array(dtype=vec),
+    ):
+        """Node velocities. With contact, a node's second field (slot idx + n_nodes) gets its own velocity and the
+        two are corrected for contact (:mod:`magsoro.mpm.contact`). With ``gs.node_shift`` the node sits at its
+        reference position plus ``grid_u[idx] / m`` (mass-weighted particle displacement) for walls and
+        colliders."""
+        idx = wp.tid()
+        m = grid_m[idx]
+        held = grid_clamp[idx] != 0
+        if wp.static(not two_fields):
+            if m <= scalar(0.0) or held:
+                grid_v[idx] = vec()  # empty or held node: most of the grid block
+                return
+        n = node_of_flat(idx, shape) + org
+        pos = vec()
+        for a in range(dim):
+            pos[a] = gs.domain_lo[a] + scalar(n[a]) * gs.dx
+        if gs.node_shift != 0 and m > scalar(0.0):
+            pos = pos + grid_u[idx] / m
+        vel = vec()
+        if m > scalar(0.0) and not held:
+            vel = node_velocity(grid_p[idx], m, pos, gs)
+        if wp.static(two_fields):
+            slot = idx + ct[0].n_nodes
+            m1 = grid_m[slot]
+            vel1 = vec()
+            if m1 > scalar(0.0) and not held:
+                vel1 = node_velocity(grid_p[slot], m1, pos, gs)
+                if m > scalar(0.0):
+                    vel, vel1 = resolve_contact(vel, vel1, m, m1, ct[0].grad_m[idx], ct[0].grad_m[slot], ct[0].mu[idx], ct[0].gap)
+            grid_v[slot] = vel1
+        grid_v[idx] = vel
+
+    @wp.kernel
+    def add_grid(dst_p: wp.array(dtype=vec), src_p: wp.array(dtype=vec), dst_m: wp.array(dtype=scalar), src_m: wp.array(dtype=scalar), with_mass: int):
+        """Sum a worker thread's private grid into the shared one (CPU threads: Warp's CPU atomics are plain adds,
+        so each thread scatters into its own copy)."""
+        i = wp.tid()
+        dst_p[i] = dst_p[i] + src_p[i]
+        if with_mass != 0:
+            dst_m[i] = dst_m[i] + src_m[i]
+
+    return dict(grid_update=grid_update, add_grid=add_grid, GridSettings=GridSettings)

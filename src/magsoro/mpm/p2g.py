@@ -1,0 +1,173 @@
+"""Particle-to-grid kernels: the transfer of mass, momentum and stress impulse (seed 000 eqs 1-16), the
+total-Lagrangian node displacements, and the contact scan."""
+
+import functools
+
+import warp as wp
+
+from magsoro.constants import MU0
+from magsoro.mpm.materials import make_material_functions
+from magsoro.mpm.stencil import make_stencil
+
+# Unroll the 3^dim-node stencil loops (27 in 3D): constant offsets let the compiler fold the weight selection.
+wp.set_module_options({"max_unroll": 32})
+
+
+@functools.cache
+def make_p2g(dim: int, scalar, two_fields: bool = False) -> dict:
+    """Scatter kernels for ``dim``, ``scalar``; ``two_fields``: the contact variant (:mod:`magsoro.mpm.contact`)."""
+    s = make_stencil(dim, scalar, two_fields)
+    t = s.types
+    vec, mat, v3, m3 = t.vec, t.mat, t.v3, t.m3
+    Block, Bodies, Applied, GridArrays = t.Block, t.Bodies, t.Applied, t.GridArrays
+    ContactGrid = s.ContactGrid
+    NS = s.NS
+    slot_of, inplane, bspline_weights = s.slot_of, s.inplane, s.bspline_weights
+    local_coords, outside_block, flat_index, stencil_node = s.local_coords, s.outside_block, s.flat_index, s.stencil_node
+    # Constants are computed here in double precision: literal arithmetic inside a kernel runs in float32.
+    inv_mu0 = 1.0 / MU0
+    elastic_stress = make_material_functions(dim, scalar)["elastic_stress"]
+
+    @wp.func
+    def particle_stress(Fp: mat, b: Bodies, p: int, B: v3):
+        """First Piola stress of particle ``p``: its elastic law plus the magnetic stress of a hard-magnetic
+        elastomer (seed 000 eq 13), P = -(1/mu0) B (x) Br."""
+        br = b.Br[p]
+        return elastic_stress(Fp, b.material_model[p], b.shear[p], b.bulk[p], b.material_params[p]) - scalar(inv_mu0) * wp.outer(inplane(B), inplane(br))
+
+    @wp.func
+    def gradient_force(Fp: mat, b: Bodies, p: int, G: m3):
+        """Gradient force (seed 000 eqs 15-16) on particle ``p``: f = (grad B)^T m with m = F Br V0 / mu0 its
+        current moment; summing w f over nodes gives the node form since the weights sum to one."""
+        br = b.Br[p]
+        Fbr = Fp * inplane(br)
+        m3d = v3()
+        for a in range(dim):
+            m3d[a] = Fbr[a]
+        if wp.static(dim == 2):
+            m3d[2] = br[2]  # plane strain: F_zz = 1
+        m3d = m3d * (b.vol0[p] * scalar(inv_mu0))
+        return inplane(wp.transpose(G) * m3d)
+
+    @wp.kernel
+    def p2g(
+        x: wp.array(dtype=vec),
+        v: wp.array(dtype=vec),
+        C: wp.array(dtype=mat),
+        F: wp.array(dtype=mat),
+        bodies: wp.array(dtype=Bodies),
+        applied: Applied,
+        block: Block,
+        dt: scalar,
+        grid: wp.array(dtype=GridArrays),
+        error: wp.array(dtype=wp.int32),
+        total: int,
+        ct: wp.array(dtype=ContactGrid),
+    ):
+        """Particle-to-grid transfer of mass, momentum and the stress impulse. ``x`` are the positions the grid
+        weights are taken at: the current ones (updated Lagrangian, ``total`` = 0) or the reference ones (total
+        Lagrangian, ``total`` = 1: the grid is the reference configuration's, and the node force takes the first
+        Piola stress P instead of the Kirchhoff stress P F^T). In the contact variant each node has two
+        velocity fields (:mod:`magsoro.mpm.contact`): the particle scatters into its own, and adds its share of
+        that field's mass gradient."""
+        p = wp.tid()
+        dx = block.dx
+        inv_dx = scalar(1.0) / dx
+        base, fx = local_coords(x[p], block.lo, inv_dx)
+        if outside_block(base, block.shape):
+            error[0] = 1  # particle outside the active grid block: the solver refits and reports
+            return
+        w0, w1, w2 = bspline_weights(fx)
+        b = bodies[0]
+        Fp = F[p]
+        B = applied.B_uniform
+        if applied.has_gradient != 0:
+            B = B + applied.B[p]
+        P = particle_stress(Fp, b, p, B)
+        # MLS-MPM: grid force -V0 P F^T grad w, with grad w = (4/dx^2) w (x_i - x_p) for quadratic B-splines
+        stress = (-dt * b.vol0[p] * scalar(4.0) * inv_dx * inv_dx) * P
+        if total == 0:
+            stress = stress * wp.transpose(Fp)
+        mp = b.mass[p]
+        affine = stress + mp * C[p]
+        mv = mp * v[p]
+        if applied.has_gradient != 0:
+            mv = mv + dt * gradient_force(Fp, b, p, applied.G[p])
+        is_clamped = b.clamped[p]
+        g = grid[0]
+        # node value mv + affine (x_i - x_p) = mv + ((affine dx) o - affine fx dx). mv is added per node, not
+        # folded into the constant part: the small momentum of a settling body would lose its low bits to the
+        # large stress term once for all 27 nodes alike, a bias that makes float32 bodies creep
+        A = affine * dx
+        Afx = A * fx
+        first = flat_index(base, block.shape)
+        for q in range(NS):
+            weight, o, idx = stencil_node(q, w0, w1, w2, first, block.shape)
+            slot = slot_of(ct, p, idx)
+            wp.atomic_add(g.p, slot, weight * (mv + (A * o - Afx)))
+            wp.atomic_add(g.m, slot, weight * mp)
+            if wp.static(two_fields):
+                wp.atomic_add(ct[0].grad_m, slot, (weight * mp) * (o - fx))
+            if is_clamped != 0:
+                g.clamp[idx] = 1
+
+    @wp.kernel
+    def node_displacement(
+        X: wp.array(dtype=vec),
+        x: wp.array(dtype=vec),
+        mass: wp.array(dtype=scalar),
+        block: Block,
+        grid_u: wp.array(dtype=vec),
+    ):
+        """Total Lagrangian: scatter each particle's mass-weighted displacement m (x - X) to the reference grid,
+        so that node i sits at X_i + sum w m u / sum w m in the current configuration, where the walls and
+        colliders act on it (exact for a rigid translation; first order in the displacement gradient)."""
+        p = wp.tid()
+        base, fx = local_coords(X[p], block.lo, scalar(1.0) / block.dx)
+        if outside_block(base, block.shape):
+            return  # p2g flags it
+        w0, w1, w2 = bspline_weights(fx)
+        mu = mass[p] * (x[p] - X[p])
+        first = flat_index(base, block.shape)
+        for q in range(NS):
+            weight, o, idx = stencil_node(q, w0, w1, w2, first, block.shape)
+            wp.atomic_add(grid_u, idx, weight * mu)
+
+    @wp.kernel
+    def contact_scan(
+        x: wp.array(dtype=vec),
+        X: wp.array(dtype=vec),
+        mass: wp.array(dtype=scalar),
+        group: wp.array(dtype=wp.int32),
+        block: Block,
+        fold: int,
+        gmin: wp.array(dtype=wp.int32),
+        gmax: wp.array(dtype=wp.int32),
+        moments: wp.array(dtype=scalar),
+    ):
+        """Contact step 1 (:mod:`magsoro.mpm.contact`): the smallest and largest contact group reaching each node;
+        with ``fold`` also the reference-position moments m, m X, m X X^T (1 + dim + dim^2 per node)."""
+        p = wp.tid()
+        base, fx = local_coords(x[p], block.lo, scalar(1.0) / block.dx)
+        if outside_block(base, block.shape):
+            return  # p2g flags it
+        w0, w1, w2 = bspline_weights(fx)
+        g = group[p]
+        Xp = X[p]
+        mp = mass[p]
+        stride = 1 + dim + dim * dim
+        first = flat_index(base, block.shape)
+        for q in range(NS):
+            weight, o, idx = stencil_node(q, w0, w1, w2, first, block.shape)
+            wp.atomic_min(gmin, idx, g)
+            wp.atomic_max(gmax, idx, g)
+            if fold != 0:
+                wm = weight * mp
+                row = idx * stride
+                wp.atomic_add(moments, row, wm)
+                for a in range(dim):
+                    wp.atomic_add(moments, row + 1 + a, wm * Xp[a])
+                    for c in range(dim):
+                        wp.atomic_add(moments, row + 1 + dim + a * dim + c, wm * Xp[a] * Xp[c])
+
+    return dict(p2g=p2g, node_displacement=node_displacement, contact_scan=contact_scan)

@@ -1,0 +1,202 @@
+"""What every transfer shares: the types of a (dimension, precision), the structs that group kernel arguments,
+and the quadratic B-spline stencil (seed 000 eq 2).
+
+Grid: a dense block of nodes whose global index origin ``org`` and shape ``shape`` follow the bodies (see
+:mod:`magsoro.mpm.solver`); arrays are flat, node (i, j[, k]) at ((i * ny) + j) * nz + k, and with contact
+field f of node i at slot i + f n (:mod:`magsoro.mpm.contact`).
+
+Structs with arrays are passed to the particle kernels as one-element arrays (``arg[0].field``): a struct
+argument is copied for every task of a CPU launch, an array of it is not.
+"""
+
+import functools
+from types import SimpleNamespace
+
+import warp as wp
+
+from magsoro.mpm.contact import make_contact
+
+
+@functools.cache
+def make_types(dim: int, scalar) -> SimpleNamespace:
+    """Vector and matrix types and the argument structs for ``dim`` in (2, 3) and ``scalar``."""
+    if dim not in (2, 3):
+        raise ValueError(f"dim must be 2 or 3, got {dim}")
+    vec = wp.types.vector(length=dim, dtype=scalar)
+    mat = wp.types.matrix(shape=(dim, dim), dtype=scalar)
+    ivec = wp.types.vector(length=dim, dtype=wp.int32)
+    v3 = wp.types.vector(length=3, dtype=scalar)
+    m3 = wp.types.matrix(shape=(3, 3), dtype=scalar)
+
+    @wp.struct
+    class Block:
+        """The active grid block: position of its first node ``lo`` (m), ``shape`` in nodes, spacing ``dx`` (m)."""
+
+        lo: vec
+        shape: ivec
+        dx: scalar
+
+    @wp.struct
+    class Bodies:
+        """Per-particle constants of the model (:class:`magsoro.mpm.solver.Model`): reference volume (m^3),
+        mass (kg), shear and bulk moduli (Pa), material law code and numbers, remanence Br (T, reference frame;
+        in 2D the in-plane part plus Br_z), clamp flag."""
+
+        vol0: wp.array(dtype=scalar)
+        mass: wp.array(dtype=scalar)
+        shear: wp.array(dtype=scalar)
+        bulk: wp.array(dtype=scalar)
+        material_model: wp.array(dtype=wp.int32)
+        material_params: wp.array(dtype=v3)
+        Br: wp.array(dtype=v3)
+        clamped: wp.array(dtype=wp.int32)
+
+    @wp.struct
+    class Applied:
+        """The applied field at the particles: the uniform part ``B_uniform`` (T) and, when ``has_gradient``,
+        the non-uniform part ``B`` (T) and its gradient ``G`` (T/m, G[i, j] = dB_i/dx_j) per particle."""
+
+        B_uniform: v3
+        has_gradient: int
+        B: wp.array(dtype=v3)
+        G: wp.array(dtype=m3)
+
+    @wp.struct
+    class GridArrays:
+        """Node momenta (kg m/s), masses (kg) and held flags one transfer scatters into."""
+
+        p: wp.array(dtype=vec)
+        m: wp.array(dtype=scalar)
+        clamp: wp.array(dtype=wp.int32)
+
+    @wp.struct
+    class Particles:
+        """Particle state arrays a gather writes: positions (m), velocities (m/s), affine velocities C (1/s),
+        deformation gradients F."""
+
+        x: wp.array(dtype=vec)
+        v: wp.array(dtype=vec)
+        C: wp.array(dtype=mat)
+        F: wp.array(dtype=mat)
+
+    @wp.struct
+    class Checks:
+        """What a gather reports to the host: particle bounds (min over axes, then max), the top speed (m/s) and
+        the error flags ([0] outside the grid block, [1] invalid state)."""
+
+        bounds: wp.array(dtype=scalar)
+        max_speed: wp.array(dtype=scalar)
+        error: wp.array(dtype=wp.int32)
+
+    return SimpleNamespace(vec=vec, mat=mat, ivec=ivec, v3=v3, m3=m3, Block=Block, Bodies=Bodies, Applied=Applied,
+                           GridArrays=GridArrays, Particles=Particles, Checks=Checks)
+
+
+@functools.cache
+def make_stencil(dim: int, scalar, two_fields: bool = False) -> SimpleNamespace:
+    """Device functions of the quadratic B-spline stencil; ``two_fields``: particles scatter into and gather
+    from the velocity field they belong to at each node (:mod:`magsoro.mpm.contact`)."""
+    t = make_types(dim, scalar)
+    vec, ivec, v3 = t.vec, t.ivec, t.v3
+    ct_ns = make_contact(dim, scalar)
+    ContactGrid = ct_ns["ContactGrid"]
+    field_of = ct_ns["field_of"]
+
+    @wp.func
+    def slot_of(ct: wp.array(dtype=ContactGrid), p: int, idx: int):
+        """Grid slot of particle ``p``'s velocity field at node ``idx``: the node itself without contact."""
+        if wp.static(two_fields):
+            return idx + field_of(ct, p, idx) * ct[0].n_nodes
+        return idx
+
+    @wp.func
+    def inplane(b: v3):
+        if wp.static(dim == 2):
+            return vec(b[0], b[1])
+        else:
+            return vec(b[0], b[1], b[2])
+
+    @wp.func
+    def bspline_weights(fx: vec):
+        """Quadratic B-spline weights (seed 000 eq 2) of the three nodes base, base+1, base+2 along each axis."""
+        one = vec()
+        for a in range(dim):
+            one[a] = scalar(1.0)
+        half = scalar(0.5) * one
+        w0 = scalar(0.5) * wp.cw_mul(scalar(1.5) * one - fx, scalar(1.5) * one - fx)
+        w1 = scalar(0.75) * one - wp.cw_mul(fx - one, fx - one)
+        w2 = scalar(0.5) * wp.cw_mul(fx - half, fx - half)
+        return w0, w1, w2
+
+    @wp.func
+    def pick(w0: vec, w1: vec, w2: vec, o: int):
+        """The weights of offset ``o`` (a constant once the stencil loop is unrolled) along every axis."""
+        if o == 0:
+            return w0
+        if o == 1:
+            return w1
+        return w2
+
+    @wp.func
+    def stencil_offset(q: int):
+        o = ivec()
+        if wp.static(dim == 2):
+            o = ivec(q // 3, q % 3)
+        else:
+            o = ivec(q // 9, (q // 3) % 3, q % 3)
+        return o
+
+    @wp.func
+    def flat_index(n: ivec, shape: ivec):
+        if wp.static(dim == 2):
+            return n[0] * shape[1] + n[1]
+        else:
+            return (n[0] * shape[1] + n[1]) * shape[2] + n[2]
+
+    @wp.func
+    def node_of_flat(idx: int, shape: ivec):
+        n = ivec()
+        if wp.static(dim == 2):
+            n = ivec(idx // shape[1], idx % shape[1])
+        else:
+            n = ivec(idx // (shape[1] * shape[2]), (idx // shape[2]) % shape[1], idx % shape[2])
+        return n
+
+    @wp.func
+    def local_coords(xp: vec, grid_lo: vec, inv_dx: scalar):
+        xg = (xp - grid_lo) * inv_dx
+        base = ivec()
+        fx = vec()
+        for a in range(dim):
+            b = int(wp.floor(xg[a] - scalar(0.5)))
+            base[a] = b
+            fx[a] = xg[a] - scalar(b)
+        return base, fx
+
+    @wp.func
+    def outside_block(base: ivec, shape: ivec):
+        """True when a particle's 3^dim stencil (nodes base .. base + 2) leaves the active grid block."""
+        out = False
+        for a in range(dim):
+            if base[a] < 0 or base[a] + 2 >= shape[a]:
+                out = True
+        return out
+
+    @wp.func
+    def stencil_node(q: int, w0: vec, w1: vec, w2: vec, first: int, shape: ivec):
+        """Weight, integer offset o (as a vector) and flat grid index of the q-th node of a particle's 3^dim
+        stencil; ``first`` is the flat index of its base node. The node's offset from the particle is
+        x_i - x_p = (o - fx) dx: the loops sum with o and subtract the fx part once, so that with q a
+        constant (the loops are unrolled) each node costs a few additions instead of a product with (o - fx)."""
+        o = stencil_offset(q)
+        weight = scalar(1.0)
+        of = vec()
+        for a in range(dim):
+            weight = weight * pick(w0, w1, w2, o[a])[a]
+            of[a] = scalar(o[a])
+        return weight, of, first + flat_index(o, shape)
+
+    return SimpleNamespace(types=t, NS=3**dim, ContactGrid=ContactGrid, slot_of=slot_of, inplane=inplane,
+                           bspline_weights=bspline_weights, stencil_offset=stencil_offset, flat_index=flat_index,
+                           node_of_flat=node_of_flat, local_coords=local_coords, outside_block=outside_block,
+                           stencil_node=stencil_node)
