@@ -181,7 +181,7 @@ objects with keys `case`, `quantity`, `inputs` (a dict), `reference`, `value`, `
 progress goes to stderr. `--out DIR` writes one PNG per case and `DIR/results.json` (rows, wall times, particle
 counts). Without CASE every case runs; `--quick` keeps the quick ones (the closed forms and the 2D beam, about
 6 CPU-minutes, under 10 minutes of wall time on two otherwise idle cores; the measured time of the latest quick
-run is below); `beam_3d`, `beam_convergence`, `beam_gravity`, `beam_timestep` and `contact_slope` are full-run only. The quick
+run is below); `beam_3d`, `beam_convergence`, `beam_gravity`, `beam_timestep`, `beam_statics`, `contact_slope`, `hertz` and `self_contact` are full-run only. The quick
 cases run with the same settings in both modes.
 
 ## Cases
@@ -197,6 +197,7 @@ cases run with the same settings in both modes.
 | `beam_convergence` | MAPE of the 2D beam against particles per mm^2 (seed 000 Fig 2c), in both engine formulations (updated and total Lagrangian, docs/engine.md) | change of the MAPE from the next coarser resolution; the finest MAPE |
 | `beam_gravity` | the same 2D beam (t/dx = 4) under its weight, no field, vs the rod with the same weight (linear sag 0.05 L) | relative error of tip dy/L |
 | `beam_timestep` | the 2D beam at Br B/(mu0 G) = 0.0005, t/dx = 2, with the automatic time step's CFL factor 0.4 (default), 0.2, 0.1, 0.05, in both engine formulations | relative error per step size; change of the settled tip from the largest to the smallest step over the rod's value (a static equilibrium should not depend on it: 1 %) |
+| `beam_statics` | the 2D beam (t/dx = 4, Br B/(mu0 G) = 0.001, field perpendicular) in the default configuration (formulation "auto", a floor collider present) held for 24/omega_1, with the automatic time step's CFL factor 0.4 and 0.1 | the settled tip's change over the last 10/omega_1 over itself (1e-4); the change of the settled tip from CFL 0.4 to 0.1 over itself (0.5 %) |
 | `contact_slope` | a 4 x 2 mm block on a 30 degree slope on a half-space collider and on a clamped elastic slab (2D, dx 0.25 mm), friction 0, 0.2, 0.7, started one or two particle spacings above the support: g (sin 30 - mu cos 30), or at rest when that is negative (docs/engine.md, Contact) | relative error of the acceleration fitted over 10-40 ms; for a block that should stay, cells moved in 40 ms (tolerance a quarter cell) |
 
 The angular-acceleration rows compare with the continuum block's inertia M a^2/6. The MPM body carries the

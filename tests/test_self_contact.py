@@ -111,8 +111,8 @@ def test_fold_scene_magnetisation_arms_taper_and_hinge():
 def test_folded_strip_self_contact_keeps_layers_apart_and_unfolds():
     """30 x 1 mm strip, dx 0.25 mm, folded at its hinge by Br B/(mu0 G) = 0.2 (20 ms ramp, 10 ms hold, 5 ms down,
     50 ms off), self-contact frictionless, float32. Measured: closest pair > 3 dx apart in the reference
-    configuration 1.01 cells (first impact, 8 ms), 1.14 cells during the hold, none under half a cell; end-to-end
-    0.04 L folded and 0.97 L at the end; largest neighbour distance 1.06 cells; 1-1.5 CPU-minutes."""
+    configuration 0.91 cells (first impact, 7.9 ms), 1.13 cells during the hold, none under half a cell; end-to-end
+    0.04 L folded and 0.97 L at the end; largest neighbour distance 1.16 cells; about 45 s on one core."""
     track = run_fold(FoldSetup())
     s = track.summary()
     assert acceptance_failures(track) == [], s
@@ -126,7 +126,7 @@ def test_folded_strip_self_contact_keeps_layers_apart_and_unfolds():
 @pytest.mark.slow
 def test_without_contact_the_folded_arms_pass_through_each_other():
     """Control: the total-Lagrangian form has no contact, so the same fold drives the arms through each other
-    (measured: closest reference-far pair about 0.001 cells, some 300 pairs under half a cell; 20 s): the measure of the test above
-    sees interpenetration when there is some."""
+    (measured: closest reference-far pair 0.0002 cells, up to 352 pairs under half a cell; 23 s): the measure of
+    the test above sees interpenetration when there is some."""
     s = run_fold(FoldSetup(self_contact=False, formulation="total")).summary()
     assert s["far_min_cells"] < MIN_CELLS and s["far_close_max"] > 0, s

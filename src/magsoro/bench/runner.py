@@ -14,7 +14,7 @@ from magsoro.bench.reference import ReferenceStep
 from magsoro.bench.scenes import SCENES, build
 from magsoro.mpm.solver import Solver
 
-DEFAULT_STEPS = {"walker": 300, "walker_1m": 300, "beam2d": 1000, "block1m": 3, "sweep": 60}
+DEFAULT_STEPS = {"walker": 300, "walker_1m": 300, "walker_total": 300, "beam2d": 1000, "block1m": 3, "sweep": 60}
 
 
 #: Timed rounds per scene: engine and reference alternate, ``steps`` each, so both see the same machine; the
@@ -132,4 +132,4 @@ def names_or_all(names):
         from magsoro.errors import MagsoroError
 
         raise MagsoroError(f"unknown benchmark scene(s) {unknown}; available: {', '.join(SCENES)}")
-    return list(names) or ["walker", "walker_1m", "beam2d", "block1m", "sweep"]
+    return list(names) or ["walker", "walker_total", "walker_1m", "beam2d", "block1m", "sweep"]

@@ -3,6 +3,8 @@
 - walker: a Hu et al.-style millimetre sheet walker (3D, dx 0.1 mm, about 9k particles, 25 mm domain), sinusoidal
   magnetisation profile along its length, rotating 8 mT field, friction floor.
 - walker_1m: the same walker in a 1 m domain (the grid block must make it cost the same).
+- walker_total: the walker in the total-Lagrangian form, which a one-body scene runs by default
+  (``formulation = "auto"``); the others run the updated form.
 - beam2d: Zhao et al.'s cantilever (seed 000 sec 4.2), 2D plane strain at the validation resolution t/dx = 4.
 - block1m: an elastic block of about 10^6 particles falling on a floor (3D).
 - sweep: 8 copies of the walker side by side in one simulation (a 4 x 2 tile on the same floor, 1 mm apart), each
@@ -36,7 +38,7 @@ def _walker_particles(center, dx, lo):
     return X, v_each, Br
 
 
-def _walker(domain: float):
+def _walker(domain: float, formulation: str = "updated"):
     dx = 1e-4
     c = domain / 2
     floor_z = c - 0.005
@@ -47,7 +49,7 @@ def _walker(domain: float):
     model_kw = dict(dx=dx, domain_lo=lo, domain_hi=hi)
     floor = Collider.half_space([c, c, floor_z], [0, 0, 1], mode="friction", friction=0.3)
     control = Control([Uniform(Rotating(0.008, 5.0, u=(1, 0, 0), v=(0, 0, 1)))], [floor])
-    settings = SolverSettings(damping=10.0, gravity=(0.0, 0.0, -9.81))
+    settings = SolverSettings(damping=10.0, gravity=(0.0, 0.0, -9.81), formulation=formulation)
     return (X, np.full(n, v_each), 1860.0, 2.8e4, Br, model_kw), control, settings
 
 
@@ -105,6 +107,7 @@ def _block1m():
 SCENES = {
     "walker": lambda: _walker(0.025),
     "walker_1m": lambda: _walker(1.0),
+    "walker_total": lambda: _walker(0.025, formulation="total"),
     "beam2d": _beam2d,
     "block1m": _block1m,
     "sweep": _sweep,
