@@ -6,22 +6,26 @@ E* = E / (1 - nu^2), E = 2 G (1 + nu) and nu = (3 K - 2 G) / (2 (3 K + G)) from 
 Set-up. A solid hemisphere (radius R = 5 mm, flat face up, G = 300 kPa, K = 20 G so nu = 0.475 and
 E* = 3.81 G, 1100 kg/m^3) rests on a fixed half-space collider ("slip": frictionless) and is loaded by its own
 weight only: one run per load level, gravity g_k chosen so that the weight F_k = M g_k is Hertz's force at
-d / R = 0.025, 0.05, 0.075, 0.1. Grid damping near critical for the bounce on the contact settles it; the
-approach delta_k is how far the centre of mass (the mean particle position; uniform density) has come down.
+d / R = 0.025, 0.05, 0.075, 0.1. Grid damping c = c_s / R (c_s the shear wave speed; 0.5-0.7 of critical for
+the bounce on the contact) settles it in 14 R / c_s; the approach delta_k is how far the centre of mass (the
+mean particle position; uniform density) has come down. R = 16 dx, 2 particles per cell per axis, float32, and
+simulation.formulation = "updated" named in the scene (the form whose colliders this case checks).
 Why this design:
 
 * The force is known exactly: at rest the contact force is the weight M g of the simulated particles. No
   stress has to be read back, and the collider stays where it is.
-* The plane does not move, so whatever the node-based collider does to the contact position (it acts on grid
-  nodes, about a cell from the material surface) is one fixed offset delta_0, the same at every load. It is
-  fitted: delta_k - delta_fb(F_k) = delta_0 + c F_k^(2/3), and Hertz says c = (3 / (4 E* R^(1/2)))^(2/3); the
-  local indentation of level k is d_k = delta_k - delta_fb(F_k) - delta_0. (A plate pushed to a position by a
-  path, the other option, puts the collider at a different place relative to the grid nodes at every level.)
+* The plane does not move. The engine's collider acts on the grid nodes at or below its plane (updated
+  Lagrangian form), so the plane matters only through the node layer it cuts: runs with the plane 0.55 and 0.95
+  cells below the sphere are bit-identical, and a plate moved along a path would load in steps of a cell. With a
+  fixed plane the contact sits at one node layer for every load, and the engine's contact offset delta_0 is
+  fitted:
+  delta_k - delta_fb(F_k) = delta_0 + c F_k^(2/3), where Hertz says c = (3 / (4 E* R^(1/2)))^(2/3); the local
+  indentation of level k is d_k = delta_k - delta_fb(F_k) - delta_0.
 * A hemisphere resting on its round side is stable against rocking (its centre of mass, 3/8 R below the flat
   face, lies below the centre of curvature) and costs half the particles of a sphere. Symmetry planes made from
   slip walls or colliders (a quarter body) were not used: the builder keeps bodies two cells away from domain
-  walls, so a wall acts half a cell or more outside a cut face, and slip contact holds no tension, while a
-  sphere's meridian planes carry tensile hoop stress above the contact.
+  walls, so a wall acts half a cell or more outside a cut face, and slip contact holds no tension, while the
+  hemisphere's meridian planes carry tensile hoop stress in its upper half (up to 0.12 p0 in the model below).
 
 What the approach means (delta_fb). Hertz's d is the approach of the plane to points far away in a half-space.
 Any finite body adds a term from the far field that is linear in F (elasticity of the body as a whole; the
@@ -31,14 +35,34 @@ delta_cm(F) = d_H(F) + delta_fb(F) with delta_fb ~ kappa F / (E* R). It is compu
 axisymmetric linear-elastic finite-element model of the same hemisphere (quadratic triangles, mesh graded to
 a few thousandths of R at the contact, frictionless unilateral contact by an active set, the same body force;
 :class:`HemisphereFE`): kappa = -0.61 at d = 0.005 R and -0.58 at d = 0.1 R for nu = 0.475, i.e. the centre
-of mass comes down 13 % (d = 0.025 R) to 24 % (d = 0.1 R) less than Hertz's d. Without it a perfect engine
-would miss Hertz by up to 50 % in force. The model is checked here against Hertz's limit (its approach tends
+of mass comes down 13 % (d = 0.025 R) to 24 % (d = 0.1 R) less than Hertz's d: compared with Hertz through its
+centre of mass, an engine that solved the continuum exactly would be 1/0.76^1.5 - 1 = 52 % off at d = 0.1 R. The model is checked here against Hertz's limit (its approach tends
 to Hertz's d as F -> 0, with a correction linear in F), against Boussinesq's far field, and for mesh
-convergence (below 0.1 % from the default to a mesh twice as fine): tests/test_hertz.py.
+convergence (0.1 % from the default mesh to one with half the element size): tests/test_hertz.py.
 
 Rows: per level, the weight F_k against Hertz's force at the local indentation d_k (tolerance 10 %), and the
 fitted Hertz constant a = c^(-3/2) against 4/3 E* R^(1/2) (10 %). Hertz and the model are small-strain
 theories; the engine is finite-strain Neo-Hookean, which differs by a few per cent at d = 0.1 R.
+
+Measured (float32, updated Lagrangian, 2 CPU threads; ``compare(s, measure(s))`` with ``s = HertzSetup(cells=N)``):
+
+=========  =========  ==========================================  ======================  =========
+R / dx     particles  force error at d_k / R                      Hertz constant a / a_H  wall time
+=========  =========  ==========================================  ======================  =========
+12         28,900     11.4, 16.7, 15.6, 14.1 % (0.027 - 0.111)     0.852                   2.5 min
+16 (case)  68,700     5.3, 12.4, 10.2, 9.0 % (0.026 - 0.107)       0.903                   4.9 min
+20         134,000    3.6, 9.1, 7.3, 6.4 % (0.026 - 0.105)         0.931                   9.7 min
+=========  =========  ==========================================  ======================  =========
+
+The engine is softer than Hertz (the weights lie below Hertz's force at the measured indentation) and
+converges at first order in dx (extrapolated a / a_H about 1.04, within the finite-strain difference). Where it
+comes from: the contact offset delta_k - d_H(F_k) - delta_fb(F_k) is not constant but grows with the load,
+0.20, 0.26, 0.27, 0.29 cells at R = 16 dx and 0.20, 0.26, 0.27, 0.28 cells at R = 20 dx, the same in cells at
+both resolutions, most of it between the two smallest loads (contact radius 2.5 and 3.5 cells at R = 16 dx):
+an extra compliance of the node-based contact of about a tenth of a cell, which is a smaller part of d at finer
+grids. At R = 16 dx two of the four levels miss 10 % (tests/test_hertz.py marks the test xfail with these
+numbers); at R = 20 dx every row passes. With nu = 0.3 (K = 2.17 G) the engine is softer still (R = 12 dx:
+a / a_H = 0.75).
 """
 
 from __future__ import annotations
@@ -263,9 +287,9 @@ class HertzSetup:
     shear_modulus: float = 3e5
     bulk_modulus: float = 6e6
     levels: tuple = LEVELS
-    damping: float = 1.6
-    settle: float = 12.0
-    floor_gap: float = 1.5
+    damping: float = 1.0
+    settle: float = 14.0
+    floor_gap: float = 0.75
     precision: str = "float32"
     formulation: str = "updated"
 
@@ -395,7 +419,9 @@ class HertzComparison:
     """Measured levels against Hertz. Lengths in m, forces in N. ``offset``: the fitted delta_0; ``constant``
     and ``hertz_constant``: a = c^(-3/2) fitted and 4/3 E* R^(1/2) (N/m^1.5); ``indentation``: local d_k;
     ``finite_body``: delta_fb(F_k); ``hertz``: F_H(d_k); ``error``: |F_k - F_H(d_k)| / F_H(d_k);
-    ``plain``: the same fit without delta_fb (what a bare Hertz comparison of the centre-of-mass approach gives)."""
+    ``contact_offset``: delta_k - d_H(F_k) - delta_fb(F_k), the engine's contact offset level by level (constant
+    if the engine followed Hertz and the model exactly); ``plain``: the same fit without delta_fb (a bare Hertz
+    comparison of the centre-of-mass approach)."""
 
     setup: HertzSetup
     levels: list
@@ -406,6 +432,7 @@ class HertzComparison:
     indentation: np.ndarray
     hertz: np.ndarray
     error: np.ndarray
+    contact_offset: np.ndarray
     plain: dict = field(default_factory=dict)
 
 
@@ -431,43 +458,78 @@ def compare(setup: HertzSetup, levels: list[LevelResult], fe: HemisphereFE | Non
     p_off, p_c = _fit(delta, F)
     p_ref = hertz_force(np.maximum(delta - p_off, 0.0), R, e_star)
     plain = {"offset_cells": p_off / setup.dx, "constant_ratio": float(p_c ** -1.5 / (4 / 3 * e_star * math.sqrt(R))),
-             "errors": (np.abs(F - p_ref) / p_ref).tolist()}
-    return HertzComparison(setup, levels, fb, offset, c ** -1.5, 4.0 / 3.0 * e_star * math.sqrt(R), d, ref, err, plain)
+             "errors": [float(e) for e in np.abs(F - p_ref) / p_ref]}
+    return HertzComparison(setup, levels, fb, offset, c ** -1.5, 4.0 / 3.0 * e_star * math.sqrt(R), d, ref, err,
+                           delta - hertz_indentation(F, R, e_star) - fb, plain)
 
 
 def rows_of(comp: HertzComparison, tolerance: float = TOLERANCE) -> list[Row]:
+    """Rows of the case: the weight of each level against Hertz's force at its local indentation d_k (N), and the
+    fitted Hertz constant a (N/m^1.5). The engine form and precision are in the case's info (``setup``)."""
     s = comp.setup
-    base = {"R_m": s.radius, "R_over_dx": s.cells, "nu": round(s.moduli[0], 4), "formulation": s.formulation, "precision": s.precision}
+    base = {"R_over_dx": s.cells, "R_m": s.radius, "nu": round(s.moduli[0], 4)}
     rows = []
     for lv, d, ref, err in zip(comp.levels, comp.indentation, comp.hertz, comp.error):
-        rows.append(Row("hertz", "contact_force_N", {**base, "d_over_R": round(float(d / s.radius), 4)}, float(ref), lv.force, float(err), tolerance))
-    rows.append(Row("hertz", "hertz_constant_N_m1.5", dict(base), comp.hertz_constant, comp.constant,
+        rows.append(Row("hertz", "contact_force_N", {"d_over_R": round(float(d / s.radius), 4), **base}, float(ref), lv.force,
+                        float(err), tolerance))
+    fitted = {"d_over_R": [round(float(d / s.radius), 4) for d in comp.indentation], **base}
+    rows.append(Row("hertz", "hertz_constant_N_m1.5", fitted, comp.hertz_constant, comp.constant,
                     abs(comp.constant - comp.hertz_constant) / comp.hertz_constant, tolerance))
     return rows
 
 
+def plot_hertz(comp: HertzComparison, path) -> Path:
+    """Weight against local indentation d_k / R, with Hertz's law (PNG at ``path``)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    s = comp.setup
+    R = s.radius
+    _, _, e_star = s.moduli
+    d = np.linspace(0.0, 1.15 * max(float(comp.indentation.max()), 0.1 * R), 100)
+    fig, ax = plt.subplots(figsize=(5, 3.6))
+    ax.plot(d / R, hertz_force(d, R, e_star), "k-", label="Hertz 4/3 E* R^1/2 d^3/2")
+    ax.plot(comp.indentation / R, [lv.force for lv in comp.levels], "o", label=f"MPM, R = {s.cells} dx (offset fitted)")
+    ax.set_xlabel("local indentation d / R")
+    ax.set_ylabel("contact force (weight), N")
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    path = Path(path)
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+    return path
+
+
 @register("hertz", "elastic hemisphere on a rigid frictionless plane under its weight (3D, R = 16 dx): contact force vs Hertz "
-          "at d = 0.025-0.1 R, far-field term from an axisymmetric FE model", quick=False, cost="~6 min")
+          "at d = 0.025-0.1 R, far-field term from an axisymmetric FE model", quick=False, cost="~5 min")
 def hertz_case(ctx: Context) -> CaseResult:
     setup = HertzSetup()
-    t0 = time.perf_counter()
     levels = measure(setup, log=ctx.log)
     comp = compare(setup, levels)
+    dx, R = setup.dx, setup.radius
     info = {
-        "setup": {k: v for k, v in asdict(setup).items()},
+        "setup": {k: (list(v) if isinstance(v, tuple) else v) for k, v in asdict(setup).items()},
         "particles": levels[0].particles,
-        "offset_cells": comp.offset / setup.dx,
-        "finite_body_over_R": (comp.finite_body / setup.radius).tolist(),
-        "approach_cells": [lv.approach / setup.dx for lv in levels],
-        "drift_cells": [lv.drift / setup.dx for lv in levels],
+        "fitted_offset_cells": comp.offset / dx,
+        "contact_offset_cells": [float(v / dx) for v in comp.contact_offset],
+        "finite_body_over_R": [float(v / R) for v in comp.finite_body],
+        "approach_cells": [lv.approach / dx for lv in levels],
+        "drift_cells": [lv.drift / dx for lv in levels],
+        "max_speed_m_s": [lv.max_speed for lv in levels],
         "steps": [lv.steps for lv in levels],
+        "level_wall_s": [round(lv.wall_s, 1) for lv in levels],
         "without_finite_body_term": comp.plain,
-        "wall_s": time.perf_counter() - t0,
     }
-    return CaseResult("hertz", rows_of(comp), info=info)
+    figures = []
+    if ctx.out is not None:
+        figures.append(plot_hertz(comp, Path(ctx.out) / "hertz.png"))
+    return CaseResult("hertz", rows_of(comp), figures, info)
 
 
 __all__ = ["HemisphereFE", "HertzSetup", "LevelResult", "HertzComparison", "compare", "elastic_moduli", "finite_body_term",
-           "hertz_force", "hertz_indentation", "hertz_scene", "measure", "rows_of", "settle_level", "write_hemisphere_mesh",
+           "hertz_force", "hertz_indentation", "hertz_scene", "measure", "plot_hertz", "rows_of", "settle_level",
+           "write_hemisphere_mesh",
            "LEVELS", "TOLERANCE"]
 
