@@ -1,0 +1,42 @@
+"""Non-finite numbers anywhere in a scene are refused with one line naming the key (issue "Reliability",
+findings 6 and 7: inf used to crash the build, NaN in vectors was silently wrong, e.g. a floor normal
+[nan, 1, 0] let the body fall through and the run said "completed")."""
+
+import copy
+import math
+
+import pytest
+
+from magsoro.errors import SceneError
+from magsoro.scene import parse_scene
+
+BASE = {
+    "simulation": {"dim": 2, "dx": 1e-3, "domain_lo": [0.0, 0.0], "domain_hi": [0.02, 0.02], "duration": 0.01},
+    "bodies": [{"name": "b", "shape": {"type": "rectangle", "center": [0.01, 0.01], "size": [0.004, 0.002]},
+                "material": {"density": 1000.0, "shear_modulus": 1e5}, "magnetization": [0.1, 0.0, 0.0]}],
+    "colliders": [{"type": "half_space", "point": [0.0, 0.005], "normal": [0.0, 1.0]}],
+    "fields": [{"type": "uniform", "B": [0.0, 0.01, 0.0]}],
+}
+
+
+@pytest.mark.parametrize("path, value, key", [
+    (("bodies", 0, "material", "density"), math.inf, "bodies[0].material.density"),
+    (("bodies", 0, "material", "shear_modulus"), math.nan, "bodies[0].material.shear_modulus"),
+    (("bodies", 0, "shape", "center"), [math.inf, 0.01], "bodies[0].shape.center[0]"),
+    (("bodies", 0, "magnetization"), [0.1, math.nan, 0.0], "bodies[0].magnetization"),
+    (("colliders", 0, "normal"), [math.nan, 1.0], "colliders[0].normal[0]"),
+    (("simulation", "domain_hi"), [math.nan, 0.02], "simulation.domain_hi[0]"),
+    (("simulation", "duration"), math.inf, "simulation.duration"),
+    (("fields", 0, "B"), [0.0, math.inf, 0.0], "fields[0]"),
+])
+def test_non_finite_values_are_refused_naming_the_key(path, value, key):
+    scene = copy.deepcopy(BASE)
+    parse_scene(copy.deepcopy(scene))  # the base scene is valid
+    target = scene
+    for p in path[:-1]:
+        target = target[p]
+    target[path[-1]] = value
+    with pytest.raises(SceneError) as exc:
+        parse_scene(scene)
+    msg = str(exc.value)
+    assert key in msg and "finite" in msg and "\n" not in msg.strip(), msg
