@@ -21,6 +21,11 @@ docs/robots/NAME`).
 - `magsoro validate --all` runs every robot's preview with its acceptance checks (cases `robot-NAME`).
 
 How bodies, parts and magnetisation profiles are written: docs/geometry.md.
+
+Engine of the results: gripper, pentagram and walker were re-run (2026-11-24) with the engine of issue
+"Engine 2.0": scene default `formulation = "auto"` (total Lagrangian for one body, updated with contact),
+frictional contact between bodies with free separation, self-contact where a scene asks for it. The other
+robots' results predate it (updated form; bodies touching each other shared one velocity field, i.e. stuck).
 """
 
 
