@@ -7,7 +7,7 @@ import importlib
 import sys
 
 from magsoro._version import __version__
-from magsoro.errors import MagsoroError
+from magsoro.errors import MagsoroError, Terminated
 
 COMMANDS = [
     "magsoro.commands.run",
@@ -44,11 +44,31 @@ def main(argv=None) -> int:
     if not getattr(args, "func", None):
         parser.print_help()
         return 2
+    _stop_on_sigterm()
     try:
         return int(args.func(args) or 0)
     except MagsoroError as exc:
         print(f"magsoro {args.command}: error: {exc}", file=sys.stderr)
         return 2
+    except Terminated as exc:  # a command without its own clean-up: still one line, the signal's exit status
+        print(f"magsoro {args.command}: {exc}", file=sys.stderr)
+        return 128 + exc.signum
+
+
+def _stop_on_sigterm() -> None:
+    """SIGTERM raises :class:`Terminated` (a KeyboardInterrupt) in the main thread, so a run stopped by
+    ``timeout``, Slurm or ``docker stop`` ends like one stopped with Ctrl-C: final state, results and run.json
+    status 'interrupted' written, instead of a run.json left saying 'running'."""
+    import signal
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():
+        return
+
+    def handler(signum, frame):
+        raise Terminated(signum)
+
+    signal.signal(signal.SIGTERM, handler)
 
 
 if __name__ == "__main__":

@@ -16,3 +16,15 @@ class SimulationError(MagsoroError):
         super().__init__(message)
         self.step = step
         self.time = time
+
+
+class Terminated(KeyboardInterrupt):
+    """The process was asked to stop by a signal (SIGTERM: what ``timeout``, Slurm and ``docker stop`` send).
+    A KeyboardInterrupt, so every place that ends a run cleanly on Ctrl-C does the same for it."""
+
+    def __init__(self, signum: int):
+        import signal
+
+        self.signum = int(signum)
+        self.signame = signal.Signals(signum).name
+        super().__init__(f"terminated by {self.signame}")

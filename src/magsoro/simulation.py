@@ -15,7 +15,7 @@ from typing import Callable
 
 import numpy as np
 
-from magsoro.errors import SimulationError
+from magsoro.errors import SimulationError, Terminated
 from magsoro.mpm.solver import Solver
 from magsoro.mpm.timestep import cfl_time_step
 from magsoro.scene import Scene, load_scene
@@ -291,7 +291,8 @@ class Simulation:
         except SimulationError as exc:
             status = "failed"
             message = f"step {exc.step}, t = {exc.time:.6g} s: {exc}"
-        except KeyboardInterrupt:
+        except KeyboardInterrupt as exc:
             status = "interrupted"
-            message = f"interrupted by the user at t = {self.state.time:.6g} s"
+            who = str(exc) if isinstance(exc, Terminated) else "interrupted by the user"
+            message = f"{who} at t = {self.state.time:.6g} s"
         return RunResult(status, self.steps, self.state.time, _time.perf_counter() - wall0, message)

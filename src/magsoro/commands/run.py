@@ -72,7 +72,7 @@ def run(args) -> int:
     if result.status != "completed":
         print(f"magsoro run: {result.status}: {result.message}", file=sys.stderr)
         print(f"results so far in {args.out} (run.json status '{result.status}')", file=sys.stderr)
-        return 1 if result.status == "failed" else 130
+        return 1 if result.status == "failed" else _interrupted_status(result.message)
     if not args.quiet:
         print(f"{result.steps} steps in {result.wall_time:.1f} s ({result.steps / max(result.wall_time, 1e-9):.0f} steps/s), dt {sim.dt_min:.3g}-{sim.dt_max:.3g} s; results in {args.out}")
     return 0
@@ -99,8 +99,8 @@ def _relax(args, sim, writer, t_loads: float, wall0: float) -> int:
         relax, status = None, "failed"
         message = f"step {exc.step}: {exc}"
         steps, wall = sim.steps, time.perf_counter() - wall0
-    except KeyboardInterrupt:
-        relax, status, message = None, "interrupted", "interrupted by the user"
+    except KeyboardInterrupt as exc:
+        relax, status, message = None, "interrupted", str(exc) or "interrupted by the user"
         steps, wall = sim.steps, time.perf_counter() - wall0
     if relax is not None:
         writer.info["equilibrium"] = asdict(relax)
@@ -109,7 +109,14 @@ def _relax(args, sim, writer, t_loads: float, wall0: float) -> int:
     writer.finish(result, time.perf_counter() - wall0)
     if status != "completed":
         print(f"magsoro run --equilibrium: {status}: {message}", file=sys.stderr)
-        return 1 if status == "failed" else 130
+        return 1 if status == "failed" else _interrupted_status(message)
     if not args.quiet:
         print(f"{message} in {wall:.1f} s; results in {args.out}")
     return 0
+
+
+def _interrupted_status(message: str) -> int:
+    """Exit status of an interrupted run: 128 + 15 after SIGTERM, 130 (128 + SIGINT) after Ctrl-C."""
+    import signal
+
+    return 128 + int(signal.SIGTERM) if message.startswith("terminated by SIGTERM") else 130
