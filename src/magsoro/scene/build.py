@@ -281,6 +281,12 @@ def _site_coder(sites: list[np.ndarray]):
     return code
 
 
+#: Largest lattice (candidate particle sites in a body's bounding box) a body may be filled on: 10^8 sites are
+#: 2.4 GB of float64 positions before the shape test, about what this project's 24 GB machines can hold with
+#: the rest of a run.
+MAX_LATTICE_SITES = 1e8
+
+
 def fill_bodies(scene: Scene, source: str = "scene", magnetization=None) -> Particles:
     """Fill every body with particles on the grid-aligned lattice and give them material and remanence.
 
@@ -315,6 +321,24 @@ def fill_bodies(scene: Scene, source: str = "scene", magnetization=None) -> Part
             base_dir = getattr(scene, "_base_dir", None)
         try:
             shape = make_shape(b.shape, base_dir, dim)
+            # the domain and the size are checked before the lattice is filled: a mesh in mm read as m would
+            # otherwise allocate terabytes before any check
+            blo, bhi = shape.bounds()
+            blo, bhi = np.asarray(blo, dtype=np.float64)[:dim], np.asarray(bhi, dtype=np.float64)[:dim]
+            margin = 2 * dx  # walls act on the outer two cells
+            if np.any(blo < lo + margin) or np.any(bhi > hi - margin):
+                raise SceneError(
+                    f"{bsrc}: {bkey}.shape: body '{b.name}' spans {blo.tolist()} to {bhi.tolist()} m, outside the domain "
+                    f"[{lo.tolist()}, {hi.tolist()}] shrunk by two cells ({margin} m); move it or enlarge simulation.domain_lo/domain_hi"
+                    " (a mesh in mm needs shape.scale = 1e-3)"
+                )
+            sites = float(np.prod(np.floor((bhi - blo) / h) + 1.0))
+            if sites > MAX_LATTICE_SITES:
+                raise SceneError(
+                    f"{bsrc}: {bkey}.shape: body '{b.name}' ({(bhi - blo).tolist()} m across) would need {sites:.3g} "
+                    f"lattice sites at the particle spacing {h:g} m (simulation.dx / particles_per_cell); at most "
+                    f"{MAX_LATTICE_SITES:.0e} are allowed: check the shape's size and units, or coarsen simulation.dx"
+                )
             pts, v_each = fill_lattice(shape, dx, ppc, lo, dim)
         except MeshError as exc:
             raise SceneError(f"{bsrc}: {bkey}.shape.file: {exc}") from None
@@ -322,14 +346,6 @@ def fill_bodies(scene: Scene, source: str = "scene", magnetization=None) -> Part
             raise SceneError(f"{bsrc}: {bkey}.shape: {exc}") from None
         if len(pts) == 0:
             raise SceneError(f"{bsrc}: {bkey}.shape: body '{b.name}' holds no particle at dx = {dx} m; refine simulation.dx or enlarge the shape")
-        blo, bhi = shape.bounds()
-        blo, bhi = np.asarray(blo)[:dim], np.asarray(bhi)[:dim]
-        margin = 2 * dx  # walls act on the outer two cells
-        if np.any(blo < lo + margin) or np.any(bhi > hi - margin):
-            raise SceneError(
-                f"{bsrc}: {bkey}.shape: body '{b.name}' spans {blo.tolist()} to {bhi.tolist()} m, outside the domain "
-                f"[{lo.tolist()}, {hi.tolist()}] shrunk by two cells ({margin} m); move it or enlarge simulation.domain_lo/domain_hi"
-            )
         mat = resolve_material(b.material, base_dir, f"{bsrc}: {bkey}.material", library)
         fn = magnetization.get(b.name) if isinstance(magnetization, dict) else magnetization
         key = "magnetization (Python callable)" if fn is not None else f"{bkey}.magnetization"

@@ -40,3 +40,30 @@ def test_non_finite_values_are_refused_naming_the_key(path, value, key):
         parse_scene(scene)
     msg = str(exc.value)
     assert key in msg and "finite" in msg and "\n" not in msg.strip(), msg
+
+
+def test_a_body_too_large_for_memory_is_refused_before_filling():
+    """A body whose lattice would not fit in memory (a mm-vs-m slip, finding 3: 119 TiB were requested) is refused
+    from its bounding box, in well under a second, naming the key, the size and the limit."""
+    import time
+
+    scene = copy.deepcopy(BASE)
+    scene["simulation"].update(dim=3, dx=1e-4, domain_lo=[0.0, 0.0, 0.0], domain_hi=[2.0, 2.0, 2.0])
+    scene["bodies"][0]["shape"] = {"type": "box", "center": [1.0, 1.0, 1.0], "size": [1.0, 1.0, 1.0]}
+    scene["bodies"][0]["magnetization"] = [0.1, 0.0, 0.0]
+    scene["colliders"][0] = {"type": "half_space", "point": [0.0, 0.0, 0.4], "normal": [0.0, 0.0, 1.0]}
+    from magsoro.simulation import Simulation
+
+    t0 = time.perf_counter()
+    with pytest.raises(SceneError, match=r"bodies\[0\]\.shape: body 'b' .* lattice sites .* at most 1e\+08"):
+        Simulation(parse_scene(scene))
+    assert time.perf_counter() - t0 < 5.0
+
+
+def test_a_body_outside_the_domain_is_refused_before_filling():
+    scene = copy.deepcopy(BASE)
+    scene["bodies"][0]["shape"] = {"type": "rectangle", "center": [10.0, 10.0], "size": [4.0, 2.0]}  # metres, not mm
+    from magsoro.simulation import Simulation
+
+    with pytest.raises(SceneError, match=r"bodies\[0\]\.shape: body 'b' spans .* outside the domain .*scale = 1e-3"):
+        Simulation(parse_scene(scene))
