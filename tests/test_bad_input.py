@@ -67,3 +67,34 @@ def test_a_body_outside_the_domain_is_refused_before_filling():
 
     with pytest.raises(SceneError, match=r"bodies\[0\]\.shape: body 'b' spans .* outside the domain .*scale = 1e-3"):
         Simulation(parse_scene(scene))
+
+
+def test_unbounded_output_is_refused_naming_the_key():
+    """output.every = 1e-12 used to eat gigabytes building output times (finding 5)."""
+    scene = copy.deepcopy(BASE)
+    scene["output"] = {"every": 1e-12}
+    with pytest.raises(SceneError, match=r"output\.every = 1e-12 s gives 1e\+10 records .* at least 1e-07 s"):
+        parse_scene(scene)
+
+
+@pytest.mark.parametrize("duration", ["inf", "nan", "-1", "1e300"])
+def test_run_duration_override_is_checked_before_the_output_folder(duration, tmp_path):
+    """`magsoro run --duration inf` used to overflow and leave run.json 'running' (finding 5); now one line and no
+    output folder. 1e300 s with the scene's 0.5 ms output interval would record 2e303 frames."""
+    import subprocess
+    import sys
+
+    scene_file = tmp_path / "s.toml"
+    from magsoro.diff.tomlwrite import dumps
+
+    scene = copy.deepcopy(BASE)
+    scene["output"] = {"every": 5e-4}
+    scene_file.write_text(dumps(scene))
+    out = tmp_path / "out"
+    r = subprocess.run([sys.executable, "-m", "magsoro", "run", str(scene_file), "--out", str(out), "--quiet",
+                        "--duration", duration], capture_output=True, text=True, timeout=120)
+    assert r.returncode == 2, r.stderr
+    lines = [ln for ln in r.stderr.strip().splitlines() if not ln.startswith("Warp")]  # Warp's no-GPU notice
+    assert "Traceback" not in r.stderr and len(lines) == 1, r.stderr
+    assert "--duration" in r.stderr or "records" in r.stderr
+    assert not out.exists()

@@ -15,11 +15,12 @@ from typing import Callable
 
 import numpy as np
 
-from magsoro.errors import SimulationError, Terminated
+from magsoro.errors import SceneError, SimulationError, Terminated
 from magsoro.mpm.solver import Solver
 from magsoro.mpm.timestep import cfl_time_step
 from magsoro.scene import Scene, load_scene
 from magsoro.scene.build import Built, build
+from magsoro.scene.schema import MAX_RECORDS
 
 
 @dataclass
@@ -46,6 +47,16 @@ class RelaxResult:
     message: str = ""
     stalled: bool = False  # the cycle peaks stopped falling above the tolerance (round-off floor)
 
+
+
+def check_run_length(duration: float, every: float) -> None:
+    """Refuse a run whose duration or record interval is not a finite positive number, or that would record more
+    than MAX_RECORDS frames (an unbounded output)."""
+    if not (math.isfinite(duration) and duration > 0 and math.isfinite(every) and every > 0):
+        raise SceneError(f"run: duration ({duration!r} s) and the record interval ({every!r} s) must be finite and > 0")
+    if duration / every > MAX_RECORDS:
+        raise SceneError(f"run: {duration / every:.3g} records of {every:g} s over {duration:g} s; at most {MAX_RECORDS:.0e} "
+                         f"are allowed: raise output.every to at least {duration / MAX_RECORDS:.3g} s")
 
 class Simulation:
     """A scene made runnable: Model, Control, Solver and the current State.
@@ -273,6 +284,7 @@ class Simulation:
         t0 = self.state.time
         t_end = t0 + duration
         wall0 = _time.perf_counter()
+        check_run_length(duration, every)
         n_records = int(math.floor(duration / every + 1e-9))
         targets = [t0 + k * every for k in range(1, n_records + 1)]
         if not targets or targets[-1] < t_end - 1e-12 * max(1.0, t_end):

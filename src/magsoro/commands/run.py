@@ -1,5 +1,6 @@
 """``magsoro run SCENE.toml --out DIR``: run a scene and write its results."""
 
+import math
 import sys
 import time
 from pathlib import Path
@@ -28,12 +29,12 @@ def run(args) -> int:
 
     from magsoro.io.recorder import RunWriter
     from magsoro.scene import load_scene
-    from magsoro.simulation import Simulation
+    from magsoro.simulation import Simulation, check_run_length
 
     if args.device is not None and not (args.device == "cpu" or args.device.startswith("cuda")):
         raise SceneError(f"--device: '{args.device}' is not allowed; use cpu, cuda or cuda:N")
-    if args.duration is not None and not args.duration > 0:
-        raise SceneError(f"--duration: must be > 0 s, got {args.duration}")
+    if args.duration is not None and not (args.duration > 0 and math.isfinite(args.duration)):
+        raise SceneError(f"--duration: must be a finite number > 0 s, got {args.duration}")
     wall0 = time.perf_counter()
     preview = getattr(args, "preview", False)
     scene = load_scene(args.scene, preview=preview)  # every check happens before the output folder is touched
@@ -44,6 +45,7 @@ def run(args) -> int:
 
         echo = apply_preview(echo, args.scene)
     duration = args.duration if args.duration is not None else scene.simulation.duration
+    check_run_length(duration, scene.output.every or duration / 50.0)  # before the output folder is touched
     writer = RunWriter(args.out, sim, echo, particles=scene.output.particles)
     if getattr(args, "equilibrium", False):
         return _relax(args, sim, writer, duration, wall0)

@@ -653,6 +653,10 @@ class Preview(Strict):
     every: float | None = Field(default=None, gt=0, description="Output interval for the preview, s.")
 
 
+#: Most frames and metrics rows one run may record (output.every against the duration)
+MAX_RECORDS = 100_000
+
+
 class Scene(Strict):
     """A magsoro scene: bodies, clamps, colliders, fields, probes, numerical settings and output."""
 
@@ -672,6 +676,17 @@ class Scene(Strict):
     _source_path: object = PrivateAttr(default=None)
     _material_libraries: object = PrivateAttr(default_factory=list)
     _magnetization: object = PrivateAttr(default_factory=dict)
+
+    @model_validator(mode="after")
+    def _bounded_output(self):
+        every = self.output.every
+        if every is not None and self.simulation.duration / every > MAX_RECORDS:
+            raise ValueError(
+                f"output.every = {every:g} s gives {self.simulation.duration / every:.3g} records over simulation.duration = "
+                f"{self.simulation.duration:g} s; at most {MAX_RECORDS:.0e} are allowed: raise output.every to at least "
+                f"{self.simulation.duration / MAX_RECORDS:.3g} s"
+            )
+        return self
 
     def set_magnetization(self, fn, body: str | None = None) -> "Scene":
         """Give a body (or, with ``body=None``, every body) a magnetisation computed by a Python callable.
