@@ -5,6 +5,7 @@ findings 6 and 7: inf used to crash the build, NaN in vectors was silently wrong
 import copy
 import math
 
+import numpy as np
 import pytest
 
 from magsoro.errors import SceneError
@@ -98,3 +99,20 @@ def test_run_duration_override_is_checked_before_the_output_folder(duration, tmp
     assert "Traceback" not in r.stderr and len(lines) == 1, r.stderr
     assert "--duration" in r.stderr or "records" in r.stderr
     assert not out.exists()
+
+
+def test_first_time_step_counts_the_initial_velocity():
+    """A body sent at 500 m/s crossed 2.5 cells in its first step (finding 9): the first step's CFL bound now
+    includes the initial speed, so it moves at most cfl cells."""
+    from magsoro.simulation import Simulation
+
+    scene = copy.deepcopy(BASE)
+    scene["bodies"][0]["velocity"] = [500.0, 0.0]
+    scene["colliders"] = []
+    sim = Simulation(parse_scene(scene))
+    x0 = sim.state.x.numpy().copy()
+    c = sim._wave_speed
+    assert sim.dt == pytest.approx(0.4 * 1e-3 / (c + 500.0), rel=1e-12)
+    sim.step()
+    moved = float(np.abs(sim.state.x.numpy() - x0).max())
+    assert moved <= 0.4 * 1e-3 * (1 + 1e-6)

@@ -77,8 +77,11 @@ class Simulation:
         self.fixed_dt = sim.dt
         self._field_peak = self.solver.field_magnitude(self.control)
         self._wave_speed = self.model.wave_speed(self._field_peak)
+        v0 = self.built.initial_velocity
+        # the first step's bound counts the initial velocities (later steps: the speeds the last step reached)
+        self._initial_speed = float(np.max(np.linalg.norm(v0, axis=1))) if v0 is not None and len(v0) else 0.0
         self.dt = (self.fixed_dt if self.fixed_dt is not None
-                   else cfl_time_step(self.solver.settings.cfl, self.model.dx, self._wave_speed))
+                   else cfl_time_step(self.solver.settings.cfl, self.model.dx, self._wave_speed, self._initial_speed))
         self.dt_min = self.dt_max = self.dt
         self.steps = 0
         self.last_good_time = 0.0
@@ -137,7 +140,7 @@ class Simulation:
     # -- stepping ------------------------------------------------------------------------------------------
     def _next_dt(self, remaining: float) -> float:
         if self.fixed_dt is None:
-            vmax = self.solver.last_max_speed() if self.steps else 0.0
+            vmax = self.solver.last_max_speed() if self.steps else self._initial_speed
             self.dt = cfl_time_step(self.solver.settings.cfl, self.model.dx, self._wave_speed, vmax)
         dt = self.dt
         if remaining < dt * (1 + 1e-9):
