@@ -116,3 +116,27 @@ def test_first_time_step_counts_the_initial_velocity():
     sim.step()
     moved = float(np.abs(sim.state.x.numpy() - x0).max())
     assert moved <= 0.4 * 1e-3 * (1 + 1e-6)
+
+
+def test_a_state_that_fails_the_checks_is_not_kept_as_last_good():
+    """When a step refuses its input (a state the previous step reached is outside the domain or not finite), the
+    simulation goes back to the state before it, which passed the checks: that is what a failed run writes as
+    last_good.npz (finding 8). The bad state is made by hand here: after two good steps, a position is set to NaN."""
+    from magsoro.errors import SimulationError
+    from magsoro.simulation import Simulation
+
+    scene = copy.deepcopy(BASE)
+    scene["simulation"]["formulation"] = "updated"  # the form whose step checks the current positions on entry
+    sim = Simulation(parse_scene(scene))
+    sim.step()
+    t_good = sim.time
+    sim.step()
+    x = sim.state.x.numpy()
+    x[0, 0] = np.nan
+    sim.state.x.assign(x)
+    sim.solver.forget_bounds()  # the next step takes the bounds from the (edited) positions
+    with pytest.raises(SimulationError, match="not finite") as exc:
+        sim.step()
+    assert exc.value.input_rejected
+    assert sim.time == t_good and sim.steps == 1
+    assert np.all(np.isfinite(sim.state.x.numpy()))

@@ -12,10 +12,11 @@ class SceneError(MagsoroError):
 class SimulationError(MagsoroError):
     """A run could not go on (non-finite state, inverted element, ...); the message names step, time and cause."""
 
-    def __init__(self, message: str, step: int | None = None, time: float | None = None):
+    def __init__(self, message: str, step: int | None = None, time: float | None = None, input_rejected: bool = False):
         super().__init__(message)
         self.step = step
         self.time = time
+        self.input_rejected = input_rejected  # the step's input state failed a check (not the state it computed)
 
 
 class Terminated(KeyboardInterrupt):

@@ -153,7 +153,21 @@ class Simulation:
     def step(self, dt: float | None = None) -> None:
         """One step of ``dt`` seconds (default: the current automatic or fixed step)."""
         dt = self._next_dt(math.inf) if dt is None else dt
-        self.solver.step(self.state, self._spare, self.control, dt)
+        self._step(dt)
+
+    def _step(self, dt: float) -> None:
+        """Step the current state into the spare buffer and swap. When the step refuses its input (the state the
+        previous step reached is outside the domain or not finite: checked at the start of a step), the state
+        before it, still in the spare buffer, becomes current again: the state kept after a failure (written as
+        last_good.npz) is always one that passed the checks."""
+        try:
+            self.solver.step(self.state, self._spare, self.control, dt)
+        except SimulationError as exc:
+            if exc.input_rejected and self.steps > 0:
+                self.state, self._spare = self._spare, self.state
+                self.steps -= 1
+                self.solver.forget_bounds()
+            raise
         self.state, self._spare = self._spare, self.state
         self.steps += 1
 
@@ -161,9 +175,7 @@ class Simulation:
         """Step until simulated time ``t_end`` (s), landing on it exactly."""
         while self.state.time < t_end - 1e-12 * max(1.0, t_end):
             dt = self._next_dt(t_end - self.state.time)
-            self.solver.step(self.state, self._spare, self.control, dt)
-            self.state, self._spare = self._spare, self.state
-            self.steps += 1
+            self._step(dt)
             if callback is not None:
                 callback(self)
 
@@ -221,10 +233,8 @@ class Simulation:
         try:
             while steps < max_steps:
                 dt = self._next_dt(math.inf)
-                self.solver.step(self.state, self._spare, self.control, dt)
-                self.state, self._spare = self._spare, self.state
+                self._step(dt)
                 self.state.time = t_freeze
-                self.steps += 1
                 steps += 1
                 e, v = self.kinetic_energy()
                 if e < prev_e:  # the previous step was a kinetic-energy peak

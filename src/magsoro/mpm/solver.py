@@ -682,6 +682,10 @@ class Solver:
         else:
             self._workers.run(launches)
 
+    def forget_bounds(self) -> None:
+        """Drop the particle bounds of the last step (the caller went back to an earlier state)."""
+        self._bounds_valid = False
+
     def grid_info(self) -> dict:
         return {"origin": self.org.tolist(), "shape": self.shape.tolist(), "nodes": self.n_active, "capacity": self.capacity, "refits": self.refits}
 
@@ -768,13 +772,14 @@ class Solver:
             return
         m, t = self.model, state_in.time
         if not (np.all(np.isfinite(lo)) and np.all(np.isfinite(hi))):
-            raise SimulationError("particle positions are not finite", state_in.step, t)
+            raise SimulationError("particle positions are not finite", state_in.step, t, input_rejected=True)
         if np.any(lo < m.domain_lo) or np.any(hi > m.domain_hi):
             raise SimulationError(
                 f"a particle left the domain [{m.domain_lo.tolist()}, {m.domain_hi.tolist()}] m "
                 f"(particles span {lo.tolist()} to {hi.tolist()}); enlarge simulation.domain or check the drives",
                 state_in.step,
                 t,
+                input_rejected=True,
             )
         if not self._fits(lo, hi):
             self._refit(lo, hi)
