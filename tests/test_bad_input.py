@@ -140,3 +140,20 @@ def test_a_state_that_fails_the_checks_is_not_kept_as_last_good():
     assert exc.value.input_rejected
     assert sim.time == t_good and sim.steps == 1
     assert np.all(np.isfinite(sim.state.x.numpy()))
+
+
+@pytest.mark.parametrize("path, value, key", [
+    (("simulation", "damping"), True, "simulation.damping"),
+    (("simulation", "dx"), "2e-4", "simulation.dx"),
+    (("bodies", 0, "magnetic"), "yes", "bodies[0].magnetic"),
+    (("simulation", "particles_per_cell"), 2.0, "simulation.particles_per_cell"),
+])
+def test_values_of_the_wrong_type_are_not_coerced(path, value, key):
+    """`damping = true` became 1.0, `dx = "2e-4"` became 2e-4, `magnetic = "yes"` became true (finding 12)."""
+    scene = copy.deepcopy(BASE)
+    target = scene
+    for p in path[:-1]:
+        target = target[p]
+    target[path[-1]] = value
+    with pytest.raises(SceneError, match=key.replace("[", r"\[").replace("]", r"\]").replace(".", r"\.")):
+        parse_scene(scene)

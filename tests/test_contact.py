@@ -49,8 +49,8 @@ def test_contact_pairs_override_and_sticky():
     "contact, message",
     [
         ({"pairs": [{"bodies": ["a", "nope"], "friction": 0.2}]}, "contact.pairs[0].bodies: no body named 'nope'"),
-        ({"friction": -0.1}, "contact.friction: Value error, must be a finite Coulomb coefficient >= 0 or 'sticky'"),
-        ({"friction": float("nan")}, "contact.friction: Value error, must be a finite Coulomb coefficient >= 0 or 'sticky'"),
+        ({"friction": -0.1}, "contact.friction: must be a finite Coulomb coefficient >= 0 or 'sticky'"),
+        ({"friction": float("nan")}, "contact.friction: must be a finite Coulomb coefficient >= 0 or 'sticky'"),
         ({"friction": "glue"}, "contact.friction"),
         ({"frction": 0.2}, "frction"),
     ],

@@ -31,7 +31,7 @@ point = [0.0, 0.005]
 normal = [0.0, 1.0]
 
 [output]
-every = 0.0005
+every = 0.002
 particles = false
 """
 

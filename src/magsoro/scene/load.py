@@ -92,9 +92,13 @@ def format_validation_error(exc: ValidationError, source: str = "scene", root=No
         msg = f"needs a 'type' key; allowed: {first.get('ctx', {}).get('expected_tags', '')}"
     else:
         msg = first["msg"]
+        if kind == "value_error":  # our own validators' messages, without pydantic's prefix
+            msg = msg.removeprefix("Value error, ")
         if "input" in first and not isinstance(first["input"], (dict, list)):
             msg += f" (got {first['input']!r})"
     more = f" (and {len(errors) - 1} more problem{'s' if len(errors) > 2 else ''})" if len(errors) > 1 else ""
+    if not loc and kind == "value_error":  # a check across tables: its message names the keys
+        return f"{source}: {msg}{more}"
     return f"{source}: {key}: {msg}{more}"
 
 
