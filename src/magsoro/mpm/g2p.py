@@ -187,4 +187,34 @@ def make_g2p(dim: int, scalar, two_fields: bool = False) -> dict:
         if not update_F(F_in, F_out, p, (dt * scalar(4.0) * inv_dx) * (S - wp.outer(sv, fx))):
             wp.atomic_max(error, 1, 1)
 
-    return dict(g2p=g2p, reset_reductions=reset_reductions, remap_node_velocity=remap_node_velocity, remap_F=remap_F)
+    @wp.kernel
+    def contact_gather(
+        x: wp.array(dtype=vec),
+        clamped: wp.array(dtype=wp.int32),
+        block: Block,
+        dt: scalar,
+        grid_dv: wp.array(dtype=vec),
+        out: wp.array(dtype=Particles),
+        ct: wp.array(dtype=ContactGrid),
+    ):
+        """Total Lagrangian with contact: each particle takes the contact corrections of its own field,
+        dv = sum w dv_i, into its velocity, and moves by dt dv (``x`` the positions the contact grid's weights
+        were taken at). C and F keep the reference grid's values."""
+        p = wp.tid()
+        if clamped[p] != 0:
+            return
+        base, fx = local_coords(x[p], block.lo, scalar(1.0) / block.dx)
+        if outside_block(base, block.shape):
+            return
+        w0, w1, w2 = bspline_weights(fx)
+        dv = vec()
+        first = flat_index(base, block.shape)
+        for q in range(NS):
+            weight, of, idx = stencil_node(q, w0, w1, w2, first, block.shape)
+            dv = dv + weight * grid_dv[slot_of(ct, p, idx)]
+        o = out[0]
+        o.v[p] = o.v[p] + dv
+        o.x[p] = o.x[p] + dt * dv
+
+    return dict(g2p=g2p, reset_reductions=reset_reductions, remap_node_velocity=remap_node_velocity, remap_F=remap_F,
+                contact_gather=contact_gather)

@@ -141,17 +141,21 @@ def make_grid(dim: int, scalar, two_fields: bool = False) -> dict:
         pos = vec()
         for a in range(dim):
             pos[a] = gs.domain_lo[a] + scalar(n[a]) * gs.dx
+        pos0 = pos
         if gs.node_shift != 0 and m > scalar(0.0):
-            pos = pos + grid_u[idx] / m
+            pos0 = pos + grid_u[idx] / m
         vel = vec()
         if m > scalar(0.0) and not held:
-            vel = node_velocity(grid_p[idx], m, pos, gs)
+            vel = node_velocity(grid_p[idx], m, pos0, gs)
         if wp.static(two_fields):
             slot = idx + ct[0].n_nodes
             m1 = grid_m[slot]
             vel1 = vec()
             if m1 > scalar(0.0) and not held:
-                vel1 = node_velocity(grid_p[slot], m1, pos, gs)
+                pos1 = pos
+                if gs.node_shift != 0:
+                    pos1 = pos + grid_u[slot] / m1
+                vel1 = node_velocity(grid_p[slot], m1, pos1, gs)
                 if m > scalar(0.0):
                     vel, vel1 = resolve_contact(vel, vel1, m, m1, ct[0].grad_m[idx], ct[0].grad_m[slot], ct[0].mu[idx], ct[0].gap)
             grid_v[slot] = vel1
@@ -166,4 +170,29 @@ def make_grid(dim: int, scalar, two_fields: bool = False) -> dict:
         if with_mass != 0:
             dst_m[i] = dst_m[i] + src_m[i]
 
-    return dict(grid_update=grid_update, add_grid=add_grid, GridSettings=GridSettings)
+    @wp.kernel
+    def contact_resolve(
+        grid_p: wp.array(dtype=vec),
+        grid_m: wp.array(dtype=scalar),
+        ct: wp.array(dtype=ContactGrid),
+        grid_dv: wp.array(dtype=vec),
+    ):
+        """Total Lagrangian with contact: the correction dv of each field of a node (slots idx and idx + n_nodes)
+        that the contact law (:mod:`magsoro.mpm.contact`) makes to the fields' velocities p / m; zero where a
+        node has one field."""
+        idx = wp.tid()
+        slot = idx + ct[0].n_nodes
+        m0 = grid_m[idx]
+        m1 = grid_m[slot]
+        dv0 = vec()
+        dv1 = vec()
+        if m0 > scalar(0.0) and m1 > scalar(0.0):
+            v0 = grid_p[idx] / m0
+            v1 = grid_p[slot] / m1
+            n0, n1 = resolve_contact(v0, v1, m0, m1, ct[0].grad_m[idx], ct[0].grad_m[slot], ct[0].mu[idx], ct[0].gap)
+            dv0 = n0 - v0
+            dv1 = n1 - v1
+        grid_dv[idx] = dv0
+        grid_dv[slot] = dv1
+
+    return dict(grid_update=grid_update, add_grid=add_grid, GridSettings=GridSettings, contact_resolve=contact_resolve)

@@ -118,10 +118,12 @@ def make_p2g(dim: int, scalar, two_fields: bool = False) -> dict:
         mass: wp.array(dtype=scalar),
         block: Block,
         grid_u: wp.array(dtype=vec),
+        ct: wp.array(dtype=ContactGrid),
     ):
-        """Total Lagrangian: scatter each particle's mass-weighted displacement m (x - X) to the reference grid,
-        so that node i sits at X_i + sum w m u / sum w m in the current configuration, where the walls and
-        colliders act on it (exact for a rigid translation; first order in the displacement gradient)."""
+        """Total Lagrangian: scatter each particle's mass-weighted displacement m (x - X) to the reference grid
+        (into its own velocity field's slot when bodies have fields of their own), so that node i sits at
+        X_i + sum w m u / sum w m in the current configuration, where the walls and colliders act on it (exact for
+        a rigid translation; first order in the displacement gradient)."""
         p = wp.tid()
         base, fx = local_coords(X[p], block.lo, scalar(1.0) / block.dx)
         if outside_block(base, block.shape):
@@ -131,7 +133,7 @@ def make_p2g(dim: int, scalar, two_fields: bool = False) -> dict:
         first = flat_index(base, block.shape)
         for q in range(NS):
             weight, o, idx = stencil_node(q, w0, w1, w2, first, block.shape)
-            wp.atomic_add(grid_u, idx, weight * mu)
+            wp.atomic_add(grid_u, slot_of(ct, p, idx), weight * mu)
 
     @wp.kernel
     def contact_scan(
@@ -170,4 +172,33 @@ def make_p2g(dim: int, scalar, two_fields: bool = False) -> dict:
                     for c in range(dim):
                         wp.atomic_add(moments, row + 1 + dim + a * dim + c, wm * Xp[a] * Xp[c])
 
-    return dict(p2g=p2g, node_displacement=node_displacement, contact_scan=contact_scan)
+    @wp.kernel
+    def contact_scatter(
+        x: wp.array(dtype=vec),
+        v: wp.array(dtype=vec),
+        mass: wp.array(dtype=scalar),
+        block: Block,
+        grid: wp.array(dtype=GridArrays),
+        ct: wp.array(dtype=ContactGrid),
+    ):
+        """Total Lagrangian with contact: scatter the particles' trial velocities (after the reference-grid update)
+        as momentum, with mass and mass gradient, into their velocity fields on a grid over the current
+        configuration ``x`` (:mod:`magsoro.mpm.contact`), where :func:`contact_resolve` corrects them."""
+        p = wp.tid()
+        base, fx = local_coords(x[p], block.lo, scalar(1.0) / block.dx)
+        if outside_block(base, block.shape):
+            return  # the contact block is fitted to these positions every step
+        w0, w1, w2 = bspline_weights(fx)
+        mp = mass[p]
+        mv = mp * v[p]
+        g = grid[0]
+        first = flat_index(base, block.shape)
+        for q in range(NS):
+            weight, o, idx = stencil_node(q, w0, w1, w2, first, block.shape)
+            slot = slot_of(ct, p, idx)
+            wp.atomic_add(g.p, slot, weight * mv)
+            wp.atomic_add(g.m, slot, weight * mp)
+            if wp.static(two_fields):
+                wp.atomic_add(ct[0].grad_m, slot, (weight * mp) * (o - fx))
+
+    return dict(p2g=p2g, node_displacement=node_displacement, contact_scan=contact_scan, contact_scatter=contact_scatter)

@@ -392,20 +392,24 @@ class Solver:
         # the shared one) and keeps its own bounds and top speed; the grids are summed node by node
         self.threads = resolve_threads(st.threads, dev, model.n_particles)
         # contact: two velocity fields per node (magsoro.mpm.contact). Its scan and transfers index the particle
-        # arrays globally, so a CPU step with contact runs on one thread.
+        # arrays globally, so a CPU step with contact runs on one thread. The updated form resolves contact in its
+        # own grid update; the total form in a pass over a grid of the current configuration (_contact_pass).
         groups = int(model.host["contact_group"].max()) + 1
-        self._contact = st.contact is not None and st.contact.active(groups)
-        if self._contact:
-            if self._total:
-                raise ValueError("formulation 'total' keeps the grid on the reference configuration, where contact "
-                                 "between bodies cannot act; use formulation 'updated' for contact")
+        contact_on = st.contact is not None and st.contact.active(groups)
+        # two velocity fields per node on the step's grid. In the total form they only keep the contact groups
+        # apart on the reference grid (classified once, never resolved there); contact itself acts in _contact_pass
+        self._contact = contact_on
+        self._tcontact = contact_on and self._total
+        if contact_on:
             fr = st.contact.friction
             if fr.shape[0] < groups:
                 raise ValueError(f"contact friction table is {fr.shape[0]} x {fr.shape[0]}, the model has {groups} contact groups")
             self._contact_friction = wp.array(fr[:groups, :groups].ravel().astype(model.np_scalar), dtype=sc, device=dev)
             self._contact_groups = groups
+        if self._contact:
             self.threads = 1
             self.k = make_kernels(dim, sc, contact=True)
+        self._tc = None  # the total form's contact grid (allocated at the first pass)
         self._fields_per_node = 2 if self._contact else 1
         cuts = np.linspace(0, model.n_particles, self.threads + 1).round().astype(int)
         self._ranges = [(int(cuts[t]), int(cuts[t + 1])) for t in range(self.threads)]
@@ -484,8 +488,8 @@ class Solver:
             self.grid_v = wp.zeros(nf * cap, dtype=k["vec"], device=dev)
             self.grid_m = wp.zeros(nf * cap, dtype=sc, device=dev)
             self.grid_clamp = wp.zeros(cap, dtype=wp.int32, device=dev)
-            # total Lagrangian: mass-weighted node displacements (where walls and colliders act)
-            self.grid_u = wp.zeros(cap if self._total else 1, dtype=k["vec"], device=dev)
+            # total Lagrangian: mass-weighted node displacements (where walls and colliders act), per field
+            self.grid_u = wp.zeros(nf * cap if self._total else 1, dtype=k["vec"], device=dev)
             if self._contact:
                 dim = self.dim
                 self._ct_split = wp.zeros(cap, dtype=wp.int32, device=dev)
@@ -508,7 +512,7 @@ class Solver:
         slots = self._fields_per_node * need
         self._grid_views = [self.grid_p[:slots], self.grid_m[:slots], self.grid_clamp[:need]]
         if self._total:
-            self._grid_views += [self.grid_u[:need]]
+            self._grid_views += [self.grid_u[:slots]]
         if self._contact:
             # zeroed each step (the views after the first three); the group bounds are reset apart
             self._grid_views += [self._ct_grad[: 2 * need]]
@@ -529,6 +533,26 @@ class Solver:
         eps = 1e-9 * m.dx  # round-off of the two forms of the same test
         self._safe_lo = np.maximum(fit_lo, m.domain_lo) + eps
         self._safe_hi = np.minimum(fit_hi, m.domain_hi) - eps
+        if self._tcontact:
+            self._classify_reference()
+
+    def _classify_reference(self) -> None:
+        """Total form with contact: split the reference grid's nodes where two contact groups meet, once per grid
+        block, so that the groups' velocity fields stay apart there (bodies near each other in the reference
+        configuration would otherwise move as one)."""
+        m, k, dev, sc = self.model, self.k, self.device, self.scalar
+        need = self.n_active
+        block = k["Block"]()
+        block.lo = k["vec"](*[sc(m.domain_lo[a] + self.org[a] * m.dx) for a in range(self.dim)])
+        block.shape = k["ivec"](*[int(v) for v in self.shape])
+        block.dx = sc(m.dx)
+        for v, fill in zip(self._ct_group_views, (2**31 - 1, -1)):
+            v.fill_(fill)
+        wp.launch(k["contact_scan"], dim=m.n_particles, device=dev, inputs=[
+            self._X0, m.X0, m.mass, m.contact_group, block, 0, self._ct_gmin, self._ct_gmax, self._ct_moments])
+        wp.launch(k["contact_classify"], dim=need, device=dev, inputs=[
+            self._ct_gmin, self._ct_gmax, self._ct_moments, 0, sc(1.0), self._contact_friction, self._contact_groups,
+            self._ct_split, self._ct_xbar, self._ct_axis, self._ct_mu])
 
     def _majority_held_nodes(self) -> np.ndarray:
         """Held-node mask of the grid block for the total-Lagrangian form (flat, int32): a node is held when at
@@ -589,8 +613,9 @@ class Solver:
         gs = grid_settings(m, st, self.gravity, self._collider_array, len(control.colliders), 0.0)
         ct = contact_grid(m)
         if self._contact:
-            ct = contact_grid(
-                m, active=1, n_nodes=n_act, gap=sc(st.contact.gap), group=m.contact_group, X=m.X0, split=self._ct_split,
+            ct = contact_grid(  # the total form's reference grid keeps the fields apart but never resolves (gap 0)
+                m, active=1, n_nodes=n_act, gap=sc(0.0 if self._total else st.contact.gap), group=m.contact_group, X=m.X0,
+                split=self._ct_split,
                 gmin=self._ct_gmin, xbar=self._ct_xbar, axis=self._ct_axis, mu=self._ct_mu, grad_m=self._ct_grad,
             )
         f_update = F_TOTAL if self._total else (F_FROM_REMAP if self._remap else F_FROM_GRID)
@@ -642,9 +667,9 @@ class Solver:
             "_contact_grid": ct,  # referenced by pointer from the recorded launches
         }
         if self._total:
-            L["node_displacement"] = nodes(k["node_displacement"], [self._X0, state_in.x, m.mass, block, self.grid_u],
+            L["node_displacement"] = nodes(k["node_displacement"], [self._X0, state_in.x, m.mass, block, self.grid_u, ct],
                                            m.n_particles)
-        if self._contact:
+        if self._contact and not self._total:
             c = st.contact
             fold = 1 if c.self_contact else 0
             L["contact"] = [
@@ -755,6 +780,8 @@ class Solver:
         self._update_grid(L)
         tick = self._phase("grid", tick)
         self._gather(L)
+        if self._tcontact:
+            self._contact_pass(state_in, state_out, dt)
         tick = self._phase("g2p", tick)
         self._bounds_valid = True
         state_out.time = t + dt
@@ -834,7 +861,7 @@ class Solver:
     def _scatter(self, L: dict) -> None:
         """Contact scan (with contact), p2g on every thread, the threads' grids summed, node displacements (total
         Lagrangian)."""
-        if self._contact:
+        if self._contact and not self._total:
             for v, fill in zip(self._ct_group_views, (2**31 - 1, -1)):
                 v.fill_(fill)
             for one in L["contact"]:
@@ -877,6 +904,71 @@ class Solver:
                 one.launch()
             L["remap_nodes"].launch()
             self._parallel(L["remap_F"])
+
+    def _contact_pass(self, state_in: State, state_out: State, dt: float) -> None:
+        """Total Lagrangian with contact (between bodies, self-contact): the reference grid cannot see bodies meet,
+        so after its update the particles' trial velocities go to a grid over the current configuration (the
+        start-of-step positions, as the updated form's weights), with two velocity fields per node classified as
+        in the updated form; the contact law corrects the fields there, and each particle takes the correction of
+        its own field into v and x (not into C or F). Counted in the g2p phase."""
+        m, dev, sc, dim = self.model, self.device, self.scalar, self.dim
+        kc = make_kernels(dim, sc, contact=True)
+        x = state_in.x
+        xs = x.numpy()
+        lo, hi = xs.min(axis=0).astype(np.float64), xs.max(axis=0).astype(np.float64)
+        if not (np.all(np.isfinite(lo)) and np.all(np.isfinite(hi))):
+            raise SimulationError("particle positions are not finite", state_in.step, state_in.time, input_rejected=True)
+        first, last = self._node_range(lo, hi)
+        first, last = first - 1, last + 1
+        shape = (last - first + 1).astype(np.int64)
+        n = int(np.prod(shape))
+        c = self.settings.contact
+        fold = 1 if c.self_contact else 0
+        tc = self._tc
+        if tc is None or n > tc["cap"]:
+            cap = int(n * 1.3) + 64
+            k = self.k
+            tc = self._tc = {
+                "cap": cap,
+                "gmin": wp.zeros(cap, dtype=wp.int32, device=dev), "gmax": wp.zeros(cap, dtype=wp.int32, device=dev),
+                "moments": wp.zeros(cap * (1 + dim + dim * dim) if fold else 1, dtype=sc, device=dev),
+                "split": wp.zeros(cap, dtype=wp.int32, device=dev), "xbar": wp.zeros(cap, dtype=k["vec"], device=dev),
+                "axis": wp.zeros(cap, dtype=k["vec"], device=dev), "mu": wp.zeros(cap, dtype=sc, device=dev),
+                "grad": wp.zeros(2 * cap, dtype=k["vec"], device=dev), "p": wp.zeros(2 * cap, dtype=k["vec"], device=dev),
+                "m": wp.zeros(2 * cap, dtype=sc, device=dev), "dv": wp.zeros(2 * cap, dtype=k["vec"], device=dev),
+                "clamp": wp.zeros(1, dtype=wp.int32, device=dev), "key": None,
+            }
+        tc["gmin"][:n].fill_(2**31 - 1)
+        tc["gmax"][:n].fill_(-1)
+        for name, size in (("moments", n * (1 + dim + dim * dim) if fold else 0), ("grad", 2 * n), ("p", 2 * n), ("m", 2 * n)):
+            if size:
+                tc[name][:size].zero_()
+        block = kc["Block"]()
+        block.lo = kc["vec"](*[sc(m.domain_lo[a] + first[a] * m.dx) for a in range(dim)])
+        block.shape = kc["ivec"](*[int(v) for v in shape])
+        block.dx = sc(m.dx)
+        key = (n, id(tc["gmin"]), id(state_out.x))
+        if tc["key"] != key:  # the argument structs, made again when the block size or the output state changes
+            tc["ct"] = contact_grid(
+                m, active=1, n_nodes=n, gap=sc(c.gap), group=m.contact_group, X=m.X0, split=tc["split"], gmin=tc["gmin"],
+                xbar=tc["xbar"], axis=tc["axis"], mu=tc["mu"], grad_m=tc["grad"],
+            )
+            grid = kc["GridArrays"]()
+            grid.p, grid.m, grid.clamp = tc["p"], tc["m"], tc["clamp"]
+            tc["grid"] = wp.array([grid], dtype=kc["GridArrays"], device=dev)
+            out = kc["Particles"]()
+            out.x, out.v, out.C, out.F = state_out.x, state_out.v, state_out.C, state_out.F
+            tc["out"] = wp.array([out], dtype=kc["Particles"], device=dev)
+            tc["key"] = key
+        ct, N = tc["ct"], m.n_particles
+        wp.launch(kc["contact_scan"], dim=N, device=dev, inputs=[
+            x, m.X0, m.mass, m.contact_group, block, fold, tc["gmin"], tc["gmax"], tc["moments"]])
+        wp.launch(kc["contact_classify"], dim=n, device=dev, inputs=[
+            tc["gmin"], tc["gmax"], tc["moments"], fold, sc((c.fold_spread * m.dx) ** 2), self._contact_friction,
+            self._contact_groups, tc["split"], tc["xbar"], tc["axis"], tc["mu"]])
+        wp.launch(kc["contact_scatter"], dim=N, device=dev, inputs=[x, state_out.v, m.mass, block, tc["grid"], ct])
+        wp.launch(kc["contact_resolve"], dim=n, device=dev, inputs=[tc["p"], tc["m"], ct, tc["dv"]])
+        wp.launch(kc["contact_gather"], dim=N, device=dev, inputs=[x, m.clamped, block, sc(dt), tc["dv"], tc["out"], ct])
 
     def _raise_on_error(self, err, state_in: State) -> None:
         if err[0]:

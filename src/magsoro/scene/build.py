@@ -576,11 +576,6 @@ def build(scene: Scene, device: str | None = None, source: str = "scene", magnet
             raise SceneError(f"{source}: fields[{i}]: {exc}") from None
     colliders = [make_collider(c, dim, sim.plane_z) for c in scene.colliders]
     touching = contact.active(int(body_group.max()) + 1)
-    if sim.formulation == "total" and touching:
-        raise SceneError(
-            f"{source}: simulation.formulation = 'total' keeps the grid on the reference configuration, where "
-            f"contact between bodies cannot act; use formulation = 'updated' or 'auto', or contact.friction = 'sticky'"
-        )
     # 'auto': the form that settles, unless bodies (or parts of one) touch each other
     formulation = ("updated" if touching else "total") if sim.formulation == "auto" else sim.formulation
     settings = SolverSettings(

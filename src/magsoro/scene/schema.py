@@ -591,9 +591,10 @@ class Simulation(Strict):
         description="MPM formulation: 'total' (total Lagrangian: the grid stays on the reference configuration, so "
         "loaded bodies settle to a static shape that does not depend on the time step; colliders and walls act at the "
         "nodes' current positions; a clamp holds the nodes whose mass is mostly clamped, i.e. acts at the clamped "
-        "region's face), 'updated' (updated Lagrangian: the grid weights follow the particles; needed for contact "
-        "between bodies and self-contact; loaded slender bodies creep slowly) or 'auto' (total, unless the scene has "
-        "contact between bodies or self-contact, then updated; run.json names the one used). docs/engine.md.",
+        "region's face; contact between bodies and self-contact by a pass over a current-configuration grid, less "
+        "accurate than the updated form's), 'updated' (updated Lagrangian: the grid weights follow the particles; the "
+        "most accurate contact; loaded slender bodies creep slowly) or 'auto' (total, unless the scene has contact "
+        "between bodies or self-contact, then updated; run.json names the one used). docs/engine.md.",
     )
     threads: int | None = Field(
         default=None,
