@@ -157,3 +157,32 @@ def test_values_of_the_wrong_type_are_not_coerced(path, value, key):
     target[path[-1]] = value
     with pytest.raises(SceneError, match=key.replace("[", r"\[").replace("]", r"\]").replace(".", r"\.")):
         parse_scene(scene)
+
+
+@pytest.mark.parametrize("path, value, message", [
+    (("colliders", 0, "normal"), [0.0, 0.0], r"colliders\[0\]\.normal: must be a direction of non-zero length"),
+    (("bodies", 0, "shape", "size"), [0.004, -0.002], r"bodies\[0\]\.shape\.size: every edge length must be > 0"),
+])
+def test_degenerate_vectors_are_refused(path, value, message):
+    """A zero normal or a negative size (finding 7: a box collider with negative size was accepted)."""
+    scene = copy.deepcopy(BASE)
+    target = scene
+    for p in path[:-1]:
+        target = target[p]
+    target[path[-1]] = value
+    with pytest.raises(SceneError, match=message):
+        parse_scene(scene)
+
+
+def test_box_collider_size_and_cylinder_axis_are_checked():
+    """Finding 6: a cylinder axis of the wrong length gave a reshape error; finding 7: negative box size."""
+    scene = copy.deepcopy(BASE)
+    scene["simulation"].update(dim=3, domain_lo=[0.0, 0.0, 0.0], domain_hi=[0.02, 0.02, 0.02])
+    scene["bodies"][0]["shape"] = {"type": "cylinder", "center": [0.01, 0.01, 0.01], "radius": 0.002, "length": 0.004,
+                                   "axis": [0.0, 1.0]}
+    scene["colliders"] = [{"type": "box", "center": [0.01, 0.01, 0.002], "size": [0.01, -0.01, 0.002]}]
+    with pytest.raises(SceneError, match=r"bodies\[0\]\.shape\.axis: List should have at least 3 items"):
+        parse_scene(copy.deepcopy(scene))
+    scene["bodies"][0]["shape"]["axis"] = [0.0, 1.0, 0.0]
+    with pytest.raises(SceneError, match=r"colliders\[0\]\.size: every edge length must be > 0"):
+        parse_scene(scene)

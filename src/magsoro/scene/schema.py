@@ -11,11 +11,28 @@ from __future__ import annotations
 import math
 from typing import Annotated, Literal, Union
 
-from pydantic import BaseModel, ConfigDict, Discriminator, Field, PlainValidator, PrivateAttr, Tag, model_validator
+from pydantic import AfterValidator, BaseModel, ConfigDict, Discriminator, Field, PlainValidator, PrivateAttr, Tag, model_validator
 
 from magsoro.mpm.materials import DEFAULT_LAW, LAW_NAMES, LAWS, PARAMETER_KEYS
 
 Vec = list[float]
+
+
+def _nonzero(v: list[float]) -> list[float]:
+    if not any(c != 0.0 for c in v):
+        raise ValueError(f"must be a direction of non-zero length (got {v})")
+    return v
+
+
+def _positive(v: list[float]) -> list[float]:
+    if not all(c > 0.0 for c in v):
+        raise ValueError(f"every edge length must be > 0 m (got {v})")
+    return v
+
+
+Direction = Annotated[list[float], AfterValidator(_nonzero)]  # a direction: any non-zero length
+Axis3 = Annotated[list[float], Field(min_length=3, max_length=3), AfterValidator(_nonzero)]  # a 3D axis
+Sizes = Annotated[list[float], AfterValidator(_positive)]  # edge lengths, m
 
 
 class Strict(BaseModel):
@@ -33,7 +50,7 @@ class BoxShape(Strict):
 
     type: Literal["box"]
     center: Vec = Field(description="Centre of the box, m.")
-    size: Vec = Field(description="Full edge lengths along x, y, z, m.")
+    size: Sizes = Field(description="Full edge lengths along x, y, z, m.")
 
 
 class CylinderShape(Strict):
@@ -43,7 +60,7 @@ class CylinderShape(Strict):
     center: Vec = Field(description="Centre of the cylinder, m.")
     radius: float = Field(gt=0, description="Radius, m.")
     length: float = Field(gt=0, description="Length along the axis, m.")
-    axis: Vec = Field(default=[0.0, 0.0, 1.0], description="Axis direction (any length).")
+    axis: Axis3 = Field(default=[0.0, 0.0, 1.0], description="Axis direction (3 components, any non-zero length).")
 
 
 class SphereShape(Strict):
@@ -59,7 +76,7 @@ class RectangleShape(Strict):
 
     type: Literal["rectangle"]
     center: Vec = Field(description="Centre, m (2 components).")
-    size: Vec = Field(description="Full edge lengths along x and y, m.")
+    size: Sizes = Field(description="Full edge lengths along x and y, m.")
     angle: float = Field(default=0.0, description="Rotation about z, degrees.")
 
 
@@ -92,7 +109,7 @@ class TubeShape(Strict):
     outer_radius: float = Field(gt=0, description="Outer radius, m.")
     inner_radius: float = Field(ge=0, description="Inner radius, m (< outer_radius).")
     length: float = Field(gt=0, description="Length along the axis, m.")
-    axis: Vec = Field(default=[0.0, 0.0, 1.0], description="Axis direction (any length).")
+    axis: Axis3 = Field(default=[0.0, 0.0, 1.0], description="Axis direction (3 components, any non-zero length).")
 
 
 class ExtrusionShape(Strict):
@@ -349,7 +366,7 @@ class HalfSpaceCollider(ColliderBase):
 
     type: Literal["half_space"]
     point: Vec = Field(description="A point on the plane, m.")
-    normal: Vec = Field(description="Outward normal (towards the free side).")
+    normal: Direction = Field(description="Outward normal (towards the free side).")
 
 
 class BoxCollider(ColliderBase):
@@ -357,7 +374,7 @@ class BoxCollider(ColliderBase):
 
     type: Literal["box"]
     center: Vec = Field(description="Centre, m.")
-    size: Vec = Field(description="Full edge lengths, m.")
+    size: Sizes = Field(description="Full edge lengths, m.")
 
 
 class SphereCollider(ColliderBase):
@@ -375,7 +392,7 @@ class CylinderCollider(ColliderBase):
     center: Vec = Field(description="Centre, m.")
     radius: float = Field(gt=0, description="Radius, m.")
     length: float = Field(gt=0, description="Length, m.")
-    axis: Vec = Field(default=[0.0, 0.0, 1.0], description="Axis direction.")
+    axis: Axis3 = Field(default=[0.0, 0.0, 1.0], description="Axis direction (3 components, any non-zero length).")
 
 
 AnyCollider = Annotated[Union[HalfSpaceCollider, BoxCollider, SphereCollider, CylinderCollider], Field(discriminator="type")]
