@@ -20,6 +20,16 @@ BASE = {
 }
 
 
+def _base_with(path: tuple, value) -> dict:
+    """A copy of BASE with the entry at ``path`` (keys and list indices) set to ``value``."""
+    scene = copy.deepcopy(BASE)
+    target = scene
+    for p in path[:-1]:
+        target = target[p]
+    target[path[-1]] = value
+    return scene
+
+
 @pytest.mark.parametrize("path, value, key", [
     (("bodies", 0, "material", "density"), math.inf, "bodies[0].material.density"),
     (("bodies", 0, "material", "shear_modulus"), math.nan, "bodies[0].material.shear_modulus"),
@@ -31,12 +41,8 @@ BASE = {
     (("fields", 0, "B"), [0.0, math.inf, 0.0], "fields[0]"),
 ])
 def test_non_finite_values_are_refused_naming_the_key(path, value, key):
-    scene = copy.deepcopy(BASE)
-    parse_scene(copy.deepcopy(scene))  # the base scene is valid
-    target = scene
-    for p in path[:-1]:
-        target = target[p]
-    target[path[-1]] = value
+    parse_scene(copy.deepcopy(BASE))  # the base scene is valid
+    scene = _base_with(path, value)
     with pytest.raises(SceneError) as exc:
         parse_scene(scene)
     msg = str(exc.value)
@@ -150,11 +156,7 @@ def test_a_state_that_fails_the_checks_is_not_kept_as_last_good():
 ])
 def test_values_of_the_wrong_type_are_not_coerced(path, value, key):
     """`damping = true` became 1.0, `dx = "2e-4"` became 2e-4, `magnetic = "yes"` became true (finding 12)."""
-    scene = copy.deepcopy(BASE)
-    target = scene
-    for p in path[:-1]:
-        target = target[p]
-    target[path[-1]] = value
+    scene = _base_with(path, value)
     with pytest.raises(SceneError, match=key.replace("[", r"\[").replace("]", r"\]").replace(".", r"\.")):
         parse_scene(scene)
 
@@ -165,11 +167,7 @@ def test_values_of_the_wrong_type_are_not_coerced(path, value, key):
 ])
 def test_degenerate_vectors_are_refused(path, value, message):
     """A zero normal or a negative size (finding 7: a box collider with negative size was accepted)."""
-    scene = copy.deepcopy(BASE)
-    target = scene
-    for p in path[:-1]:
-        target = target[p]
-    target[path[-1]] = value
+    scene = _base_with(path, value)
     with pytest.raises(SceneError, match=message):
         parse_scene(scene)
 

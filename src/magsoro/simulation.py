@@ -30,6 +30,7 @@ class RunResult:
     time: float
     wall_time: float
     message: str = ""
+    signal: int | None = None  # the signal that stopped an interrupted run (SIGTERM); None for Ctrl-C or none
 
 
 @dataclass
@@ -47,16 +48,17 @@ class RelaxResult:
     message: str = ""
     stalled: bool = False  # the cycle peaks stopped falling above the tolerance (round-off floor)
 
-
-
-def check_run_length(duration: float, every: float) -> None:
-    """Refuse a run whose duration or record interval is not a finite positive number, or that would record more
-    than MAX_RECORDS frames (an unbounded output)."""
+def check_run_length(duration: float, every: float | None = None) -> float:
+    """The record interval of a run of ``duration`` s (``every``, default duration / 50), refusing a duration or
+    interval that is not a finite positive number and more than MAX_RECORDS records (an unbounded output)."""
+    every = every or duration / 50.0
     if not (math.isfinite(duration) and duration > 0 and math.isfinite(every) and every > 0):
         raise SceneError(f"run: duration ({duration!r} s) and the record interval ({every!r} s) must be finite and > 0")
     if duration / every > MAX_RECORDS:
         raise SceneError(f"run: {duration / every:.3g} records of {every:g} s over {duration:g} s; at most {MAX_RECORDS:.0e} "
                          f"are allowed: raise output.every to at least {duration / MAX_RECORDS:.3g} s")
+    return every
+
 
 class Simulation:
     """A scene made runnable: Model, Control, Solver and the current State.
@@ -293,16 +295,15 @@ class Simulation:
         ``progress(sim)`` after each record. SimulationError and KeyboardInterrupt end the run with status
         'failed' / 'interrupted'; the state kept is then the last good one."""
         duration = self.scene.simulation.duration if duration is None else float(duration)
-        every = record_every or self.scene.output.every or duration / 50.0
+        every = check_run_length(duration, record_every or self.scene.output.every)
         t0 = self.state.time
         t_end = t0 + duration
         wall0 = _time.perf_counter()
-        check_run_length(duration, every)
         n_records = int(math.floor(duration / every + 1e-9))
         targets = [t0 + k * every for k in range(1, n_records + 1)]
         if not targets or targets[-1] < t_end - 1e-12 * max(1.0, t_end):
             targets.append(t_end)
-        status, message = "completed", ""
+        status, message, signum = "completed", "", None
         try:
             if record is not None:
                 record(self)
@@ -318,6 +319,7 @@ class Simulation:
             message = f"step {exc.step}, t = {exc.time:.6g} s: {exc}"
         except KeyboardInterrupt as exc:
             status = "interrupted"
-            who = str(exc) if isinstance(exc, Terminated) else "interrupted by the user"
+            signum = exc.signum if isinstance(exc, Terminated) else None
+            who = str(exc) if signum is not None else "interrupted by the user"
             message = f"{who} at t = {self.state.time:.6g} s"
-        return RunResult(status, self.steps, self.state.time, _time.perf_counter() - wall0, message)
+        return RunResult(status, self.steps, self.state.time, _time.perf_counter() - wall0, message, signum)

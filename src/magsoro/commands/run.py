@@ -45,7 +45,7 @@ def run(args) -> int:
 
         echo = apply_preview(echo, args.scene)
     duration = args.duration if args.duration is not None else scene.simulation.duration
-    check_run_length(duration, scene.output.every or duration / 50.0)  # before the output folder is touched
+    check_run_length(duration, scene.output.every)  # before the output folder is touched
     writer = RunWriter(args.out, sim, echo, particles=scene.output.particles)
     if getattr(args, "equilibrium", False):
         return _relax(args, sim, writer, duration, wall0)
@@ -74,7 +74,7 @@ def run(args) -> int:
     if result.status != "completed":
         print(f"magsoro run: {result.status}: {result.message}", file=sys.stderr)
         print(f"results so far in {args.out} (run.json status '{result.status}')", file=sys.stderr)
-        return 1 if result.status == "failed" else _interrupted_status(result.message)
+        return 1 if result.status == "failed" else _interrupted_status(result.signal)
     if not args.quiet:
         print(f"{result.steps} steps in {result.wall_time:.1f} s ({result.steps / max(result.wall_time, 1e-9):.0f} steps/s), dt {sim.dt_min:.3g}-{sim.dt_max:.3g} s; results in {args.out}")
     return 0
@@ -91,6 +91,7 @@ def _relax(args, sim, writer, t_loads: float, wall0: float) -> int:
     sim.state.time = t_loads
     if not args.quiet:
         print(f"relaxing under the loads at t = {t_loads:.6g} s ...", file=sys.stderr)
+    signum = None
     try:
         relax = sim.relax()
         # at the round-off floor the state is as static as the precision allows: a result, with the reason
@@ -103,22 +104,22 @@ def _relax(args, sim, writer, t_loads: float, wall0: float) -> int:
         steps, wall = sim.steps, time.perf_counter() - wall0
     except KeyboardInterrupt as exc:
         relax, status, message = None, "interrupted", str(exc) or "interrupted by the user"
+        signum = getattr(exc, "signum", None)  # Terminated carries its signal
         steps, wall = sim.steps, time.perf_counter() - wall0
     if relax is not None:
         writer.info["equilibrium"] = asdict(relax)
         writer.record(sim)
-    result = RunResult(status, steps, sim.time, wall, message)
+    result = RunResult(status, steps, sim.time, wall, message, signum)
     writer.finish(result, time.perf_counter() - wall0)
     if status != "completed":
         print(f"magsoro run --equilibrium: {status}: {message}", file=sys.stderr)
-        return 1 if status == "failed" else _interrupted_status(message)
+        return 1 if status == "failed" else _interrupted_status(signum)
     if not args.quiet:
         print(f"{message} in {wall:.1f} s; results in {args.out}")
     return 0
 
 
-def _interrupted_status(message: str) -> int:
-    """Exit status of an interrupted run: 128 + 15 after SIGTERM, 130 (128 + SIGINT) after Ctrl-C."""
-    import signal
-
-    return 128 + int(signal.SIGTERM) if message.startswith("terminated by SIGTERM") else 130
+def _interrupted_status(signum: int | None) -> int:
+    """Exit status of an interrupted run: 128 + the signal that stopped it (143 after SIGTERM), 130 (128 + SIGINT)
+    after Ctrl-C."""
+    return 128 + signum if signum is not None else 130

@@ -29,7 +29,7 @@ from magsoro.errors import MagsoroError
 from magsoro.fields.device import accumulate_kernel
 from magsoro.mpm.colliders import COLLIDER_STRIDE, MODES, collider_table
 from magsoro.mpm.kernels import F_FROM_GRID, F_FROM_REMAP
-from magsoro.mpm.solver import bodies_array, contact_grid, grid_settings
+from magsoro.mpm.solver import block_struct, bodies_array, contact_grid, grid_settings
 
 
 class DiffError(MagsoroError):
@@ -178,7 +178,6 @@ class Rollout:
         ivec, vec = k["ivec"], k["vec"]
         self._shape_v = ivec(*[int(s) for s in self.shape])
         self._org_v = ivec(*[int(o) for o in self.org])
-        self._grid_lo = vec(*[sc(m.domain_lo[a] + self.org[a] * m.dx) for a in range(dim)])
         g = np.zeros(dim)
         gin = np.asarray(st.gravity, dtype=np.float64).ravel()
         g[: min(dim, len(gin))] = gin[:dim]
@@ -229,8 +228,7 @@ class Rollout:
         checks.bounds, checks.max_speed, checks.error = self.bounds, self.max_speed, self.error
         self._checks = wp.array([checks], dtype=k["Checks"], device=dev)
         self._bodies = bodies_array(m)
-        self._block = k["Block"]()
-        self._block.lo, self._block.shape, self._block.dx = self._grid_lo, self._shape_v, sc(m.dx)
+        self._block = block_struct(m, self.org, self.shape)
         self.G_zero = wp.zeros(n, dtype=k["m3"], device=dev)
         f64 = sc == wp.float64
         self._fill = _fill_uniform_f64 if f64 else _fill_uniform_f32

@@ -110,6 +110,31 @@ def bodies_array(model: "Model", cut=lambda arr: arr) -> wp.array:
     return wp.array([b], dtype=k["Bodies"], device=model.device)
 
 
+def block_struct(model: "Model", org, shape):
+    """The kernels' Block struct (:mod:`magsoro.mpm.stencil`) of the grid block of ``model``'s grid starting at
+    global node ``org`` with ``shape`` nodes."""
+    k, sc = model.kernels, model.scalar
+    block = k["Block"]()
+    block.lo = k["vec"](*[sc(model.domain_lo[a] + org[a] * model.dx) for a in range(model.dim)])
+    block.shape = k["ivec"](*[int(v) for v in shape])
+    block.dx = sc(model.dx)
+    return block
+
+
+def contact_node_arrays(model: "Model", cap: int, fold: bool) -> dict:
+    """Node arrays of the contact classification (:mod:`magsoro.mpm.contact`) for a grid of ``cap`` nodes: group
+    bounds, node class, fold mean and axis, the pair's friction, the two fields' mass gradients and (``fold``)
+    the reference-position moments."""
+    k, sc, dev, dim = model.kernels, model.scalar, model.device, model.dim
+    return {
+        "split": wp.zeros(cap, dtype=wp.int32, device=dev), "gmin": wp.zeros(cap, dtype=wp.int32, device=dev),
+        "gmax": wp.zeros(cap, dtype=wp.int32, device=dev), "xbar": wp.zeros(cap, dtype=k["vec"], device=dev),
+        "axis": wp.zeros(cap, dtype=k["vec"], device=dev), "mu": wp.zeros(cap, dtype=sc, device=dev),
+        "grad": wp.zeros(2 * cap, dtype=k["vec"], device=dev),
+        "moments": wp.zeros(cap * (1 + dim + dim * dim) if fold else 1, dtype=sc, device=dev),
+    }
+
+
 def contact_grid(model: "Model", **fields) -> wp.array:
     """The kernels' contact argument: a one-element array of :class:`magsoro.mpm.contact` ContactGrid with
     ``fields`` set; with none, contact is off (one velocity field per node)."""
@@ -491,16 +516,7 @@ class Solver:
             # total Lagrangian: mass-weighted node displacements (where walls and colliders act), per field
             self.grid_u = wp.zeros(nf * cap if self._total else 1, dtype=k["vec"], device=dev)
             if self._contact:
-                dim = self.dim
-                self._ct_split = wp.zeros(cap, dtype=wp.int32, device=dev)
-                self._ct_gmin = wp.zeros(cap, dtype=wp.int32, device=dev)
-                self._ct_gmax = wp.zeros(cap, dtype=wp.int32, device=dev)
-                self._ct_xbar = wp.zeros(cap, dtype=k["vec"], device=dev)
-                self._ct_axis = wp.zeros(cap, dtype=k["vec"], device=dev)
-                self._ct_mu = wp.zeros(cap, dtype=sc, device=dev)
-                self._ct_grad = wp.zeros(2 * cap, dtype=k["vec"], device=dev)
-                fold = self.settings.contact.self_contact
-                self._ct_moments = wp.zeros(cap * (1 + dim + dim * dim) if fold else 1, dtype=sc, device=dev)
+                self._ct = contact_node_arrays(self.model, cap, self.settings.contact.self_contact)
             self._thread_grids = [
                 (wp.zeros(cap, dtype=k["vec"], device=dev), wp.zeros(cap, dtype=sc, device=dev)) for _ in range(self.threads - 1)
             ]
@@ -515,10 +531,10 @@ class Solver:
             self._grid_views += [self.grid_u[:slots]]
         if self._contact:
             # zeroed each step (the views after the first three); the group bounds are reset apart
-            self._grid_views += [self._ct_grad[: 2 * need]]
+            self._grid_views += [self._ct["grad"][: 2 * need]]
             if self.settings.contact.self_contact:
-                self._grid_views += [self._ct_moments[: need * (1 + self.dim + self.dim * self.dim)]]
-            self._ct_group_views = [self._ct_gmin[:need], self._ct_gmax[:need]]
+                self._grid_views += [self._ct["moments"][: need * (1 + self.dim + self.dim * self.dim)]]
+            self._ct_group_views = [self._ct["gmin"][:need], self._ct["gmax"][:need]]
         self._thread_grid_views = [(gp[:need], gm[:need]) for gp, gm in self._thread_grids]
         if self._on_cpu:
             self._grid_np = [v.numpy() for v in self._grid_views] + [a.numpy() for pair in self._thread_grid_views for a in pair]
@@ -540,19 +556,27 @@ class Solver:
         """Total form with contact: split the reference grid's nodes where two contact groups meet, once per grid
         block, so that the groups' velocity fields stay apart there (bodies near each other in the reference
         configuration would otherwise move as one)."""
-        m, k, dev, sc = self.model, self.k, self.device, self.scalar
-        need = self.n_active
-        block = k["Block"]()
-        block.lo = k["vec"](*[sc(m.domain_lo[a] + self.org[a] * m.dx) for a in range(self.dim)])
-        block.shape = k["ivec"](*[int(v) for v in self.shape])
-        block.dx = sc(m.dx)
+        m, dev = self.model, self.device
         for v, fill in zip(self._ct_group_views, (2**31 - 1, -1)):
             v.fill_(fill)
-        wp.launch(k["contact_scan"], dim=m.n_particles, device=dev, inputs=[
-            self._X0, m.X0, m.mass, m.contact_group, block, 0, self._ct_gmin, self._ct_gmax, self._ct_moments])
-        wp.launch(k["contact_classify"], dim=need, device=dev, inputs=[
-            self._ct_gmin, self._ct_gmax, self._ct_moments, 0, sc(1.0), self._contact_friction, self._contact_groups,
-            self._ct_split, self._ct_xbar, self._ct_axis, self._ct_mu])
+        scan, classify = self._classify_inputs(self._X0, block_struct(self.model, self.org, self.shape), 0, self._ct)
+        wp.launch(self.k["contact_scan"], dim=m.n_particles, device=dev, inputs=scan)
+        wp.launch(self.k["contact_classify"], dim=self.n_active, device=dev, inputs=classify)
+
+    def _classify_inputs(self, x, block, fold: int, arrays: dict):
+        """Inputs of the contact scan (particles at ``x`` on ``block``) and of the node classification, over the
+        node arrays ``arrays`` (:func:`contact_node_arrays`)."""
+        m, c = self.model, self.settings.contact
+        scan = [x, m.X0, m.mass, m.contact_group, block, fold, arrays["gmin"], arrays["gmax"], arrays["moments"]]
+        classify = [arrays["gmin"], arrays["gmax"], arrays["moments"], fold, self.scalar((c.fold_spread * m.dx) ** 2),
+                    self._contact_friction, self._contact_groups, arrays["split"], arrays["xbar"], arrays["axis"], arrays["mu"]]
+        return scan, classify
+
+    def _contact_grid(self, arrays: dict, n_nodes: int, gap: float) -> wp.array:
+        """The kernels' ContactGrid over the node arrays ``arrays`` of a grid of ``n_nodes`` nodes."""
+        return contact_grid(self.model, active=1, n_nodes=n_nodes, gap=self.scalar(gap), group=self.model.contact_group,
+                            X=self.model.X0, split=arrays["split"], gmin=arrays["gmin"], xbar=arrays["xbar"],
+                            axis=arrays["axis"], mu=arrays["mu"], grad_m=arrays["grad"])
 
     def _majority_held_nodes(self) -> np.ndarray:
         """Held-node mask of the grid block for the total-Lagrangian form (flat, int32): a node is held when at
@@ -602,22 +626,15 @@ class Solver:
         argument structs of the thread's slices (:mod:`magsoro.mpm.stencil`)."""
         m, k, st, dev, sc = self.model, self.k, self.settings, self.device, self.scalar
         n_act = self.n_active
-        block = k["Block"]()
-        block.lo = k["vec"](*[sc(m.domain_lo[a] + self.org[a] * m.dx) for a in range(self.dim)])
-        block.shape = k["ivec"](*[int(s) for s in self.shape])
-        block.dx = sc(m.dx)
+        block = block_struct(self.model, self.org, self.shape)
         org = k["ivec"](*[int(o) for o in self.org])
         grid_p = [self.grid_p] + [gp for gp, _ in self._thread_grids]
         grid_m = [self.grid_m] + [gm for _, gm in self._thread_grids]
         x_grid = self._X0 if self._total else state_in.x  # the positions the grid weights are taken at
         gs = grid_settings(m, st, self.gravity, self._collider_array, len(control.colliders), 0.0)
         ct = contact_grid(m)
-        if self._contact:
-            ct = contact_grid(  # the total form's reference grid keeps the fields apart but never resolves (gap 0)
-                m, active=1, n_nodes=n_act, gap=sc(0.0 if self._total else st.contact.gap), group=m.contact_group, X=m.X0,
-                split=self._ct_split,
-                gmin=self._ct_gmin, xbar=self._ct_xbar, axis=self._ct_axis, mu=self._ct_mu, grad_m=self._ct_grad,
-            )
+        if self._contact:  # the total form's reference grid keeps the fields apart but never resolves (gap 0)
+            ct = self._contact_grid(self._ct, n_act, 0.0 if self._total else st.contact.gap)
         f_update = F_TOTAL if self._total else (F_FROM_REMAP if self._remap else F_FROM_GRID)
         threads = []  # per thread: its slice of the particle arrays and its argument structs
         for t, (a, b) in enumerate(self._ranges):
@@ -670,15 +687,8 @@ class Solver:
             L["node_displacement"] = nodes(k["node_displacement"], [self._X0, state_in.x, m.mass, block, self.grid_u, ct],
                                            m.n_particles)
         if self._contact and not self._total:
-            c = st.contact
-            fold = 1 if c.self_contact else 0
-            L["contact"] = [
-                nodes(k["contact_scan"], [state_in.x, m.X0, m.mass, m.contact_group, block, fold,
-                                          self._ct_gmin, self._ct_gmax, self._ct_moments], m.n_particles),
-                nodes(k["contact_classify"], [self._ct_gmin, self._ct_gmax, self._ct_moments, fold,
-                                              sc((c.fold_spread * m.dx) ** 2), self._contact_friction, self._contact_groups,
-                                              self._ct_split, self._ct_xbar, self._ct_axis, self._ct_mu]),
-            ]
+            scan, classify = self._classify_inputs(state_in.x, block, 1 if st.contact.self_contact else 0, self._ct)
+            L["contact"] = [nodes(k["contact_scan"], scan, m.n_particles), nodes(k["contact_classify"], classify)]
         if self._remap:
             # second half of the remap: g2p has scattered the new affine velocities into grid_p (free after the
             # grid update); node velocities go to grid_v (free after g2p), and F is gathered from them
@@ -911,8 +921,7 @@ class Solver:
         start-of-step positions, as the updated form's weights), with two velocity fields per node classified as
         in the updated form; the contact law corrects the fields there, and each particle takes the correction of
         its own field into v and x (not into C or F). Counted in the g2p phase."""
-        m, dev, sc, dim = self.model, self.device, self.scalar, self.dim
-        kc = make_kernels(dim, sc, contact=True)
+        m, k, dev, dim = self.model, self.k, self.device, self.dim
         x = state_in.x
         xs = x.numpy()
         lo, hi = xs.min(axis=0).astype(np.float64), xs.max(axis=0).astype(np.float64)
@@ -920,55 +929,39 @@ class Solver:
             raise SimulationError("particle positions are not finite", state_in.step, state_in.time, input_rejected=True)
         first, last = self._node_range(lo, hi)
         first, last = first - 1, last + 1
-        shape = (last - first + 1).astype(np.int64)
+        shape = last - first + 1
         n = int(np.prod(shape))
         c = self.settings.contact
         fold = 1 if c.self_contact else 0
         tc = self._tc
         if tc is None or n > tc["cap"]:
             cap = int(n * 1.3) + 64
-            k = self.k
-            tc = self._tc = {
-                "cap": cap,
-                "gmin": wp.zeros(cap, dtype=wp.int32, device=dev), "gmax": wp.zeros(cap, dtype=wp.int32, device=dev),
-                "moments": wp.zeros(cap * (1 + dim + dim * dim) if fold else 1, dtype=sc, device=dev),
-                "split": wp.zeros(cap, dtype=wp.int32, device=dev), "xbar": wp.zeros(cap, dtype=k["vec"], device=dev),
-                "axis": wp.zeros(cap, dtype=k["vec"], device=dev), "mu": wp.zeros(cap, dtype=sc, device=dev),
-                "grad": wp.zeros(2 * cap, dtype=k["vec"], device=dev), "p": wp.zeros(2 * cap, dtype=k["vec"], device=dev),
-                "m": wp.zeros(2 * cap, dtype=sc, device=dev), "dv": wp.zeros(2 * cap, dtype=k["vec"], device=dev),
-                "clamp": wp.zeros(1, dtype=wp.int32, device=dev), "key": None,
-            }
+            tc = self._tc = contact_node_arrays(m, cap, c.self_contact)
+            tc.update(cap=cap, p=wp.zeros(2 * cap, dtype=k["vec"], device=dev), m=wp.zeros(2 * cap, dtype=self.scalar, device=dev),
+                      dv=wp.zeros(2 * cap, dtype=k["vec"], device=dev), clamp=wp.zeros(1, dtype=wp.int32, device=dev), key=None)
         tc["gmin"][:n].fill_(2**31 - 1)
         tc["gmax"][:n].fill_(-1)
         for name, size in (("moments", n * (1 + dim + dim * dim) if fold else 0), ("grad", 2 * n), ("p", 2 * n), ("m", 2 * n)):
             if size:
                 tc[name][:size].zero_()
-        block = kc["Block"]()
-        block.lo = kc["vec"](*[sc(m.domain_lo[a] + first[a] * m.dx) for a in range(dim)])
-        block.shape = kc["ivec"](*[int(v) for v in shape])
-        block.dx = sc(m.dx)
+        block = block_struct(self.model, first, shape)
         key = (n, id(tc["gmin"]), id(state_out.x))
         if tc["key"] != key:  # the argument structs, made again when the block size or the output state changes
-            tc["ct"] = contact_grid(
-                m, active=1, n_nodes=n, gap=sc(c.gap), group=m.contact_group, X=m.X0, split=tc["split"], gmin=tc["gmin"],
-                xbar=tc["xbar"], axis=tc["axis"], mu=tc["mu"], grad_m=tc["grad"],
-            )
-            grid = kc["GridArrays"]()
+            tc["ct"] = self._contact_grid(tc, n, c.gap)
+            grid = k["GridArrays"]()
             grid.p, grid.m, grid.clamp = tc["p"], tc["m"], tc["clamp"]
-            tc["grid"] = wp.array([grid], dtype=kc["GridArrays"], device=dev)
-            out = kc["Particles"]()
+            tc["grid"] = wp.array([grid], dtype=k["GridArrays"], device=dev)
+            out = k["Particles"]()
             out.x, out.v, out.C, out.F = state_out.x, state_out.v, state_out.C, state_out.F
-            tc["out"] = wp.array([out], dtype=kc["Particles"], device=dev)
+            tc["out"] = wp.array([out], dtype=k["Particles"], device=dev)
             tc["key"] = key
         ct, N = tc["ct"], m.n_particles
-        wp.launch(kc["contact_scan"], dim=N, device=dev, inputs=[
-            x, m.X0, m.mass, m.contact_group, block, fold, tc["gmin"], tc["gmax"], tc["moments"]])
-        wp.launch(kc["contact_classify"], dim=n, device=dev, inputs=[
-            tc["gmin"], tc["gmax"], tc["moments"], fold, sc((c.fold_spread * m.dx) ** 2), self._contact_friction,
-            self._contact_groups, tc["split"], tc["xbar"], tc["axis"], tc["mu"]])
-        wp.launch(kc["contact_scatter"], dim=N, device=dev, inputs=[x, state_out.v, m.mass, block, tc["grid"], ct])
-        wp.launch(kc["contact_resolve"], dim=n, device=dev, inputs=[tc["p"], tc["m"], ct, tc["dv"]])
-        wp.launch(kc["contact_gather"], dim=N, device=dev, inputs=[x, m.clamped, block, sc(dt), tc["dv"], tc["out"], ct])
+        scan, classify = self._classify_inputs(x, block, fold, tc)
+        wp.launch(k["contact_scan"], dim=N, device=dev, inputs=scan)
+        wp.launch(k["contact_classify"], dim=n, device=dev, inputs=classify)
+        wp.launch(k["contact_scatter"], dim=N, device=dev, inputs=[x, state_out.v, m.mass, block, tc["grid"], ct])
+        wp.launch(k["contact_resolve"], dim=n, device=dev, inputs=[tc["p"], tc["m"], ct, tc["dv"]])
+        wp.launch(k["contact_gather"], dim=N, device=dev, inputs=[x, m.clamped, block, self.scalar(dt), tc["dv"], tc["out"], ct])
 
     def _raise_on_error(self, err, state_in: State) -> None:
         if err[0]:
