@@ -1,9 +1,11 @@
-"""Non-finite numbers anywhere in a scene are refused with one line naming the key (issue "Reliability",
-findings 6 and 7: inf used to crash the build, NaN in vectors was silently wrong, e.g. a floor normal
-[nan, 1, 0] let the body fall through and the run said "completed")."""
+"""Bad input gets one line naming the file and the key (issue "Reliability"). Findings 6 and 7: inf used to crash
+the build and NaN in vectors was silently wrong (a floor normal [nan, 1, 0] let the body fall through and the run
+said "completed"); the others are named at each test. Output folders and output errors: tests/test_outputs.py;
+mutations of every scene file: tests/test_scene_mutations.py; SIGTERM: tests/test_signals.py."""
 
 import copy
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -184,3 +186,127 @@ def test_box_collider_size_and_cylinder_axis_are_checked():
     scene["bodies"][0]["shape"]["axis"] = [0.0, 1.0, 0.0]
     with pytest.raises(SceneError, match=r"colliders\[0\]\.size: every edge length must be > 0"):
         parse_scene(scene)
+
+
+def test_a_mistake_in_a_robot_part_is_reported_at_its_key():
+    """Any mistake inside [[robot.parts]] was reported as `robot.str: Input should be a valid string` (finding 4)."""
+    part = copy.deepcopy(BASE["bodies"][0])
+    part["material"]["density"] = -1.0
+    scene = copy.deepcopy(BASE)
+    scene["bodies"] = []
+    scene["robot"] = {"parts": [part]}
+    with pytest.raises(SceneError, match=r"scene: robot\.parts\[0\]\.material\.density: .*greater than 0"):
+        parse_scene(scene)
+    part["material"]["density"] = 1000.0
+    part["shap"] = part.pop("shape")
+    with pytest.raises(SceneError, match=r"robot\.parts\[0\]\.shap: unknown key 'shap' \(did you mean 'shape'\?\); allowed keys here: .*shape"):
+        parse_scene(scene)
+
+
+ROD = Path(__file__).resolve().parents[1] / "scenes" / "rod_cantilever.toml"
+TENSILE = Path(__file__).resolve().parents[1] / "examples" / "characterization" / "tensile_yeoh.csv"
+TENTACLE = Path(__file__).resolve().parents[1] / "examples" / "differentiable" / "tentacle_2d.toml"
+
+
+def _encodings(text: str) -> dict[str, bytes]:
+    """The same text as UTF-16, with a Latin-1 byte in a comment, and as a binary file."""
+    return {"utf16": text.encode("utf-16"), "latin1": b"# r\xe9sum\xe9\n" + text.encode(),
+            "binary": b"\x00\x01\x02\xff" * 64}
+
+
+@pytest.mark.parametrize("kind", ["utf16", "latin1", "binary"])
+def test_files_that_are_not_utf8_are_one_line_naming_the_file(kind, tmp_path, capsys):
+    """UTF-16, a Latin-1 byte in a comment or a binary file gave UnicodeDecodeError in run, rod, optimize and
+    fit-material (finding 10)."""
+    from magsoro.cli import main
+    from magsoro.diff.tomlwrite import dumps
+
+    cases = {
+        "run": (dumps(BASE), lambda f: ["run", str(f), "--out", str(tmp_path / "o"), "--quiet"]),
+        "rod": (ROD.read_text(), lambda f: ["rod", str(f), "--out", str(tmp_path / "r")]),
+        "optimize": (TENTACLE.read_text(), lambda f: ["optimize", str(f), "--target", str(f), "--vars", "magnetization",
+                                                     "--out", str(tmp_path / "p")]),
+        "fit-material": (TENSILE.read_text(), lambda f: ["fit-material", str(f)]),
+    }
+    for command, (text, argv) in cases.items():
+        bad = tmp_path / f"{command}_{kind}{'.csv' if command == 'fit-material' else '.toml'}"
+        bad.write_bytes(_encodings(text)[kind])
+        assert main(argv(bad)) == 2, command
+        err = capsys.readouterr().err
+        lines = [ln for ln in err.strip().splitlines() if ln.strip()]
+        assert len(lines) == 1 and "Traceback" not in err, err
+        assert str(bad) in lines[0] and ("UTF-8" in lines[0] or "binary" in lines[0]), lines[0]
+
+
+def test_deeply_nested_arrays_are_one_line(tmp_path):
+    """2000 nested arrays gave RecursionError (finding 10)."""
+    from magsoro.scene import load_scene
+
+    f = tmp_path / "deep.toml"
+    f.write_text("deep = " + "[" * 2000 + "]" * 2000 + "\n")
+    with pytest.raises(SceneError, match=r"deep\.toml: .*nested too deeply"):
+        load_scene(f)
+    scene = copy.deepcopy(BASE)
+    scene["bodies"][0]["shape"]["center"] = [[[[[[[[[[[[[[[[[[[0.0]]]]]]]]]]]]]]]]]]]
+    with pytest.raises(SceneError, match=r"scene: bodies: tables or arrays nested more than 16 deep"):
+        parse_scene(scene)
+
+
+def test_report_on_a_corrupt_frame_is_one_line(tmp_path, capsys):
+    """`magsoro report` on a run with a cut-short particle frame gave an XML ParseError (finding 10)."""
+    from magsoro.cli import main
+    from magsoro.diff.tomlwrite import dumps
+
+    scene = copy.deepcopy(BASE)
+    scene["simulation"]["duration"] = 0.002
+    scene["output"] = {"every": 0.001}
+    f = tmp_path / "s.toml"
+    f.write_text(dumps(scene))
+    out = tmp_path / "out"
+    assert main(["run", str(f), "--out", str(out), "--quiet"]) == 0
+    frame = out / "frames" / "frame_00001.vtp"
+    frame.write_bytes(frame.read_bytes()[:300])
+    capsys.readouterr()
+    assert main(["report", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert "Traceback" not in err and len(err.strip().splitlines()) == 1
+    assert "frame_00001.vtp: not a readable particle frame" in err
+
+
+def test_probe_names_and_other_names_are_column_safe():
+    """A comma in a probe name corrupted the metrics.csv header (finding 13)."""
+    scene = copy.deepcopy(BASE)
+    scene["probes"] = [{"type": "centroid", "name": "tip,x", "body": "b"}]
+    with pytest.raises(SceneError, match=r"probes\[0\]\.name: a name of letters, digits, '_' and '-'.*\(got 'tip,x'\)"):
+        parse_scene(scene)
+
+
+def test_a_shape_without_type_lists_the_allowed_types():
+    """A shape without `type` listed "allowed:" and nothing (finding 13)."""
+    scene = copy.deepcopy(BASE)
+    del scene["bodies"][0]["shape"]["type"]
+    with pytest.raises(SceneError, match=r"bodies\[0\]\.shape: needs a 'type' key; allowed types: box, .*rectangle"):
+        parse_scene(scene)
+
+
+def test_a_garbage_mesh_says_what_is_wrong(tmp_path):
+    """A garbage mesh reported "No module named 'charset_normalizer'" (finding 13)."""
+    from magsoro.geometry.mesh import MeshError, load_mesh
+
+    f = tmp_path / "junk.stl"
+    f.write_bytes(bytes(range(256)) * 12)
+    with pytest.raises(MeshError) as exc:
+        load_mesh(f)
+    assert "junk.stl" in str(exc.value) and "module" not in str(exc.value), exc.value
+
+
+@pytest.mark.parametrize("flag, value", [("--duration", "-1"), ("--duration", "inf"), ("--dt", "0"), ("--lr", "nan")])
+def test_optimize_options_are_checked_by_name(flag, value, tmp_path, capsys):
+    """`optimize --duration -1` said "dt must be > 0" (finding 13)."""
+    from magsoro.cli import main
+
+    argv = ["optimize", str(TENTACLE), "--target", str(TENTACLE), "--vars", "magnetization", "--out", str(tmp_path),
+            flag, value]
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith(f"magsoro optimize: error: {flag}: must be a finite number") and "\n" not in err, err

@@ -50,6 +50,13 @@ def main(argv=None) -> int:
     except MagsoroError as exc:
         print(f"magsoro {args.command}: error: {exc}", file=sys.stderr)
         return 2
+    except OSError as exc:  # a file the command itself opened: one line naming it, not a traceback
+        where = f"{exc.filename}: " if exc.filename else ""
+        print(f"magsoro {args.command}: error: {where}{exc.strerror or exc}", file=sys.stderr)
+        return 2
+    except UnicodeDecodeError as exc:
+        print(f"magsoro {args.command}: error: a file is not UTF-8 text ({exc.reason} at byte {exc.start})", file=sys.stderr)
+        return 2
     except Terminated as exc:  # a command without its own clean-up: still one line, the signal's exit status
         print(f"magsoro {args.command}: {exc}", file=sys.stderr)
         return 128 + exc.signum

@@ -19,6 +19,17 @@ class SimulationError(MagsoroError):
         self.input_rejected = input_rejected  # the step's input state failed a check (not the state it computed)
 
 
+class OutputError(MagsoroError):
+    """A result could not be written (disk full, read-only folder, a file where a folder is wanted); the message
+    names the file and the operating system's reason."""
+
+
+def output_error(path, exc: OSError) -> OutputError:
+    """The one-line OutputError for an OSError met while writing ``path``."""
+    reason = exc.strerror or type(exc).__name__
+    return OutputError(f"cannot write {path}: {reason}" + (f" (errno {exc.errno})" if exc.errno else ""))
+
+
 class Terminated(KeyboardInterrupt):
     """The process was asked to stop by a signal (SIGTERM: what ``timeout``, Slurm and ``docker stop`` send).
     A KeyboardInterrupt, so every place that ends a run cleanly on Ctrl-C does the same for it."""

@@ -10,12 +10,11 @@ from __future__ import annotations
 import math
 import time as _time
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Callable
 
 import numpy as np
 
-from magsoro.errors import SceneError, SimulationError, Terminated
+from magsoro.errors import OutputError, SceneError, SimulationError, Terminated
 from magsoro.mpm.solver import Solver
 from magsoro.mpm.timestep import cfl_time_step
 from magsoro.scene import Scene, load_scene
@@ -293,7 +292,8 @@ class Simulation:
         """Run for ``duration`` seconds (default: the scene's). ``callback(sim)`` is called after every step,
         ``record(sim)`` at t = 0 and every ``record_every`` seconds (default: output.every or duration / 50),
         ``progress(sim)`` after each record. SimulationError and KeyboardInterrupt end the run with status
-        'failed' / 'interrupted'; the state kept is then the last good one."""
+        'failed' / 'interrupted'; the state kept is then the last good one. An OutputError raised by ``record``
+        or ``callback`` (a result that could not be written) ends it 'failed' with that reason."""
         duration = self.scene.simulation.duration if duration is None else float(duration)
         every = check_run_length(duration, record_every or self.scene.output.every)
         t0 = self.state.time
@@ -317,6 +317,9 @@ class Simulation:
         except SimulationError as exc:
             status = "failed"
             message = f"step {exc.step}, t = {exc.time:.6g} s: {exc}"
+        except OutputError as exc:
+            status = "failed"
+            message = f"output at t = {self.state.time:.6g} s: {exc}"
         except KeyboardInterrupt as exc:
             status = "interrupted"
             signum = exc.signum if isinstance(exc, Terminated) else None

@@ -11,14 +11,14 @@ bad key (and, for an unknown key, the allowed ones).
 from __future__ import annotations
 
 import math
-import tomllib
 from pathlib import Path
 from typing import Literal
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
-from magsoro.config_errors import format_config_error
+from magsoro.config_errors import check_nesting, format_config_error
 from magsoro.errors import MagsoroError
+from magsoro.io.files import read_toml_file
 
 
 class ActuationInputError(MagsoroError):
@@ -310,6 +310,7 @@ class PlanConfig(_Strict):
 # ------------------------------------------------------------------------------------------- loading
 def parse(model: type[BaseModel], data: dict, source: str = "input"):
     """Validate ``data`` against ``model``; raises :class:`ActuationInputError` with a one-line message."""
+    check_nesting(data, source, ActuationInputError)
     try:
         return model.model_validate(data)
     except ValidationError as exc:
@@ -319,10 +320,5 @@ def parse(model: type[BaseModel], data: dict, source: str = "input"):
 def load(model: type[BaseModel], path):
     """Read a TOML file and validate it against ``model``."""
     path = Path(path)
-    try:
-        data = tomllib.loads(path.read_text())
-    except FileNotFoundError:
-        raise ActuationInputError(f"{path}: no such file") from None
-    except tomllib.TOMLDecodeError as exc:
-        raise ActuationInputError(f"{path}: not valid TOML ({exc})") from None
+    data = read_toml_file(path, ActuationInputError)
     return parse(model, data, str(path))

@@ -14,6 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from magsoro.characterization.errors import CharacterizationDataError
+from magsoro.io.files import read_text_file
 
 
 def read_columns(
@@ -40,10 +41,7 @@ def read_columns(
     CharacterizationDataError naming the file, and the column and line where a value is bad.
     """
     path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8-sig")
-    except OSError as exc:
-        raise CharacterizationDataError(f"{path}: cannot read the file ({exc.strerror or exc})") from exc
+    text = read_text_file(path, CharacterizationDataError, "data file")
     rows = [
         (lineno, row)
         for lineno, row in enumerate(csv.reader(text.splitlines()), start=1)

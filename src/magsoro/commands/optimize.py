@@ -2,6 +2,7 @@
 
 import csv
 import json
+import math
 from pathlib import Path
 
 
@@ -73,7 +74,13 @@ def run_optimize(args) -> int:
     kinds = [k.strip() for k in args.vars.split(",") if k.strip()]
     bodies = [b.strip() for b in args.bodies.split(",")] if args.bodies else None
     if args.iterations < 1:
-        raise MagsoroError("--iterations must be >= 1")
+        raise MagsoroError(f"--iterations: must be >= 1, got {args.iterations}")
+    for flag, value, low in (("--duration", args.duration, "> 0 s"), ("--dt", args.dt, "> 0 s"), ("--lr", args.lr, "> 0"),
+                             ("--margin", args.margin, ">= 0 m")):
+        if value is not None and not (math.isfinite(value) and (value >= 0 if low.startswith(">=") else value > 0)):
+            raise MagsoroError(f"{flag}: must be a finite number {low}, got {value}")
+    if args.segment is not None and args.segment < 1:
+        raise MagsoroError(f"--segment: must be >= 1 steps, got {args.segment}")
     prob = Problem.from_files(args.scene, args.target, kinds, bodies=bodies, duration=args.duration, dt=args.dt,
                               segment=args.segment, margin=args.margin, precision=args.precision)
     out = Path(args.out)
@@ -102,7 +109,7 @@ def run_optimize(args) -> int:
         "scene": str(args.scene), "target": str(args.target), "vars": kinds, "method": args.method,
         "steps": prob.n_steps, "dt": prob.dt, "duration": prob.duration,
         "initial_loss": res["initial_loss"], "final_loss": res["loss"],
-        "loss_ratio": res["initial_loss"] / res["loss"] if res["loss"] > 0 else float("inf"),
+        "loss_ratio": res["initial_loss"] / res["loss"] if res["loss"] > 0 else None,  # None: the loss reached 0
         "initial_error": err0, "final_error": err1, "evaluations": res["evaluations"], "wall_time_s": res["wall_time"],
         "variables": {n: [float(a), float(b)] for n, a, b in zip(prob.design.names(), res["initial_values"], res["values"])},
         "scene_out": str(scene_out),
@@ -117,7 +124,7 @@ def run_optimize(args) -> int:
         result["rerun_error"] = prob.error({"x": x, "F": F})
         result["rerun_max_particle_deviation_m"] = float(np.max(np.linalg.norm(x - after["x"], axis=1)))
     (out / "result.json").write_text(json.dumps(result, indent=2))
-    print(f"loss {res['initial_loss']:.4e} -> {res['loss']:.4e} (x{result['loss_ratio']:.3g} lower); "
+    print(f"loss {res['initial_loss']:.4e} -> {res['loss']:.4e} (x{result['loss_ratio'] or math.inf:.3g} lower); "
           f"target error {err0:.4g} -> {err1:.4g}" + (f"; re-run of the written scene: {result['rerun_error']:.4g}" if "rerun_error" in result else ""))
     print(f"wrote {out / 'history.csv'}, {scene_out}, {out / 'before.png'}, {out / 'after.png'}, {out / 'result.json'}")
     return 0

@@ -1,5 +1,7 @@
 """``magsoro report RUN_OR_SWEEP_DIR [--out report.html]``: one self-contained HTML page of a run or a sweep."""
 
+import sys
+
 from magsoro.errors import MagsoroError
 
 
@@ -28,5 +30,14 @@ def run(args) -> int:
         args.directory, args.out,
         max_frames=args.max_frames or MAX_FRAMES, max_particles=args.max_particles or MAX_PARTICLES,
     )
+    from pathlib import Path
+
+    from magsoro.io.outdir import read_run_info, run_state
+
+    info = read_run_info(Path(args.directory))
+    if info is not None:
+        state, why = run_state(info)
+        if state in ("stale", "running"):
+            print(f"magsoro report: note: the run is {state}: {why}", file=sys.stderr)
     print(f"report written to {out} ({out.stat().st_size / 1e6:.2f} MB); open file://{out.resolve()}")
     return 0

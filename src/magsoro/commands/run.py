@@ -3,7 +3,6 @@
 import math
 import sys
 import time
-from pathlib import Path
 
 from magsoro.errors import SceneError
 
@@ -11,7 +10,9 @@ from magsoro.errors import SceneError
 def register(sub):
     p = sub.add_parser("run", help="run a scene file and write results", description="Run a scene and write run.json, metrics.csv, a ParaView particle series and final.npz.")
     p.add_argument("scene", help="scene file (TOML)")
-    p.add_argument("--out", required=True, help="output directory")
+    p.add_argument("--out", required=True, help="output directory: new, empty, or a previous run with --overwrite")
+    p.add_argument("--overwrite", action="store_true",
+                   help="replace the previous run in --out (all of it: frames, report, everything)")
     p.add_argument("--device", choices=None, help="cpu, cuda or cuda:N (overrides simulation.device)")
     p.add_argument("--duration", type=float, help="simulated time in s (overrides simulation.duration)")
     p.add_argument("--preview", action="store_true",
@@ -25,10 +26,10 @@ def register(sub):
 
 
 def run(args) -> int:
-    import tomllib
-
+    from magsoro.io.outdir import prepare_output_dir
     from magsoro.io.recorder import RunWriter
     from magsoro.scene import load_scene
+    from magsoro.scene.load import read_scene_toml
     from magsoro.simulation import Simulation, check_run_length
 
     if args.device is not None and not (args.device == "cpu" or args.device.startswith("cuda")):
@@ -39,13 +40,14 @@ def run(args) -> int:
     preview = getattr(args, "preview", False)
     scene = load_scene(args.scene, preview=preview)  # every check happens before the output folder is touched
     sim = Simulation(scene, device=args.device, source=args.scene)
-    echo = tomllib.loads(Path(args.scene).read_text())
+    echo = read_scene_toml(args.scene)
     if preview:
         from magsoro.scene.load import apply_preview
 
         echo = apply_preview(echo, args.scene)
     duration = args.duration if args.duration is not None else scene.simulation.duration
     check_run_length(duration, scene.output.every)  # before the output folder is touched
+    prepare_output_dir(args.out, overwrite=getattr(args, "overwrite", False))
     writer = RunWriter(args.out, sim, echo, particles=scene.output.particles)
     if getattr(args, "equilibrium", False):
         return _relax(args, sim, writer, duration, wall0)
@@ -66,7 +68,14 @@ def run(args) -> int:
             bar.refresh()
 
     try:
-        result = sim.run(duration, record=writer.record, record_every=scene.output.every, progress=progress)
+        result = sim.run(duration, callback=writer.beat, record=writer.record, record_every=scene.output.every,
+                         progress=progress)
+    except Exception as exc:  # a fault of ours: run.json says 'failed' with it, then the traceback for the report
+        from magsoro.simulation import RunResult
+
+        writer.finish(RunResult("failed", sim.steps, sim.time, time.perf_counter() - wall0,
+                                f"internal error: {type(exc).__name__}: {exc}"), time.perf_counter() - wall0)
+        raise
     finally:
         if bar is not None:
             bar.close()
@@ -84,7 +93,7 @@ def _relax(args, sim, writer, t_loads: float, wall0: float) -> int:
     """``--equilibrium``: relax under the loads at ``t_loads`` and write the start and the relaxed state."""
     from dataclasses import asdict
 
-    from magsoro.errors import SimulationError
+    from magsoro.errors import OutputError, SimulationError
     from magsoro.simulation import RunResult
 
     writer.record(sim)
@@ -93,7 +102,7 @@ def _relax(args, sim, writer, t_loads: float, wall0: float) -> int:
         print(f"relaxing under the loads at t = {t_loads:.6g} s ...", file=sys.stderr)
     signum = None
     try:
-        relax = sim.relax()
+        relax = sim.relax(callback=writer.beat)
         # at the round-off floor the state is as static as the precision allows: a result, with the reason
         status = "completed" if relax.converged or relax.stalled else "failed"
         message = relax.message
@@ -108,7 +117,10 @@ def _relax(args, sim, writer, t_loads: float, wall0: float) -> int:
         steps, wall = sim.steps, time.perf_counter() - wall0
     if relax is not None:
         writer.info["equilibrium"] = asdict(relax)
-        writer.record(sim)
+        try:
+            writer.record(sim)
+        except OutputError as exc:
+            status, message = "failed", f"{message}; the relaxed state could not be recorded: {exc}"
     result = RunResult(status, steps, sim.time, wall, message, signum)
     writer.finish(result, time.perf_counter() - wall0)
     if status != "completed":

@@ -7,7 +7,6 @@
 
 import math
 import time
-import tomllib
 from pathlib import Path
 
 import numpy as np
@@ -17,6 +16,7 @@ from magsoro.diff.rollout import Rollout
 from magsoro.diff.targets import make_target
 from magsoro.diff.tomlwrite import dumps
 from magsoro.errors import MagsoroError
+from magsoro.io.files import read_toml_file
 from magsoro.scene import load_scene
 from magsoro.scene.build import build
 
@@ -68,7 +68,7 @@ class Problem:
         if precision is not None:
             sim.precision = precision
         self.built = build(self.scene, device=device, source=str(self.scene_path))
-        self.raw = _absolute_paths(tomllib.loads(self.scene_path.read_text()), self.scene_path.parent.resolve())
+        self.raw = _absolute_paths(read_toml_file(self.scene_path, MagsoroError, "scene file"), self.scene_path.parent.resolve())
         self.duration = float(duration if duration is not None else sim.duration)
         if dt is None:
             dt = sim.dt
@@ -87,12 +87,7 @@ class Problem:
     @classmethod
     def from_files(cls, scene_path, target_path, kinds, **kw):
         target_path = Path(target_path)
-        if not target_path.is_file():
-            raise MagsoroError(f"{target_path}: target file not found")
-        try:
-            spec = tomllib.loads(target_path.read_text())
-        except tomllib.TOMLDecodeError as exc:
-            raise MagsoroError(f"{target_path}: not valid TOML: {exc}") from None
+        spec = read_toml_file(target_path, MagsoroError, "target file")
         return cls(scene_path, spec, kinds, target_base=target_path.parent, **kw)
 
     def loss_and_grad(self, values, grad=True):

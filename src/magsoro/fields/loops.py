@@ -23,7 +23,7 @@ import numpy as np
 import warp as wp
 
 from magsoro.constants import MU0
-from magsoro.fields.base import FieldSource, FieldSum, MovingSource, as_points, unit_vector as _unit
+from magsoro.fields.base import FieldSum, MovingSource, as_points, unit_vector as _unit
 from magsoro.fields.cylinder import AXIS_EPS
 from magsoro.fields.elliptic import (
     axisym_assemble_np,

@@ -37,8 +37,12 @@ def load_mesh(path, scale: float = 1.0, position=(0.0, 0.0, 0.0), rotation=None)
         raise MeshError(f"mesh file '{path}': unsupported format '{path.suffix}'; use {', '.join(MESH_SUFFIXES)}")
     try:
         mesh = trimesh.load(path, force="mesh", process=True)
+    except ImportError:  # trimesh reaches for an optional text-encoding detector when the bytes are not text
+        raise MeshError(f"mesh file '{path}' could not be read: not a valid {path.suffix.lower()} file "
+                        f"(neither its text nor its binary form)") from None
     except Exception as exc:  # trimesh raises many kinds on malformed files
-        raise MeshError(f"mesh file '{path}' could not be read: {exc}") from None
+        reason = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+        raise MeshError(f"mesh file '{path}' could not be read as {path.suffix.lower()}: {reason}") from None
     if not isinstance(mesh, trimesh.Trimesh) or len(mesh.faces) == 0:
         raise MeshError(f"mesh file '{path}' holds no triangles")
     if not mesh.is_watertight:

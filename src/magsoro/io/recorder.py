@@ -1,12 +1,17 @@
 """Write a run's results to a directory: run.json, metrics.csv, frames/*.vtp + particles.pvd, final.npz.
 
 Every file is replaced atomically; run.json says 'running' until the run ends, then 'completed', 'failed' or
-'interrupted', so a reader can always tell a finished result from a partial one.
+'interrupted', so a reader can always tell a finished result from a partial one. While it runs, run.json carries
+the process id and a heartbeat time, so a run killed without a chance to write (SIGKILL) reads as stale
+(:func:`magsoro.io.outdir.run_state`). A write that fails (disk full, read-only folder) raises
+:class:`~magsoro.errors.OutputError`; the run then ends 'failed' with the reason, in run.json when the disk still
+takes that small file.
 """
 
 from __future__ import annotations
 
 import io
+import os
 import platform
 import time
 from pathlib import Path
@@ -14,7 +19,9 @@ from pathlib import Path
 import numpy as np
 
 from magsoro._version import __version__
+from magsoro.errors import OutputError
 from magsoro.io.files import atomic_save_npz, atomic_write_json, atomic_write_text
+from magsoro.io.outdir import HEARTBEAT_S
 from magsoro.io.vtk import write_pvd, write_vtp
 
 
@@ -23,14 +30,20 @@ class RunWriter:
         import warp as wp
 
         self.dir = Path(out_dir)
-        self.dir.mkdir(parents=True, exist_ok=True)
+        try:
+            self.dir.mkdir(parents=True, exist_ok=True)
+            if particles:
+                (self.dir / "frames").mkdir(exist_ok=True)
+        except OSError as exc:
+            from magsoro.errors import output_error
+
+            raise output_error(self.dir, exc) from None
         self.sim = sim
         self.particles = particles
         self.frames: list[tuple[float, str]] = []
         self.rows: list[list[float]] = []
         self.columns = ["time"] + sim.probe_columns()
-        if particles:
-            (self.dir / "frames").mkdir(exist_ok=True)
+        self._last_beat = time.monotonic()
         self.info = {
             "status": "running",
             "message": "",
@@ -38,6 +51,7 @@ class RunWriter:
             "warp_version": wp.config.version,
             "python": platform.python_version(),
             "machine": platform.node(),
+            "pid": os.getpid(),
             "device": sim.model.device,
             "device_name": wp.get_device(sim.model.device).name,
             "precision": sim.model.precision,
@@ -46,6 +60,8 @@ class RunWriter:
             "formulation": sim.solver.settings.formulation,
             "bodies": sim.built.fill_report,
             "started": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
+            "heartbeat": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
+            "heartbeat_unix": time.time(),
             "scene": scene_echo,
         }
         # remove leftovers of an earlier run in the same folder, so no stale file looks like ours
@@ -56,7 +72,21 @@ class RunWriter:
                 f.unlink()
         atomic_write_json(self.dir / "run.json", self.info)
 
+    def beat(self, sim=None, force: bool = False) -> None:
+        """Rewrite run.json with the current heartbeat time (and simulated time and step), at most every
+        HEARTBEAT_S wall seconds unless ``force``; cheap enough to be called after every step."""
+        now = time.monotonic()
+        if not force and now - self._last_beat < HEARTBEAT_S:
+            return
+        self._last_beat = now
+        self.info["heartbeat"] = time.strftime("%Y-%m-%dT%H:%M:%S%z")
+        self.info["heartbeat_unix"] = time.time()
+        if sim is not None:
+            self.info["progress"] = {"time": sim.time, "steps": sim.steps}
+        atomic_write_json(self.dir / "run.json", self.info)
+
     def record(self, sim) -> None:
+        self.beat(sim, force=True)
         self.rows.append([sim.time] + list(sim.probe_values().values()))
         buf = io.StringIO()
         buf.write(",".join(self.columns) + "\n")
@@ -82,15 +112,19 @@ class RunWriter:
             write_pvd(self.dir / "particles.pvd", self.frames)
 
     def finish(self, result, wall_total: float) -> None:
+        """Write the state kept (final.npz, or last_good.npz after a failure) and the closing run.json. When the
+        state cannot be written, run.json says so; when run.json itself cannot be written, OutputError."""
         sim = self.sim
         p = sim.particles()
-        if result.status == "failed":
-            atomic_save_npz(self.dir / "last_good.npz", time=sim.time, **p)
-        else:
-            atomic_save_npz(self.dir / "final.npz", time=sim.time, **p)
+        message = result.message
+        name = "last_good.npz" if result.status == "failed" else "final.npz"
+        try:
+            atomic_save_npz(self.dir / name, time=sim.time, **p)
+        except OutputError as exc:
+            message = f"{message}; {name} not written: {exc}" if message else f"{name} not written: {exc}"
         self.info.update(
             status=result.status,
-            message=result.message,
+            message=message,
             steps=result.steps,
             time=result.time,
             wall_time=result.wall_time,
@@ -100,5 +134,7 @@ class RunWriter:
             grid=sim.solver.grid_info(),
             frames=len(self.frames),
             finished=time.strftime("%Y-%m-%dT%H:%M:%S%z"),
+            heartbeat=time.strftime("%Y-%m-%dT%H:%M:%S%z"),
+            heartbeat_unix=time.time(),
         )
         atomic_write_json(self.dir / "run.json", self.info)

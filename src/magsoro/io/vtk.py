@@ -58,7 +58,23 @@ def write_pvd(path, entries: list[tuple[float, str]]) -> None:
 
 
 def read_vtp(path) -> tuple[np.ndarray, dict[str, np.ndarray]]:
-    """Read back a file written by :func:`write_vtp` (points, point data)."""
+    """Read back a file written by :func:`write_vtp` (points, point data). A file that is missing, cut short or
+    not one of ours raises :class:`~magsoro.errors.MagsoroError` naming it."""
+    import binascii
+    import xml.etree.ElementTree as ET
+
+    from magsoro.errors import MagsoroError
+
+    try:
+        return _read_vtp(path)
+    except OSError as exc:
+        raise MagsoroError(f"{path}: cannot read the particle frame: {exc.strerror or exc}") from None
+    except (ET.ParseError, ValueError, KeyError, AttributeError, TypeError, struct.error, binascii.Error) as exc:
+        reason = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+        raise MagsoroError(f"{path}: not a readable particle frame ({reason})") from None
+
+
+def _read_vtp(path) -> tuple[np.ndarray, dict[str, np.ndarray]]:
     import xml.etree.ElementTree as ET
 
     root = ET.parse(Path(path)).getroot()
@@ -67,6 +83,8 @@ def read_vtp(path) -> tuple[np.ndarray, dict[str, np.ndarray]]:
     def decode(el):
         raw = base64.b64decode(el.text)
         (nbytes,) = struct.unpack("<I", raw[:4])
+        if len(raw) - 4 < nbytes:
+            raise ValueError(f"array '{el.get('Name')}' cut short: {len(raw) - 4} of {nbytes} bytes")
         arr = np.frombuffer(raw[4 : 4 + nbytes], dtype=inv[el.get("type")])
         nc = int(el.get("NumberOfComponents", "1"))
         return arr.reshape(-1, nc) if nc > 1 else arr

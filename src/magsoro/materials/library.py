@@ -13,6 +13,8 @@ from dataclasses import dataclass, field
 from importlib import resources
 from pathlib import Path
 
+from magsoro.io.files import read_toml_file
+
 # seed 003 (Supporting Note S1): NdFeB particle density 7.61 g/cm^3 and remanence 911 mT
 NDFEB_DENSITY = 7610.0
 NDFEB_REMANENCE = 0.911
@@ -170,12 +172,7 @@ def _make_entry(e, where, origin, rho_p, br_p, known) -> MaterialEntry:
 
 
 def _read_toml(path: Path, what: str) -> dict:
-    if not path.is_file():
-        raise MaterialLibraryError(f"{what} '{path}' not found")
-    try:
-        return tomllib.loads(path.read_text())
-    except tomllib.TOMLDecodeError as exc:
-        raise MaterialLibraryError(f"{what} '{path}' is not valid TOML: {exc}") from None
+    return read_toml_file(path, MaterialLibraryError, what)
 
 
 def builtin_library() -> dict[str, MaterialEntry]:

@@ -21,24 +21,29 @@ Every key, its unit and its default are in the ``Field`` descriptions below (and
 
 from __future__ import annotations
 
-import tomllib
 from pathlib import Path
-from typing import Literal
+from typing import Annotated, Literal
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+from pydantic import BaseModel, BeforeValidator, ConfigDict, Field, ValidationError, model_validator
 
-from magsoro.config_errors import format_config_error
+from magsoro.config_errors import check_nesting, format_config_error
 from magsoro.errors import SceneError
+from magsoro.io.files import read_toml_file
 from magsoro.rod.magnetisation import MagnetSegment
 from magsoro.rod.model import DEFAULT_BASE_ROTATION, Rod
 from magsoro.rod.section import CrossSection
 
-Vec3 = tuple[float, float, float]
+def _as_tuple(v):
+    """TOML arrays arrive as lists; the strict models want tuples for fixed-length vectors."""
+    return tuple(v) if isinstance(v, list) else v
+
+
+Vec3 = Annotated[tuple[float, float, float], BeforeValidator(_as_tuple)]
 
 
 class _Strict(BaseModel):
-    model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
+    model_config = ConfigDict(extra="forbid", allow_inf_nan=False, strict=True)  # no "2e-4" -> 2e-4, no true -> 1.0
 
 
 class CrossSectionConfig(_Strict):
@@ -115,7 +120,7 @@ class RodConfig(_Strict):
         "Couple on the free end, N m (global frame). Default [0, 0, 0]."
     ))
     base_position: Vec3 = Field((0.0, 0.0, 0.0), description="Clamp position p(0), m. Default [0, 0, 0].")
-    base_rotation: tuple[Vec3, Vec3, Vec3] = Field(
+    base_rotation: Annotated[tuple[Vec3, Vec3, Vec3], BeforeValidator(_as_tuple)] = Field(
         tuple(tuple(r) for r in DEFAULT_BASE_ROTATION.tolist()),
         description=(
             "Clamp orientation R(0) as 3 rows; its columns are d1 (width), d2 (thickness), d3 (rod axis) "
@@ -166,6 +171,7 @@ def format_validation_error(exc: ValidationError, root: type[BaseModel] = None, 
 
 def parse_rod_config(data: dict, source: str = "") -> RodConfig:
     """Validate a dict (e.g. parsed TOML); raises :class:`SceneError` with a one-line message."""
+    check_nesting(data, source, SceneError)
     try:
         return RodConfig.model_validate(data)
     except ValidationError as exc:
@@ -175,11 +181,5 @@ def parse_rod_config(data: dict, source: str = "") -> RodConfig:
 def load_rod_config(path) -> RodConfig:
     """Read and validate a rod TOML file; raises :class:`SceneError` naming the file and the bad key."""
     path = Path(path)
-    try:
-        with path.open("rb") as fh:
-            data = tomllib.load(fh)
-    except FileNotFoundError:
-        raise SceneError(f"{path}: no such file") from None
-    except tomllib.TOMLDecodeError as exc:
-        raise SceneError(f"{path}: not valid TOML ({exc})") from None
+    data = read_toml_file(path, SceneError, "rod file")
     return parse_rod_config(data, str(path))

@@ -166,15 +166,13 @@ def resolve_material(spec, base_dir, key: str, library: dict | None = None) -> d
         if spec.model not in (None, DEFAULT_LAW):
             values.pop("shear_modulus")  # the library's modulus is Neo-Hookean; another model needs its own constants
     if spec.file is not None:
-        import tomllib
+        from magsoro.io.files import read_toml_file
+
 
         path = Path(spec.file) if base_dir is None else Path(base_dir) / spec.file
         if not path.is_file():
             raise SceneError(f"{key}.file: material file '{path}' not found")
-        try:
-            entry = tomllib.loads(path.read_text())
-        except tomllib.TOMLDecodeError as exc:
-            raise SceneError(f"{key}.file: '{path}' is not valid TOML: {exc}") from None
+        entry = read_toml_file(path, SceneError, f"material file ({key}.file)")
         model = entry.get("model")
         if model not in LAWS:
             raise SceneError(f"{key}.file: '{path}' holds model {model!r}; the engine supports {', '.join(LAWS)}")

@@ -2,14 +2,15 @@
 
 from __future__ import annotations
 
-import tomllib
 import typing
 from pathlib import Path
 
 import pydantic
 from pydantic import ValidationError
 
+from magsoro.config_errors import check_nesting, short_repr
 from magsoro.errors import SceneError
+from magsoro.io.files import read_toml_file
 from magsoro.scene.schema import SHAPES_2D, SHAPES_3D, Scene
 
 
@@ -41,12 +42,15 @@ def _inner_model(ann):
 
 
 # tags of the callable discriminators in schema.py (vector or profile, library name or material table)
-_UNION_TAGS = {"magnetization": {"vector": None, "profile": "profile"}, "material": {"name": None, "table": "table"}}
+_UNION_TAGS = {"magnetization": {"vector": None, "profile": "profile"}, "material": {"name": None, "table": "material"},
+               "robot": {"name": None, "table": "robot"}}
 
 
 def _resolve(loc, root=None):
     """Follow loc through the model (Scene by default), dropping discriminator tags; return (clean loc, model class or None)."""
-    from magsoro.scene.schema import AnyMagnetization, Material
+    from magsoro.scene.schema import AnyMagnetization, Material, Robot
+
+    tagged = {"material": Material, "robot": Robot, "profile": _inner_model(AnyMagnetization), None: None}
 
     cls = Scene if root is None else root
     clean = []
@@ -55,8 +59,7 @@ def _resolve(loc, root=None):
             clean.append(part)
             continue
         if clean and clean[-1] in _UNION_TAGS and part in _UNION_TAGS[clean[-1]]:
-            kind = _UNION_TAGS[clean[-1]][part]
-            cls = Material if kind == "table" else (_inner_model(AnyMagnetization) if kind == "profile" else None)
+            cls = tagged[_UNION_TAGS[clean[-1]][part]]
             continue
         if isinstance(cls, list):  # union: part is the tag
             match = [m for m in cls if getattr(m.model_fields.get("type"), "annotation", None) is not None and part in typing.get_args(m.model_fields["type"].annotation)]
@@ -72,30 +75,49 @@ def _resolve(loc, root=None):
     return clean, cls
 
 
+def _union_types(members) -> list[str]:
+    """The 'type' values a union of models accepts (the members' Literal tags), in order."""
+    if not isinstance(members, list):
+        return []
+    out = []
+    for m in members:
+        field = m.model_fields.get("type")
+        if field is not None:
+            out.extend(str(t) for t in typing.get_args(field.annotation) if str(t) not in out)
+    return out
+
+
 def format_validation_error(exc: ValidationError, source: str = "scene", root=None) -> str:
     """One line: '<source>: <key>: <problem>' for the first error, plus how many more there are."""
     errors = exc.errors()
-    first = errors[0]
+    # a misspelt key shows as an unknown key plus a missing one: report the unknown key, it names the typo
+    first = next((e for e in errors if e["type"] == "extra_forbidden"), errors[0])
     loc, _ = _resolve(first["loc"], root)
     key = _loc_str(loc) or "(top level)"
     kind = first["type"]
     if kind == "extra_forbidden":
         parent_loc, parent = _resolve(first["loc"][:-1], root)
         allowed = sorted(parent.model_fields) if isinstance(parent, type) else []
-        msg = f"unknown key '{loc[-1]}'" + (f"; allowed keys here: {', '.join(allowed)}" if allowed else "")
+        import difflib
+
+        close = difflib.get_close_matches(str(loc[-1]), allowed, n=1)
+        msg = (f"unknown key '{loc[-1]}'" + (f" (did you mean '{close[0]}'?)" if close else "")
+               + (f"; allowed keys here: {', '.join(allowed)}" if allowed else ""))
     elif kind == "missing":
         msg = "required key is missing"
     elif kind == "union_tag_invalid":
         ctx = first.get("ctx", {})
         msg = f"unknown type {ctx.get('tag')!r}; allowed: {ctx.get('expected_tags')}"
     elif kind == "union_tag_not_found":
-        msg = f"needs a 'type' key; allowed: {first.get('ctx', {}).get('expected_tags', '')}"
+        _, members = _resolve(first["loc"], root)
+        types = _union_types(members)
+        msg = "needs a 'type' key" + (f"; allowed types: {', '.join(types)}" if types else "")
     else:
         msg = first["msg"]
         if kind == "value_error":  # our own validators' messages, without pydantic's prefix
             msg = msg.removeprefix("Value error, ")
         if "input" in first and not isinstance(first["input"], (dict, list)):
-            msg += f" (got {first['input']!r})"
+            msg += f" (got {short_repr(first['input'])})"
     more = f" (and {len(errors) - 1} more problem{'s' if len(errors) > 2 else ''})" if len(errors) > 1 else ""
     if not loc and kind == "value_error":  # a check across tables: its message names the keys
         return f"{source}: {msg}{more}"
@@ -104,6 +126,7 @@ def format_validation_error(exc: ValidationError, source: str = "scene", root=No
 
 def parse_scene(data: dict, source: str = "scene", base_dir: Path | None = None) -> Scene:
     """Validate a scene given as a dict (as read from TOML) and run the cross-key checks."""
+    check_nesting(data, source, SceneError)
     try:
         scene = Scene.model_validate(data)
     except ValidationError as exc:
@@ -144,10 +167,7 @@ def _expand_robot(scene: Scene, source: str, base_dir) -> None:
     key = "robot" if isinstance(scene.robot, str) else "robot.file"
     if not path.is_file():
         raise SceneError(f"{source}: {key}: robot file '{path}' not found")
-    try:
-        data = tomllib.loads(path.read_text())
-    except tomllib.TOMLDecodeError as exc:
-        raise SceneError(f"{path}: not valid TOML: {exc}") from None
+    data = read_toml_file(path, SceneError, "robot file")
     try:
         rf = RobotFile.model_validate(data)
     except ValidationError as exc:
@@ -189,13 +209,7 @@ def apply_preview(data: dict, source: str = "scene") -> dict:
 
 def read_scene_toml(path) -> dict:
     """The raw dict of a TOML scene file; a missing file or bad TOML raises :class:`SceneError`."""
-    path = Path(path)
-    if not path.is_file():
-        raise SceneError(f"{path}: scene file not found")
-    try:
-        return tomllib.loads(path.read_text())
-    except tomllib.TOMLDecodeError as exc:
-        raise SceneError(f"{path}: not valid TOML: {exc}") from None
+    return read_toml_file(path, SceneError, "scene file")
 
 
 def load_scene(path, preview: bool = False) -> Scene:

@@ -9,7 +9,7 @@ always have 3 (the field is three-dimensional even when the body is planar).
 from __future__ import annotations
 
 import math
-from typing import Annotated, Literal, Union
+from typing import Annotated, Literal, Optional, Union
 
 from pydantic import AfterValidator, BaseModel, ConfigDict, Discriminator, Field, PlainValidator, PrivateAttr, Tag, model_validator
 
@@ -33,6 +33,18 @@ def _positive(v: list[float]) -> list[float]:
 Direction = Annotated[list[float], AfterValidator(_nonzero)]  # a direction: any non-zero length
 Axis3 = Annotated[list[float], Field(min_length=3, max_length=3), AfterValidator(_nonzero)]  # a 3D axis
 Sizes = Annotated[list[float], AfterValidator(_positive)]  # edge lengths, m
+
+
+def _identifier(v: str) -> str:
+    import re
+
+    if not re.fullmatch(r"[A-Za-z0-9_][A-Za-z0-9_\-]{0,63}", v):
+        raise ValueError("a name of letters, digits, '_' and '-' (at most 64; it becomes a metrics.csv column "
+                         "or a sweep key)")
+    return v
+
+
+Identifier = Annotated[str, AfterValidator(_identifier)]  # body, probe and field-source names
 
 
 class Strict(BaseModel):
@@ -242,8 +254,8 @@ class TableMagnetization(Strict):
             _check_len(getattr(self, k), k, 3)
         if len(self.positions) != len(self.vectors):
             raise ValueError("positions and vectors must have the same length")
-        for v in self.vectors:
-            _check_len(v, "each vector", 3)
+        for i, v in enumerate(self.vectors):
+            _check_len(v, f"vectors[{i}]", 3)
         if any(b <= a for a, b in zip(self.positions, self.positions[1:])):
             raise ValueError("positions must be strictly increasing")
         return self
@@ -292,7 +304,7 @@ MaterialSpec = Annotated[Union[Annotated[str, Tag("name")], Annotated[Material, 
 class Body(Strict):
     """A body (or a robot part): a shape filled with particles of one material, with a magnetisation profile."""
 
-    name: str = Field(description="Unique name, used by clamps and probes.")
+    name: Identifier = Field(description="Unique name, used by clamps and probes (letters, digits, '_', '-').")
     shape: AnyShape = Field(description="Geometry; 'box', 'cylinder', 'sphere', 'mesh', 'tube', 'extrusion', 'arc' in 3D; 'rectangle', 'polygon', 'arc' in 2D.")
     material: MaterialSpec = Field(description="A table [Material](#material), or the name of a library entry (magsoro materials list).")
     magnetization: MagnetizationSpec = Field(
@@ -329,6 +341,11 @@ class RobotFile(Strict):
     description: str | None = Field(default=None, description="Free text: origin of the design, sources of the dimensions.")
     material_library: list[str] = Field(default_factory=list, description="User material library TOML files, relative to the robot file.")
     parts: list[Body] = Field(min_length=1, description="Parts ([[parts]] tables), as for bodies.")
+
+
+# a robot file name, or a [robot] table: told apart by the input's type, so an error inside the table is reported
+# at its own key (a plain union reported every part's mistake as "robot.str: Input should be a valid string")
+RobotSpec = Annotated[Union[Annotated[str, Tag("name")], Annotated[Robot, Tag("table")]], Discriminator(_is_table("table", "name"))]
 
 
 # ---------------------------------------------------------------- clamps
@@ -400,7 +417,7 @@ AnyCollider = Annotated[Union[HalfSpaceCollider, BoxCollider, SphereCollider, Cy
 
 # ---------------------------------------------------------------- fields
 class FieldBase(Strict):
-    name: str | None = Field(default=None, description="Optional name, so sweeps can address the source (fields.NAME.key).")
+    name: Identifier | None = Field(default=None, description="Optional name, so sweeps can address the source (fields.NAME.key).")
 
 
 class RampProfile(Strict):
@@ -553,7 +570,7 @@ class CentroidProbe(Strict):
     """Mass-weighted centroid of a body (columns NAME_x, NAME_y[, NAME_z])."""
 
     type: Literal["centroid"]
-    name: str = Field(description="Column prefix in metrics.csv.")
+    name: Identifier = Field(description="Column prefix in metrics.csv (letters, digits, '_', '-').")
     body: str = Field(description="Body name.")
 
 
@@ -561,7 +578,7 @@ class PointProbe(Strict):
     """Mean position of the particles of a body whose reference position lies in ``region`` (e.g. a tip)."""
 
     type: Literal["tip", "point"]
-    name: str = Field(description="Column prefix in metrics.csv.")
+    name: Identifier = Field(description="Column prefix in metrics.csv (letters, digits, '_', '-').")
     body: str = Field(description="Body name.")
     region: AnyShape = Field(description="Region in the reference configuration.")
 
@@ -570,7 +587,7 @@ class BoundsProbe(Strict):
     """Axis-aligned bounding box of a body (columns NAME_min_x, ..., NAME_max_z)."""
 
     type: Literal["bbox"]
-    name: str = Field(description="Column prefix in metrics.csv.")
+    name: Identifier = Field(description="Column prefix in metrics.csv (letters, digits, '_', '-').")
     body: str = Field(description="Body name.")
 
 
@@ -680,7 +697,7 @@ class Scene(Strict):
 
     simulation: Simulation
     bodies: list[Body] = Field(default_factory=list, description="Bodies ([[bodies]] tables). A scene needs at least one body or robot part.")
-    robot: Union[str, Robot, None] = Field(default=None, description="A robot file name (relative to the scene), or a [robot] table with file and/or [[robot.parts]]; its parts become bodies.")
+    robot: Optional[RobotSpec] = Field(default=None, description="A robot file name (relative to the scene), or a [robot] table with file and/or [[robot.parts]]; its parts become bodies.")
     material_library: list[str] = Field(default_factory=list, description="User material library TOML files ([[materials]] entries, as in magsoro/data/materials.toml), relative to the scene file.")
     clamps: list[Clamp] = Field(default_factory=list, description="Clamped regions ([[clamps]] tables).")
     colliders: list[AnyCollider] = Field(default_factory=list, description="Rigid colliders ([[colliders]] tables).")

@@ -3,11 +3,11 @@
 from __future__ import annotations
 
 import copy
-import tomllib
 from dataclasses import dataclass
 from pathlib import Path
 
 from magsoro.errors import SceneError
+from magsoro.io.files import read_toml_file
 from magsoro.sweep.params import Param, RunSpec, SweepError, combine, format_value, parse_param, set_path, slug
 
 
@@ -80,12 +80,7 @@ def make_plan(scene_file, param_specs: list[str], zipped: bool = False) -> Sweep
     combination is invalid).
     """
     path = Path(scene_file).resolve()
-    if not path.is_file():
-        raise SceneError(f"{scene_file}: scene file not found")
-    try:
-        base = tomllib.loads(path.read_text())
-    except tomllib.TOMLDecodeError as exc:
-        raise SceneError(f"{scene_file}: not valid TOML: {exc}") from None
+    base = read_toml_file(path, SceneError, "scene file")
     params = [parse_param(s) for s in param_specs]
     specs = {p.key: p.text for p in params}
     combos = combine(params, zipped)

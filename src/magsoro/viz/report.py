@@ -182,6 +182,11 @@ def run_content(run_dir, max_frames: int = MAX_FRAMES, max_particles: int = MAX_
         info = json.loads((run_dir / "run.json").read_text())
     except (OSError, ValueError) as exc:
         raise ReportError(f"{run_dir / 'run.json'}: cannot read ({exc})") from None
+    if not isinstance(info, dict):
+        raise ReportError(f"{run_dir / 'run.json'}: not a run.json of magsoro (a JSON object is expected)")
+    from magsoro.io.outdir import run_state
+
+    state, why = run_state(info)
     scene = info.get("scene") or {}
     columns, values = read_metrics(run_dir)
     charts = []
@@ -192,7 +197,7 @@ def run_content(run_dir, max_frames: int = MAX_FRAMES, max_particles: int = MAX_
             if series:
                 charts.append({"title": f"probe {probe}", "xlabel": "time (s)", "ylabel": "position (m)", "series": series})
     facts = [
-        ("status", info.get("status", "?")),
+        ("status", state if not why or state != "stale" else f"stale: {why}"),
         ("message", info.get("message", "")),
         ("steps", info.get("steps")),
         ("simulated time (s)", info.get("time")),
@@ -216,7 +221,7 @@ def run_content(run_dir, max_frames: int = MAX_FRAMES, max_particles: int = MAX_
         "kind": "run",
         "title": f"Run {sweep.get('name') or scene.get('name') or run_dir.name}",
         "subtitle": str(run_dir),
-        "status": info.get("status", "?"),
+        "status": state,
         "facts": [(k, _fmt(v)) for k, v in facts if v not in (None, "")],
         "sweep_params": [(k, json.dumps(v)) for k, v in (sweep.get("params") or {}).items()],
         "scene_rows": _flatten(scene),

@@ -13,6 +13,7 @@ h1 { font-size: 22px; margin: 8px 0 2px; } h2 { font-size: 17px; margin: 28px 0 
 .sub, .hint { color: var(--muted); margin: 2px 0 8px; }
 .badge { font-size: 12px; padding: 2px 8px; border-radius: 10px; vertical-align: middle; background: var(--panel); border: 1px solid var(--line); }
 .badge.completed { color: var(--ok); border-color: var(--ok); } .badge.failed { color: var(--bad); border-color: var(--bad); }
+.badge.stale, .badge.interrupted { color: var(--bad); border-style: dashed; }
 #status { font-family: ui-monospace, monospace; font-size: 12px; padding: 4px 8px; border-radius: 4px; display: inline-block; margin-top: 6px; background: var(--panel); }
 #status.ok { color: var(--ok); } #status.error { color: #fff; background: var(--bad); }
 table { border-collapse: collapse; } th, td { text-align: left; padding: 3px 10px 3px 0; vertical-align: top; }
