@@ -310,3 +310,21 @@ def test_optimize_options_are_checked_by_name(flag, value, tmp_path, capsys):
     assert main(argv) == 2
     err = capsys.readouterr().err.strip()
     assert err.startswith(f"magsoro optimize: error: {flag}: must be a finite number") and "\n" not in err, err
+
+
+def test_a_particle_moving_more_than_a_cell_in_a_step_is_an_error():
+    """With a fixed time step too large for the motion (500 m/s, 2.5 cells per step), the step is refused rather
+    than smeared over the grid, and the state kept is the one before it (issue "Reliability": "a particle that
+    moves more than a cell in a step is an error, not a silent smear")."""
+    from magsoro.errors import SimulationError
+    from magsoro.simulation import Simulation
+
+    scene = copy.deepcopy(BASE)
+    scene["bodies"][0]["velocity"] = [500.0, 0.0]
+    scene["colliders"] = []
+    scene["simulation"]["dt"] = 2.5 * 1e-3 / 500.0
+    sim = Simulation(parse_scene(scene))
+    x0 = sim.state.x.numpy().copy()
+    with pytest.raises(SimulationError, match=r"a particle moved 2\.5 cells in one step \(speed 500 m/s"):
+        sim.step()
+    assert sim.steps == 0 and np.array_equal(sim.state.x.numpy(), x0)

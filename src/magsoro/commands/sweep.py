@@ -76,9 +76,9 @@ def run(args) -> int:
             plan, args.out, scheduler=args.scheduler, workers=args.workers, resume=args.resume, device=args.device,
             particles=False if args.no_particles else None, progress=progress,
         )
-    except KeyboardInterrupt:
+    except KeyboardInterrupt as exc:
         print(f"magsoro sweep: interrupted; finished runs are kept, continue with --resume --out {args.out}", file=sys.stderr)
-        return 130
+        return 128 + getattr(exc, "signum", 2)  # 143 after SIGTERM (a Terminated), 130 after Ctrl-C
     n_failed = len(result.failed)
     unfinished = len(result.records) - len(result.completed) - n_failed
     rest = f", {unfinished} not finished (run again with --resume)" if unfinished else ""

@@ -799,6 +799,7 @@ class Solver:
         err = self._error_np if self._on_cpu else self.error.numpy()
         self._phase("other", tick)
         self._raise_on_error(err, state_in)
+        self._check_motion(state_in, dt)
 
     # -- the phases of a step -------------------------------------------------------------------------------
     def _check_and_fit(self, state_in: State) -> None:
@@ -962,6 +963,22 @@ class Solver:
         wp.launch(k["contact_scatter"], dim=N, device=dev, inputs=[x, state_out.v, m.mass, block, tc["grid"], ct])
         wp.launch(k["contact_resolve"], dim=n, device=dev, inputs=[tc["p"], tc["m"], ct, tc["dv"]])
         wp.launch(k["contact_gather"], dim=N, device=dev, inputs=[x, m.clamped, block, self.scalar(dt), tc["dv"], tc["out"], ct])
+
+    def _check_motion(self, state_in: State, dt: float) -> None:
+        """A particle that moves more than a cell in a step was not resolved by the time step (a fixed dt too
+        large for the motion, or a force that grew within one step: the start of a blow-up); the transfers would
+        smear it over the grid and the run would go on, so stop instead. Uses the top-speed reduction that the
+        automatic time step reads anyway."""
+        moved = self.last_max_speed() * dt
+        if moved > self.model.dx:
+            self._bounds_valid = False
+            raise SimulationError(
+                f"a particle moved {moved / self.model.dx:.3g} cells in one step (speed {moved / dt:.3g} m/s, "
+                f"dt {dt:.3g} s); the time step does not resolve the motion: lower simulation.dt or simulation.cfl, "
+                f"or the loads grew too fast (a field too strong for the grid: refine simulation.dx or raise damping)",
+                state_in.step,
+                state_in.time,
+            )
 
     def _raise_on_error(self, err, state_in: State) -> None:
         if err[0]:
