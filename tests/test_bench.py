@@ -27,6 +27,9 @@ def test_bench_json_keys_and_medians():
     assert abs(scene["steps_per_s"] * scene["ms_per_step"] - 1e3) < 1e-6
     assert abs(scene["particle_steps_per_s"] - scene["n_particles"] * scene["steps_per_s"]) <= 1e-9 * scene["particle_steps_per_s"]
     assert 0 < scene["ratio_to_reference"] < 10
+    # the windowed timing of the same steps: one host read per window (5 steps here: one window per round)
+    assert len(scene["window_ms_per_step_rounds"]) == scene["rounds"] and scene["window_ms_per_step"] > 0
+    assert scene["host_reads_per_step"] == {"checked": 1.0, "window": 1 / 5}
 
 
 def test_bench_rejects_bad_arguments():

@@ -165,7 +165,8 @@ def test_interrupted_run_is_marked(tmp_path):
 
     result = sim.run(callback=stop, record=writer.record)
     writer.finish(result, 0.0)
-    assert result.status == "interrupted" and result.steps == 5
+    # stopped inside the first check window: the state kept is the window's first (checked) one
+    assert result.status == "interrupted" and result.steps == 0 and result.time == 0.0
     assert json.loads((tmp_path / "r" / "run.json").read_text())["status"] == "interrupted"
 
 

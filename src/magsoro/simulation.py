@@ -84,6 +84,9 @@ class Simulation:
         self.dt = (self.fixed_dt if self.fixed_dt is not None
                    else cfl_time_step(self.solver.settings.cfl, self.model.dx, self._wave_speed, self._initial_speed))
         self.dt_min = self.dt_max = self.dt
+        self.check_every = int(sim.check_every)  # steps per check window (advance_to, run)
+        self.windows = self.reruns = 0  # check windows run, and those run again step by step
+        self._checkpoint = None  # the first state of the current check window
         self.steps = 0
         self.last_good_time = 0.0
 
@@ -139,10 +142,13 @@ class Simulation:
         }
 
     # -- stepping ------------------------------------------------------------------------------------------
-    def _next_dt(self, remaining: float) -> float:
+    def _next_dt(self, remaining: float, speed: float | None = None) -> float:
+        """The next step: the fixed dt, or the CFL bound for the top speed of the last check (``speed`` when
+        given), shortened to land on the end of ``remaining`` without a sliver step."""
         if self.fixed_dt is None:
-            vmax = self.solver.last_max_speed() if self.steps else self._initial_speed
-            self.dt = cfl_time_step(self.solver.settings.cfl, self.model.dx, self._wave_speed, vmax)
+            if speed is None:
+                speed = self.solver.last_max_speed() if self.steps else self._initial_speed
+            self.dt = cfl_time_step(self.solver.settings.cfl, self.model.dx, self._wave_speed, speed)
         dt = self.dt
         if remaining < dt * (1 + 1e-9):
             dt = remaining
@@ -173,12 +179,69 @@ class Simulation:
         self.steps += 1
 
     def advance_to(self, t_end: float, callback: Callable | None = None) -> None:
-        """Step until simulated time ``t_end`` (s), landing on it exactly."""
-        while self.state.time < t_end - 1e-12 * max(1.0, t_end):
-            dt = self._next_dt(t_end - self.state.time)
-            self._step(dt)
+        """Step until simulated time ``t_end`` (s), landing on it exactly, in check windows of up to
+        ``check_every`` steps (:meth:`_window`); ``callback(sim)`` after every step."""
+        eps = 1e-12 * max(1.0, t_end)
+        while self.state.time < t_end - eps:
+            if self.check_every <= 1:
+                self._step(self._next_dt(t_end - self.state.time))
+                if callback is not None:
+                    callback(self)
+            else:
+                self._window(t_end, eps, callback)
+
+    def _window(self, t_end: float, eps: float, callback: Callable | None) -> None:
+        """Up to ``check_every`` steps towards ``t_end`` with one host read at the end (the solver accumulates its
+        checks on the device; the time step is fixed from the top speed of the previous check). When the window
+        fails a check, a particle needed a refit of the grid block, or the speeds reached needed a shorter step,
+        its first state comes back and the same span of time runs again in checked steps, each with its own
+        time step as without windows: a refit happens where it is due, and an error stops at its exact step with
+        the state before it kept. Callbacks are called after every step, again for the steps run again."""
+        if self._checkpoint is None:
+            self._checkpoint = self.solver.new_state()
+        self._checkpoint.assign(self.state)
+        steps0 = self.steps
+        speed = self.solver.last_max_speed() if self.steps else self._initial_speed
+        dts = []
+        self.windows += 1
+        try:
+            while len(dts) < self.check_every and self.state.time < t_end - eps:
+                dt = self._next_dt(t_end - self.state.time, speed)
+                self.solver.step(self.state, self._spare, self.control, dt, check=False)
+                self.state, self._spare = self._spare, self.state
+                self.steps += 1
+                dts.append(dt)
+                if callback is not None:
+                    callback(self)
+            problem = self.solver.close_window()
+        except SimulationError as exc:
+            if not dts:  # refused at the window's start: the state it refused is the checked one, keep it
+                self.solver.forget_bounds()
+                raise
+            problem = str(exc)
+        except BaseException:  # Ctrl-C, SIGTERM, a callback's error: keep the window's first (checked) state
+            self._rewind(steps0)
+            raise
+        if problem is None and self.fixed_dt is None:
+            # the time step was fixed for the window from the speed at its start; the speeds it reached must
+            # not have needed a step shorter than the one taken (Courant number (c + |v|) dt / dx at most 1)
+            if (self._wave_speed + self.solver.last_max_speed()) * max(dts) > self.model.dx:
+                problem = "the speeds reached needed a shorter time step"
+        if problem is None:
+            return
+        self.reruns += 1
+        t_window = self.state.time
+        self._rewind(steps0)
+        while self.state.time < t_window - eps:  # the same span again, each step checked (and its dt adapted)
+            self._step(self._next_dt(t_window - self.state.time))
             if callback is not None:
                 callback(self)
+
+    def _rewind(self, steps: int) -> None:
+        """Back to the first state of the current check window (``steps`` steps taken then)."""
+        self.state.assign(self._checkpoint)
+        self.steps = steps
+        self.solver.forget_bounds()
 
     def kinetic_energy(self) -> tuple[float, float]:
         """(kinetic energy in J, largest particle speed in m/s) of the current state (host read-back)."""

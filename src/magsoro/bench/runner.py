@@ -21,6 +21,8 @@ DEFAULT_STEPS = {"walker": 300, "walker_1m": 300, "walker_total": 300, "beam2d":
 #: figures are medians over the rounds (a shared 2-core VM here changes speed by up to 1.7x from one second to
 #: the next, which a single timing mistakes for a change of the code).
 ROUNDS = 5
+#: Steps per check window in the windowed timing (the scene default of simulation.check_every).
+WINDOW = 200
 
 
 def run_scene(name: str, device: str = "cpu", steps: int | None = None, threads: int | None = None, rounds: int = ROUNDS) -> dict:
@@ -37,15 +39,31 @@ def run_scene(name: str, device: str = "cpu", steps: int | None = None, threads:
         a, b = b, a
     h = model.host
     ref = ReferenceStep(h["positions"], h["volumes"], h["mass"], float(h["shear_modulus"][0]), float(h["bulk_modulus"][0]), model.dx, dt, device)
-    engine_s, ref_s = [], []
+    engine_s, window_s, ref_s = [], [], []
+    reads = {}
     for _ in range(rounds):
         wp.synchronize_device(device)
+        reads0 = solver.host_reads
         t0 = time.perf_counter()
         for _ in range(steps):
             solver.step(a, b, control, dt)
             a, b = b, a
         wp.synchronize_device(device)
         engine_s.append(time.perf_counter() - t0)
+        reads["checked"] = (solver.host_reads - reads0) / steps
+        # the same steps in check windows (the loop Simulation.run uses): one host read per WINDOW steps
+        reads0 = solver.host_reads
+        t0 = time.perf_counter()
+        for k in range(steps):
+            solver.step(a, b, control, dt, check=False)
+            a, b = b, a
+            if (k + 1) % WINDOW == 0 or k + 1 == steps:
+                problem = solver.close_window()
+                if problem is not None:
+                    raise RuntimeError(f"bench {name}: a check window failed ({problem})")
+        wp.synchronize_device(device)
+        window_s.append(time.perf_counter() - t0)
+        reads["window"] = (solver.host_reads - reads0) / steps
         ref_s.append(ref.time(steps))
     # phase split from a separate, synchronised pass (timing each phase adds synchronisation)
     solver.enable_phase_timing(True)
@@ -69,6 +87,10 @@ def run_scene(name: str, device: str = "cpu", steps: int | None = None, threads:
         "dt": dt,
         "ms_per_step": 1e3 * wall / steps,
         "ms_per_step_rounds": [1e3 * e / steps for e in engine_s],
+        "window_steps": WINDOW,
+        "window_ms_per_step": 1e3 * float(np.median(window_s)) / steps,
+        "window_ms_per_step_rounds": [1e3 * e / steps for e in window_s],
+        "host_reads_per_step": reads,
         "steps_per_s": steps / wall,
         "particle_steps_per_s": n * steps / wall,
         "reference_ms_per_step": 1e3 * ref_wall / steps,

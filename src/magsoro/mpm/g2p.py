@@ -87,6 +87,15 @@ def make_g2p(dim: int, scalar, two_fields: bool = False) -> dict:
             dx = block.dx
             inv_dx = scalar(1.0) / dx
             base, fx = local_coords(xp, block.lo, inv_dx)
+            if outside_block(base, block.shape):
+                # only inside a check window, whose start is not checked on the host: p2g has flagged the
+                # particle, the window runs again step by step; keep it as it was, read no node outside the block
+                o.x[p] = xc
+                o.v[p] = vec()
+                o.C[p] = mat()
+                o.F[p] = F_in[p]
+                wp.atomic_max(checks[0].error, 0, 1)
+                return
             w0, w1, w2 = bspline_weights(fx)
             new_v = vec()
             S = mat()

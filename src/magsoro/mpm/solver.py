@@ -453,6 +453,11 @@ class Solver:
         self._thread_grids = []  # (grid_p, grid_m) of threads 1.. (allocated with the grid block)
         self._thread_grid_views = []
         self._bounds_valid = False
+        self._checked_bounds = None  # (lo, hi) of the particles at the last check
+        self._checked_speed = 0.0  # top particle speed of the last check (m/s)
+        self._window_open = False
+        self._window_dt = 0.0  # largest dt of the open window
+        self.host_reads = 0  # host reads of device results by the step loop (checks, bounds); see close_window
         self._evaluator = None
         self._evaluator_key = None
         n = model.n_particles
@@ -669,8 +674,6 @@ class Solver:
             "grid_update": nodes(k["grid_update"], [
                 self.grid_p, self.grid_m, self._held if self._total else self.grid_clamp, org, block.shape, gs,
                 self.grid_v, ct, self.grid_u]),
-            "reset": [nodes(k["reset_reductions"], [self._thread_bounds[t], self._thread_speed[t], sc(1e30)], 1)
-                      for t in range(self.threads)],
             "g2p": particles(k["g2p"], lambda th, cut: [
                 self.grid_v, th["bodies"], block, sc(0.0), cut(x_grid), cut(state_in.x), cut(state_in.F), th["out"],
                 th["checks"], f_update, grid_p[th["t"]], ct]),
@@ -718,19 +721,20 @@ class Solver:
             self._workers.run(launches)
 
     def forget_bounds(self) -> None:
-        """Drop the particle bounds of the last step (the caller went back to an earlier state)."""
+        """Drop the particle bounds of the last check (the caller went back to an earlier state)."""
         self._bounds_valid = False
+        self._window_open = False
 
     def grid_info(self) -> dict:
         return {"origin": self.org.tolist(), "shape": self.shape.tolist(), "nodes": self.n_active, "capacity": self.capacity, "refits": self.refits}
 
     def _particle_bounds(self, state: State):
+        """Bounds of the particles the next step starts from: those of the last check (no read), or, after a
+        rollback or at the start, read from the state (the reference positions in the total form)."""
         if self._bounds_valid:
-            if self._on_cpu and self.threads == 1:
-                b = self._bounds_np[0]
-                return b[: self.dim].astype(np.float64), b[self.dim :].astype(np.float64)
-            b = np.array(self._bounds_np if self._on_cpu else [tb.numpy() for tb in self._thread_bounds], dtype=np.float64)
-            return b[:, : self.dim].min(axis=0), b[:, self.dim :].max(axis=0)
+            return self._checked_bounds
+        if not self._total:
+            self.host_reads += 1
         x = self.model.host["positions"] if self._total else state.x.numpy()  # what the grid block is fitted to
         return x.min(axis=0).astype(np.float64), x.max(axis=0).astype(np.float64)
 
@@ -762,20 +766,25 @@ class Solver:
         return total
 
     def last_max_speed(self) -> float:
-        if self._on_cpu:
-            return max(float(ts[0]) for ts in self._speed_np)
-        return max(float(ts.numpy()[0]) for ts in self._thread_speed)
+        """Top particle speed (m/s) of the last check (the last checked step, or the whole last window)."""
+        return self._checked_speed
 
     # -- stepping -------------------------------------------------------------------------------------------
-    def step(self, state_in: State, state_out: State, control: Control, dt: float) -> None:
+    def step(self, state_in: State, state_out: State, control: Control, dt: float, check: bool = True) -> None:
         """Advance ``state_in`` by ``dt`` seconds into ``state_out``. Raises SimulationError on a bad state.
 
         Phases (docs/engine.md, "Per step"): check the particles against the grid block and the domain; evaluate
         the drives (fields, colliders) at t; scatter (contact scan, p2g, node displacements); node velocities;
-        gather (g2p and the remap); read the error flags."""
+        gather (g2p and the remap); read the error flags.
+
+        ``check=False`` is a step inside a check window (:meth:`open_window`, :meth:`close_window`): no host
+        read; the error flags, particle bounds and top speed accumulate on the device until the window closes.
+        A checked step is a window of one step."""
         t = state_in.time
         tick = time.perf_counter() if self.phase_times is not None else 0.0
-        self._check_and_fit(state_in)
+        if check or not self._window_open:
+            self._check_and_fit(state_in)
+            self.open_window()
         fields = self._fields(control)
         b0 = fields.uniform_value(t)
         if fields.has_gradient:
@@ -793,13 +802,69 @@ class Solver:
         if self._tcontact:
             self._contact_pass(state_in, state_out, dt)
         tick = self._phase("g2p", tick)
-        self._bounds_valid = True
         state_out.time = t + dt
         state_out.step = state_in.step + 1
-        err = self._error_np if self._on_cpu else self.error.numpy()
-        self._phase("other", tick)
-        self._raise_on_error(err, state_in)
-        self._check_motion(state_in, dt)
+        self._window_dt = max(self._window_dt, dt)
+        if check:
+            err = self._read_checks()
+            self._phase("other", tick)
+            self._raise_on_error(err, state_in)
+            self._check_motion(state_in, dt)
+
+    # -- check windows ----------------------------------------------------------------------------------------
+    def open_window(self) -> None:
+        """Start a check window: zero the error flags and the particle-bound and top-speed reductions, which the
+        window's steps then accumulate on the device (bounds over every state of the window, the top speed of
+        all its steps)."""
+        if self._on_cpu:
+            self._error_np.fill(0)
+            for b in self._bounds_np:
+                b[: self.dim] = 1e30
+                b[self.dim :] = -1e30
+            for ts in self._speed_np:
+                ts[0] = 0.0
+        else:
+            self.error.zero_()
+            for t in range(self.threads):
+                wp.launch(self.k["reset_reductions"], dim=1, device=self.device,
+                          inputs=[self._thread_bounds[t], self._thread_speed[t], self.scalar(1e30)])
+        self._window_open = True
+        self._window_dt = 0.0
+
+    def close_window(self) -> str | None:
+        """End a check window with one host read of its flags, bounds and top speed. None when every step of it
+        passed every check a checked step makes and the particles stayed inside the safe box of the grid block
+        (so no step needed a refit); otherwise the reason, and the caller goes back to the window's first state
+        and runs the window again with checked steps, which refit, or stop at the exact step with the error."""
+        err = self._read_checks()
+        self._window_open = False
+        if err[0] or err[1]:
+            self._bounds_valid = False
+            return "a particle left the grid block" if err[0] and not err[1] else "the state became invalid"
+        lo, hi = self._checked_bounds
+        if not (self._safe_lo is not None and (lo >= self._safe_lo).all() and (hi < self._safe_hi).all()):
+            self._bounds_valid = False
+            return "particles left the safe box of the grid block"
+        if self._checked_speed * self._window_dt > self.model.dx:
+            self._bounds_valid = False
+            return "a particle moved more than a cell in one step"
+        return None
+
+    def _read_checks(self) -> np.ndarray:
+        """The one host read of a check: error flags, particle bounds and top speed (counted in host_reads)."""
+        self.host_reads += 1
+        if self._on_cpu:
+            err = self._error_np.copy()
+            bounds = np.array(self._bounds_np, dtype=np.float64)
+            speed = max(float(ts[0]) for ts in self._speed_np)
+        else:
+            err = self.error.numpy()
+            bounds = np.array([tb.numpy() for tb in self._thread_bounds], dtype=np.float64)
+            speed = max(float(ts.numpy()[0]) for ts in self._thread_speed)
+        self._checked_bounds = (bounds[:, : self.dim].min(axis=0), bounds[:, self.dim :].max(axis=0))
+        self._checked_speed = speed
+        self._bounds_valid = True
+        return err
 
     # -- the phases of a step -------------------------------------------------------------------------------
     def _check_and_fit(self, state_in: State) -> None:
@@ -858,16 +923,14 @@ class Solver:
         L["_scalars"] = scalars
 
     def _clear_grid(self) -> None:
-        """Zero the grid arrays a step scatters into and the error flags (CPU: through numpy views, a Warp call
-        costs more than the work here)."""
+        """Zero the grid arrays a step scatters into (CPU: through numpy views, a Warp call costs more than the
+        work here). The error flags are zeroed when a check window opens."""
         if self._on_cpu:
             for view in self._grid_np:
                 view.fill(0)
-            self._error_np.fill(0)
         else:
             for view in self._grid_views:
                 view.zero_()
-            self.error.zero_()
 
     def _scatter(self, L: dict) -> None:
         """Contact scan (with contact), p2g on every thread, the threads' grids summed, node displacements (total
@@ -884,17 +947,8 @@ class Solver:
             L["node_displacement"].launch()
 
     def _update_grid(self, L: dict) -> None:
-        """Node velocities; then reset the gather's reductions and, for the remap, the grids it scatters into."""
+        """Node velocities; then, for the remap, zero the grids the gather scatters into."""
         L["grid_update"].launch()
-        if self._on_cpu:
-            for b in self._bounds_np:
-                b[: self.dim] = 1e30
-                b[self.dim :] = -1e30
-            for ts in self._speed_np:
-                ts[0] = 0.0
-        else:
-            for one in L["reset"]:
-                one.launch()
         if self._remap:
             # grid_p (and the threads' copies) receive the remap's momenta in g2p
             if self._on_cpu:
@@ -924,7 +978,8 @@ class Solver:
         its own field into v and x (not into C or F). Counted in the g2p phase."""
         m, k, dev, dim = self.model, self.k, self.device, self.dim
         x = state_in.x
-        xs = x.numpy()
+        xs = x.numpy()  # a host read every step (counted): the total form with contact is not windowed yet
+        self.host_reads += 1
         lo, hi = xs.min(axis=0).astype(np.float64), xs.max(axis=0).astype(np.float64)
         if not (np.all(np.isfinite(lo)) and np.all(np.isfinite(hi))):
             raise SimulationError("particle positions are not finite", state_in.step, state_in.time, input_rejected=True)
@@ -969,7 +1024,7 @@ class Solver:
         large for the motion, or a force that grew within one step: the start of a blow-up); the transfers would
         smear it over the grid and the run would go on, so stop instead. Uses the top-speed reduction that the
         automatic time step reads anyway."""
-        moved = self.last_max_speed() * dt
+        moved = self._checked_speed * dt
         if moved > self.model.dx:
             self._bounds_valid = False
             raise SimulationError(

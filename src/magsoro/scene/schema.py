@@ -606,6 +606,11 @@ class Simulation(Strict):
     duration: float = Field(gt=0, description="Simulated time, s.")
     dt: float | None = Field(default=None, gt=0, description="Fixed time step, s. Default: automatic CFL bound.")
     cfl: float = Field(default=0.4, gt=0, le=1, description="Safety factor of the automatic time step.")
+    check_every: int = Field(default=200, ge=1, le=100000, description=(
+        "Steps between the host's checks of the state (non-finite values, inverted elements, particles leaving the "
+        "grid block or the domain, more than a cell per step): the steps in between run without reading anything "
+        "back from the device, with the time step fixed; a window that fails a check is run again step by step "
+        "from its first state, so errors still name their exact step. 1: check every step."))
     damping: float = Field(default=0.0, ge=0, description="Grid damping c in f = -c p, 1/s.")
     gravity: Vec | None = Field(default=None, description="Gravity, m/s^2. Default none.")
     walls: Literal["sticky", "slip", "friction"] = Field(default="slip", description="Contact law at the domain walls.")
