@@ -26,6 +26,7 @@ COMMANDS = [
     "magsoro.commands.validate",
     "magsoro.commands.optimize",
     "magsoro.commands.reproduce",
+    "magsoro.commands.doctor",
 ]
 
 
