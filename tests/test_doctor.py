@@ -142,7 +142,7 @@ def test_failing_compile_fails_doctor_and_shows_the_error(cli, capsys, monkeypat
     rc = cli(["doctor", "--device", "cpu"] + (["--json"] if json_mode else []))
     out = capsys.readouterr().out
     assert rc == 1
-    assert calls and calls[0][0] == ["engine 3D float32"] and calls[0][1] == (90,)  # the subset, one arch
+    assert calls and calls[0][0] == ["engine 3D float32"] and calls[0][1] == (90,)  # the subset (here one label), one arch
     if json_mode:
         report = json.loads(out)
         c = report["checks"]["compile"]
