@@ -202,12 +202,15 @@ class Simulation:
         self._checkpoint.assign(self.state)
         steps0 = self.steps
         speed = self.solver.last_max_speed() if self.steps else self._initial_speed
+        # room in the grid block for the window's motion: twice the distance at the last check's top speed
+        dt_est = self.fixed_dt or cfl_time_step(self.solver.settings.cfl, self.model.dx, self._wave_speed, speed)
+        reach = 2.0 * self.check_every * dt_est * speed + self.model.dx
         dts = []
         self.windows += 1
         try:
             while len(dts) < self.check_every and self.state.time < t_end - eps:
                 dt = self._next_dt(t_end - self.state.time, speed)
-                self.solver.step(self.state, self._spare, self.control, dt, check=False)
+                self.solver.step(self.state, self._spare, self.control, dt, check=False, reach=reach)
                 self.state, self._spare = self._spare, self.state
                 self.steps += 1
                 dts.append(dt)

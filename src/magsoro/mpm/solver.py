@@ -770,7 +770,8 @@ class Solver:
         return self._checked_speed
 
     # -- stepping -------------------------------------------------------------------------------------------
-    def step(self, state_in: State, state_out: State, control: Control, dt: float, check: bool = True) -> None:
+    def step(self, state_in: State, state_out: State, control: Control, dt: float, check: bool = True,
+             reach: float = 0.0) -> None:
         """Advance ``state_in`` by ``dt`` seconds into ``state_out``. Raises SimulationError on a bad state.
 
         Phases (docs/engine.md, "Per step"): check the particles against the grid block and the domain; evaluate
@@ -779,11 +780,13 @@ class Solver:
 
         ``check=False`` is a step inside a check window (:meth:`open_window`, :meth:`close_window`): no host
         read; the error flags, particle bounds and top speed accumulate on the device until the window closes.
-        A checked step is a window of one step."""
+        The first step of a window fits the grid block to the particles grown by ``reach`` (m, the distance they
+        may travel during the window; updated form only), so that they stay inside it. A checked step is a
+        window of one step."""
         t = state_in.time
         tick = time.perf_counter() if self.phase_times is not None else 0.0
         if check or not self._window_open:
-            self._check_and_fit(state_in)
+            self._check_and_fit(state_in, 0.0 if check or self._total else reach)
             self.open_window()
         fields = self._fields(control)
         b0 = fields.uniform_value(t)
@@ -833,18 +836,21 @@ class Solver:
 
     def close_window(self) -> str | None:
         """End a check window with one host read of its flags, bounds and top speed. None when every step of it
-        passed every check a checked step makes and the particles stayed inside the safe box of the grid block
-        (so no step needed a refit); otherwise the reason, and the caller goes back to the window's first state
-        and runs the window again with checked steps, which refit, or stop at the exact step with the error."""
+        passed every check a checked step makes: no flag (every particle inside the grid block, finite, det F >
+        0), every particle inside the domain at every state and none faster than a cell per step; the next step
+        then refits the block if the particles came near its edge. Otherwise the reason, and the caller goes back
+        to the window's first state and runs the window again with checked steps, which refit where a particle
+        would leave the block, or stop at the exact step with the error."""
         err = self._read_checks()
         self._window_open = False
         if err[0] or err[1]:
             self._bounds_valid = False
             return "a particle left the grid block" if err[0] and not err[1] else "the state became invalid"
         lo, hi = self._checked_bounds
-        if not (self._safe_lo is not None and (lo >= self._safe_lo).all() and (hi < self._safe_hi).all()):
+        m = self.model
+        if np.any(lo < m.domain_lo) or np.any(hi > m.domain_hi):
             self._bounds_valid = False
-            return "particles left the safe box of the grid block"
+            return "a particle left the domain"
         if self._checked_speed * self._window_dt > self.model.dx:
             self._bounds_valid = False
             return "a particle moved more than a cell in one step"
@@ -867,19 +873,23 @@ class Solver:
         return err
 
     # -- the phases of a step -------------------------------------------------------------------------------
-    def _check_and_fit(self, state_in: State) -> None:
+    def _check_and_fit(self, state_in: State, reach: float = 0.0) -> None:
         """Particles inside the safe box of the current grid block (NaN compares false) need no refit and no
-        domain check; otherwise check them and refit the block when they do not fit it."""
-        lo, hi = self._particle_bounds(state_in)
+        domain check; otherwise check them and refit the block when they do not fit it. ``reach`` (m) grows the
+        particles' box (within the domain) for the fit: room for the motion of a check window."""
+        m, t = self.model, state_in.time
+        lo0, hi0 = self._particle_bounds(state_in)
+        lo, hi = lo0, hi0
+        if reach > 0.0:
+            lo, hi = np.maximum(lo0 - reach, m.domain_lo), np.minimum(hi0 + reach, m.domain_hi)
         if self._safe_lo is not None and (lo >= self._safe_lo).all() and (hi < self._safe_hi).all():
             return
-        m, t = self.model, state_in.time
-        if not (np.all(np.isfinite(lo)) and np.all(np.isfinite(hi))):
+        if not (np.all(np.isfinite(lo0)) and np.all(np.isfinite(hi0))):
             raise SimulationError("particle positions are not finite", state_in.step, t, input_rejected=True)
-        if np.any(lo < m.domain_lo) or np.any(hi > m.domain_hi):
+        if np.any(lo0 < m.domain_lo) or np.any(hi0 > m.domain_hi):
             raise SimulationError(
                 f"a particle left the domain [{m.domain_lo.tolist()}, {m.domain_hi.tolist()}] m "
-                f"(particles span {lo.tolist()} to {hi.tolist()}); enlarge simulation.domain or check the drives",
+                f"(particles span {lo0.tolist()} to {hi0.tolist()}); enlarge simulation.domain or check the drives",
                 state_in.step,
                 t,
                 input_rejected=True,
