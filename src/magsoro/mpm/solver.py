@@ -778,11 +778,9 @@ class Solver:
         the drives (fields, colliders) at t; scatter (contact scan, p2g, node displacements); node velocities;
         gather (g2p and the remap); read the error flags.
 
-        ``check=False`` is a step inside a check window (:meth:`open_window`, :meth:`close_window`): no host
-        read; the error flags, particle bounds and top speed accumulate on the device until the window closes.
-        The first step of a window fits the grid block to the particles grown by ``reach`` (m, the distance they
-        may travel during the window; updated form only), so that they stay inside it. A checked step is a
-        window of one step."""
+        ``check=False``: a step inside a check window (:meth:`open_window`, :meth:`close_window`), no host read;
+        flags, bounds and top speed accumulate on the device. A window's first step fits the grid block to the
+        particles grown by ``reach`` (m, their travel in the window; updated form). Checked: a window of one."""
         t = state_in.time
         tick = time.perf_counter() if self.phase_times is not None else 0.0
         if check or not self._window_open:
