@@ -146,9 +146,7 @@ class Simulation:
         """The next step: the fixed dt, or the CFL bound for the top speed of the last check (``speed`` when
         given), shortened to land on the end of ``remaining`` without a sliver step."""
         if self.fixed_dt is None:
-            if speed is None:
-                speed = self.solver.last_max_speed() if self.steps else self._initial_speed
-            self.dt = cfl_time_step(self.solver.settings.cfl, self.model.dx, self._wave_speed, speed)
+            self.dt = self._cfl_dt(self._checked_speed() if speed is None else speed)
         dt = self.dt
         if remaining < dt * (1 + 1e-9):
             dt = remaining
@@ -156,6 +154,13 @@ class Simulation:
             dt = 0.5 * remaining  # avoid a sliver step at the end of an interval
         self.dt_min, self.dt_max = min(self.dt_min, dt), max(self.dt_max, dt)
         return dt
+
+    def _checked_speed(self) -> float:
+        """Top particle speed the next time step is bounded by: the last check's, the initial speeds before any."""
+        return self.solver.last_max_speed() if self.steps else self._initial_speed
+
+    def _cfl_dt(self, speed: float) -> float:
+        return cfl_time_step(self.solver.settings.cfl, self.model.dx, self._wave_speed, speed)
 
     def step(self, dt: float | None = None) -> None:
         """One step of ``dt`` seconds (default: the current automatic or fixed step)."""
@@ -193,18 +198,17 @@ class Simulation:
     def _window(self, t_end: float, eps: float, callback: Callable | None) -> None:
         """Up to ``check_every`` steps towards ``t_end`` with one host read at the end (the solver accumulates its
         checks on the device; the time step is fixed from the top speed of the previous check). When the window
-        fails a check, a particle needed a refit of the grid block, or the speeds reached needed a shorter step,
-        its first state comes back and the same span of time runs again in checked steps, each with its own
-        time step as without windows: a refit happens where it is due, and an error stops at its exact step with
-        the state before it kept. Callbacks are called after every step, again for the steps run again."""
+        fails a check (a particle left the grid block or the domain, an invalid state, more than a cell in a
+        step) or the speeds reached needed a shorter step, its first state comes back and the same span of time
+        runs again in checked steps, each with its own time step as without windows: a refit happens where it is
+        due, and an error stops at its exact step with the state before it kept. Callbacks are called after every step, again for the steps run again."""
         if self._checkpoint is None:
             self._checkpoint = self.solver.new_state()
         self._checkpoint.assign(self.state)
         steps0 = self.steps
-        speed = self.solver.last_max_speed() if self.steps else self._initial_speed
+        speed = self._checked_speed()
         # room in the grid block for the window's motion: twice the distance at the last check's top speed
-        dt_est = self.fixed_dt or cfl_time_step(self.solver.settings.cfl, self.model.dx, self._wave_speed, speed)
-        reach = 2.0 * self.check_every * dt_est * speed + self.model.dx
+        reach = 2.0 * self.check_every * (self.fixed_dt or self._cfl_dt(speed)) * speed + self.model.dx
         dts = []
         self.windows += 1
         try:

@@ -849,7 +849,7 @@ class Solver:
         if np.any(lo < m.domain_lo) or np.any(hi > m.domain_hi):
             self._bounds_valid = False
             return "a particle left the domain"
-        if self._checked_speed * self._window_dt > self.model.dx:
+        if self._moved_cells(self._window_dt) > 1.0:
             self._bounds_valid = False
             return "a particle moved more than a cell in one step"
         return None
@@ -1032,16 +1032,20 @@ class Solver:
         large for the motion, or a force that grew within one step: the start of a blow-up); the transfers would
         smear it over the grid and the run would go on, so stop instead. Uses the top-speed reduction that the
         automatic time step reads anyway."""
-        moved = self._checked_speed * dt
-        if moved > self.model.dx:
+        cells = self._moved_cells(dt)
+        if cells > 1.0:
             self._bounds_valid = False
             raise SimulationError(
-                f"a particle moved {moved / self.model.dx:.3g} cells in one step (speed {moved / dt:.3g} m/s, "
+                f"a particle moved {cells:.3g} cells in one step (speed {self._checked_speed:.3g} m/s, "
                 f"dt {dt:.3g} s); the time step does not resolve the motion: lower simulation.dt or simulation.cfl, "
                 f"or the loads grew too fast (a field too strong for the grid: refine simulation.dx or raise damping)",
                 state_in.step,
                 state_in.time,
             )
+
+    def _moved_cells(self, dt: float) -> float:
+        """Cells the fastest particle of the last check moves in a step of ``dt``."""
+        return self._checked_speed * dt / self.model.dx
 
     def _raise_on_error(self, err, state_in: State) -> None:
         if err[0]:
