@@ -258,6 +258,7 @@ def _catalogue() -> tuple:
     from magsoro.mpm.contact import make_contact
     from magsoro.mpm.g2p import make_g2p
     from magsoro.mpm.grid import make_grid
+    from magsoro.mpm.interaction import make_interaction_kernels
     from magsoro.mpm.kernels import _stress_kernel
     from magsoro.mpm.p2g import make_p2g
 
@@ -282,6 +283,9 @@ def _catalogue() -> tuple:
         for sname in SCALAR_NAMES:
             made = [k for f in field_funcs for k in _fresh(accumulate_kernel, f, dim, scalars[sname])]
             groups += _groups_of(f"fields {dim}D {sname}", made, seen)
+    for dim in DIMS:
+        for sname in SCALAR_NAMES:
+            groups += _groups_of(f"interaction {dim}D {sname}", _fresh(make_interaction_kernels, dim, scalars[sname]), seen)
     for dim in DIMS:
         groups += _groups_of(f"bench reference {dim}D", _fresh(reference_kernels, dim), seen)
     # kernels defined at module level (the differentiable rollout's, and any new module's)

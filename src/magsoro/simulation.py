@@ -15,6 +15,7 @@ from typing import Callable
 import numpy as np
 
 from magsoro.errors import OutputError, SceneError, SimulationError, Terminated
+from magsoro.mpm.interaction import MagneticInteraction
 from magsoro.mpm.solver import Solver
 from magsoro.mpm.timestep import cfl_time_step
 from magsoro.scene import Scene, load_scene
@@ -74,6 +75,7 @@ class Simulation:
         self.state = self.solver.new_state(self.built.initial_velocity)
         self._spare = self.solver.new_state()
         self.probes = self.built.probes
+        self._probe_interaction = None  # the bodies' field for field probes (the solver's when it has one)
         sim = scene.simulation
         self.fixed_dt = sim.dt
         self._field_peak = self.solver.field_magnitude(self.control)
@@ -110,12 +112,29 @@ class Simulation:
         return cols
 
     def probe_values(self) -> dict[str, float]:
-        """Current value of every probe column (m)."""
+        """Current value of every probe column (m; field probes: T)."""
         x = self.state.x.numpy()
         out = {}
         for p in self.probes:
-            out.update(zip(p.columns(self.dim), p.evaluate(x).tolist()))
+            value = self.field_at(p.where(x)[None])[0] if p.kind == "field" else p.evaluate(x)
+            out.update(zip(p.columns(self.dim), value.tolist()))
         return out
+
+    def field_at(self, points) -> np.ndarray:
+        """Total flux density B (T, (P, 3)) at ``points`` (P, dim) m now: the applied fields plus the field of the
+        bodies' current magnetisation (whether or not simulation.magnetic_interaction lets it act on them). In 2D
+        the points lie in the plane z = simulation.plane_z."""
+        pts = np.atleast_2d(np.asarray(points, dtype=np.float64))[:, : self.dim]
+        p3 = np.zeros((len(pts), 3))
+        p3[:, : self.dim] = pts
+        if self.dim == 2:
+            p3[:, 2] = self.solver.settings.plane_z
+        B = np.zeros((len(pts), 3))
+        for s in self.control.sources:
+            B += np.asarray(s.B(p3, self.time), dtype=np.float64).reshape(len(pts), 3)
+        if self._probe_interaction is None:
+            self._probe_interaction = self.solver.interaction or MagneticInteraction(self.model, self.solver.settings.depth)
+        return B + self._probe_interaction.field_at(pts, self.state.x, self.state.F)
 
     def particles(self) -> dict[str, np.ndarray]:
         """Particle arrays as numpy: x, v, F, body, clamped, J = det F, I1bar = J^(-2/3) tr(F^T F) (the

@@ -25,6 +25,8 @@ from magsoro.constants import MU0
 from magsoro.errors import SimulationError
 from magsoro.fields.device import FieldEvaluator
 from magsoro.mpm.colliders import COLLIDER_STRIDE, MODES, Collider, collider_table
+from magsoro.mpm.interaction import MODES as INTERACTION_MODES
+from magsoro.mpm.interaction import MagneticInteraction
 from magsoro.mpm.kernels import F_FROM_GRID, F_FROM_REMAP, F_TOTAL, make_kernels
 from magsoro.mpm.materials import LAWS, describe_codes
 from magsoro.mpm.timestep import cfl_time_step
@@ -380,6 +382,9 @@ class SolverSettings:
     formulation_auto: bool = False  # the scene left the formulation to the builder ("auto"), which chose this one
     threads: int | None = None
     contact: ContactSettings | None = None
+    magnetic_interaction: str = "none"  # "dipole": the bodies' own field acts on them (magsoro.mpm.interaction)
+    interaction_every: int = 1  # steps between refreshes of the bodies' field
+    depth: float = 1.0  # 2D: the out-of-plane thickness the particle volumes include (m), for the 2D field
 
 
 class Solver:
@@ -395,6 +400,10 @@ class Solver:
             raise ValueError(f"velocity_gradient must be 'remap' or 'grid', got {st.velocity_gradient!r}")
         if st.formulation not in ("updated", "total"):
             raise ValueError(f"formulation must be 'updated' or 'total', got {st.formulation!r}")
+        if st.magnetic_interaction not in INTERACTION_MODES:
+            raise ValueError(f"magnetic_interaction must be one of {INTERACTION_MODES}, got {st.magnetic_interaction!r}")
+        if not isinstance(st.interaction_every, int) or st.interaction_every < 1:
+            raise ValueError(f"interaction_every must be a positive integer, got {st.interaction_every!r}")
         self._total = st.formulation == "total"
         # the total-Lagrangian F update takes the velocity gradient on the reference grid directly: no remap
         self._remap = st.velocity_gradient == "remap" and not self._total
@@ -463,6 +472,12 @@ class Solver:
         n = model.n_particles
         self.B_particle = wp.zeros(n, dtype=self.k["v3"], device=dev)
         self.G_particle = wp.zeros(n, dtype=self.k["m3"], device=dev)
+        # the bodies' own field (None: off, or no magnetised particle), refreshed every interaction_every steps
+        self.interaction = None
+        if st.magnetic_interaction == "dipole":
+            inter = MagneticInteraction(model, st.depth)
+            self.interaction = inter if inter.active else None
+        self._interaction_step = None  # the step the bodies' field was last refreshed at
         self._collider_array = None
         self._launch_sets = {}
         self._grid_version = 0
@@ -763,6 +778,9 @@ class Solver:
         for s in control.sources:
             for e in s.sources():
                 total += e.max_magnitude(pts, t)
+        if self.interaction is not None:
+            # the bodies' own field: about mu0 M = |Br| inside a magnet, up to twice that between two in contact
+            total += 2.0 * float(np.max(np.linalg.norm(self.model.host["remanence"], axis=1)))
         return total
 
     def last_max_speed(self) -> float:
@@ -790,8 +808,10 @@ class Solver:
         b0 = fields.uniform_value(t)
         if fields.has_gradient:
             fields.evaluate(state_in.x, self.B_particle, self.G_particle, t)
+        if self.interaction is not None:
+            self._interact(state_in, keep=fields.has_gradient)
         self._update_colliders(control, t)
-        L = self._launch_set(state_in, state_out, control, fields.has_gradient)
+        L = self._launch_set(state_in, state_out, control, fields.has_gradient or self.interaction is not None)
         self._set_step_values(L, b0, dt)
         self._clear_grid()
         tick = self._phase("other", tick)
@@ -894,6 +914,16 @@ class Solver:
             )
         if not self._fits(lo, hi):
             self._refit(lo, hi)
+
+    def _interact(self, state_in: State, keep: bool) -> None:
+        """Add the bodies' own field to the per-particle field (``keep`` False: it is the only non-uniform
+        part), refreshed at every interaction_every-th step and after a return to an earlier state."""
+        step, every = state_in.step, self.settings.interaction_every
+        last = self._interaction_step
+        if last is None or step < last or step - last >= every:
+            self.interaction.refresh(state_in.x, state_in.F)
+            self._interaction_step = step
+        self.interaction.add_to(self.B_particle, self.G_particle, keep)
 
     def _update_colliders(self, control: Control, t: float) -> None:
         """The collider table at time t, copied to the device only when it changed (resting colliders: no copy)."""

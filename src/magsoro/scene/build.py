@@ -434,17 +434,25 @@ class ProbeSpec:
     """A probe resolved to particle indices."""
 
     name: str
-    kind: str  # centroid | point | bbox
+    kind: str  # centroid | point | bbox | field
     indices: np.ndarray
     weights: np.ndarray | None = None
+    position: np.ndarray | None = None  # field probe at a fixed point (m); else at the mean of ``indices``
 
     def columns(self, dim: int) -> list[str]:
         axes = "xyz"[:dim]
+        if self.kind == "field":
+            return [f"{self.name}_B{a}" for a in "xyz"]
         if self.kind == "bbox":
             return [f"{self.name}_min_{a}" for a in axes] + [f"{self.name}_max_{a}" for a in axes]
         return [f"{self.name}_{a}" for a in axes]
 
+    def where(self, x: np.ndarray) -> np.ndarray:
+        """Position of a field probe (m) for particle positions ``x``."""
+        return self.position if self.position is not None else x[self.indices].astype(np.float64).mean(axis=0)
+
     def evaluate(self, x: np.ndarray) -> np.ndarray:
+        """Value of a geometric probe (field probes: :meth:`magsoro.simulation.Simulation.probe_values`)."""
         p = x[self.indices].astype(np.float64)
         if self.kind == "bbox":
             return np.concatenate([p.min(axis=0), p.max(axis=0)])
@@ -588,17 +596,23 @@ def build(scene: Scene, device: str | None = None, source: str = "scene", magnet
         formulation_auto=sim.formulation == "auto",
         threads=sim.threads,
         contact=contact,
+        magnetic_interaction=sim.magnetic_interaction,
+        interaction_every=sim.interaction_every,
+        depth=sim.depth if dim == 2 else 1.0,
     )
     probes = []
     masses = model.host["mass"]
     for i, p in enumerate(scene.probes):
+        if p.type == "field" and p.position is not None:
+            probes.append(ProbeSpec(p.name, "field", np.zeros(0, dtype=np.int64), position=np.asarray(p.position[:dim], dtype=np.float64)))
+            continue
         sel = np.flatnonzero(body_id == names.index(p.body))
-        if p.type in ("tip", "point"):
+        if p.type in ("tip", "point", "field"):
             region = region_shape(p.region, f"probes[{i}].region")
             sel = sel[region.contains(X[sel])]
             if len(sel) == 0:
                 raise SceneError(f"{source}: probes[{i}].region: holds no particle of body '{p.body}'")
-            probes.append(ProbeSpec(p.name, "point", sel))
+            probes.append(ProbeSpec(p.name, "field" if p.type == "field" else "point", sel))
         elif p.type == "centroid":
             probes.append(ProbeSpec(p.name, "centroid", sel, masses[sel]))
         else:

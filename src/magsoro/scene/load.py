@@ -302,9 +302,16 @@ def check_scene(scene: Scene, source: str, base_dir: Path | None) -> None:
         if c.body is not None and c.body not in names:
             raise SceneError(f"{source}: clamps[{i}].body: no body named '{c.body}'; bodies: {', '.join(names)}")
     for i, p in enumerate(scene.probes):
+        if p.type == "field" and p.position is not None:
+            _vec_len(p.position, dim, f"probes[{i}].position", source)
+            lo, hi = scene.simulation.domain_lo, scene.simulation.domain_hi
+            if any(not (lo[a] <= p.position[a] <= hi[a]) for a in range(dim)):
+                raise SceneError(f"{source}: probes[{i}].position: {list(p.position)} lies outside the domain "
+                                 f"[{list(lo)}, {list(hi)}] m")
+            continue
         if p.body not in names:
             raise SceneError(f"{source}: probes[{i}].body: no body named '{p.body}'; bodies: {', '.join(names)}")
-        if p.type in ("tip", "point"):
+        if p.type in ("tip", "point", "field"):
             _check_shape(p.region, dim, f"probes[{i}].region", source, base_dir)
     field_names = [f.name for f in scene.fields]
     for i, f in enumerate(scene.fields):

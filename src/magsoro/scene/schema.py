@@ -591,7 +591,29 @@ class BoundsProbe(Strict):
     body: str = Field(description="Body name.")
 
 
-AnyProbe = Annotated[Union[CentroidProbe, PointProbe, BoundsProbe], Field(discriminator="type")]
+class FieldProbe(Strict):
+    """A magnetometer: the total flux density B (applied fields plus the bodies' own field) at a fixed ``position``
+    or at a body point (the mean position of the particles of ``body`` whose reference position lies in
+    ``region``), columns NAME_Bx, NAME_By, NAME_Bz in T. The bodies' field is recorded whether or not
+    simulation.magnetic_interaction lets it act on them."""
+
+    type: Literal["field"]
+    name: Identifier = Field(description="Column prefix in metrics.csv (letters, digits, '_', '-').")
+    position: Vec | None = Field(default=None, description="Fixed sensor position, m (2D: x, y; the plane is simulation.plane_z).")
+    body: str | None = Field(default=None, description="Body the sensor is attached to (with region).")
+    region: AnyShape | None = Field(default=None, description="Region of the body in the reference configuration whose particles carry the sensor.")
+
+    @model_validator(mode="after")
+    def _one_place(self):
+        fixed, attached = self.position is not None, self.body is not None or self.region is not None
+        if fixed == attached:
+            raise ValueError("give either position (a fixed sensor) or body and region (a sensor on a body), not both")
+        if attached and (self.body is None or self.region is None):
+            raise ValueError("a sensor on a body needs both body and region")
+        return self
+
+
+AnyProbe = Annotated[Union[CentroidProbe, PointProbe, BoundsProbe, FieldProbe], Field(discriminator="type")]
 
 
 # ---------------------------------------------------------------- settings
@@ -634,6 +656,21 @@ class Simulation(Strict):
         "accurate than the updated form's), 'updated' (updated Lagrangian: the grid weights follow the particles; the "
         "most accurate contact; loaded slender bodies creep slowly) or 'auto' (total, unless the scene has contact "
         "between bodies or self-contact, then updated; run.json names the one used). docs/engine.md.",
+    )
+    magnetic_interaction: Literal["none", "dipole"] = Field(
+        default="none",
+        description="'dipole': the field of the bodies' own magnetisation (m = F Br V / mu0 per particle) acts on every "
+        "magnetised particle, added to the applied field in the magnetic stress and the gradient force: magnets attract "
+        "each other, segments pull, a body's own field exerts no net force on it (a lattice of dipoles on the grid, "
+        "summed by FFT; 2D: line dipoles of the plane-strain slab; docs/engine.md, 'Magnetic interaction'). 'none': "
+        "applied fields only.",
+    )
+    interaction_every: int = Field(
+        default=1,
+        ge=1,
+        le=10000,
+        description="Steps between refreshes of the bodies' field when simulation.magnetic_interaction = 'dipole' (it is "
+        "held at the particles in between; docs/engine.md states the error of refreshing every 10 steps).",
     )
     threads: int | None = Field(
         default=None,

@@ -1,0 +1,336 @@
+"""Magnetic interaction between magnetised material: the field the bodies' own magnetisation makes.
+
+Method (docs/engine.md, "Magnetic interaction"): each particle's current moment m_p = F_p Br_p V_p / mu0 (2D:
+per unit depth, the in-plane part) is spread onto the nodes of a grid of spacing dx over the magnetised particles
+with the engine's quadratic B-spline weights, so the nodes carry point dipoles with the particles' total moment
+and centroid. The field of that lattice of dipoles at every node, H = sum_j T(x_i - x_j) m_j, and its gradient,
+grad H = sum_j grad T(x_i - x_j) m_j, are discrete convolutions with the sampled dipole tensors
+
+    3D: T(r) = (3 r r^T / r^2 - I) / (4 pi r^3),    2D (line dipoles): T(r) = (2 r r^T / r^2 - I) / (2 pi r^2),
+
+computed by FFT on a zero-padded grid (free space, Hockney and Eastwood): O(G log G) for G nodes. The self
+term T(0) = -I / (3 dx^3) (2D: -I / (2 dx^2)) is the field at the centre of a uniformly magnetised cube (square)
+cell, so a uniform region gives the macroscopic H (inside a sphere -M/3) and B = mu0 (H + M) (2/3 mu0 M). The
+particles take H and grad H back with the same weights, as B_int = mu0 H and grad B_int = mu0 grad H, which the
+engine adds to the applied field: the magnetic stress takes B_int, the gradient force (grad B_int)^T m.
+
+Momentum: the force on the particles sums to mu0 sum_i m_i . (grad T * m)_i, a quadratic form of an odd
+convolution, which vanishes: a body's own field exerts no net force on it, to round-off, at every refresh.
+"""
+
+import functools
+import math
+
+import numpy as np
+import warp as wp
+from scipy import fft as sfft
+
+from magsoro.constants import MU0
+from magsoro.mpm.stencil import make_stencil
+
+MODES = ("none", "dipole")
+MARGIN = 2  # nodes kept between the magnetised particles' box and the grid's edge (the stencil's reach)
+
+
+def sym_pairs(dim: int) -> list[tuple[int, int]]:
+    """The (a, b), a <= b, components of a symmetric dim x dim tensor in the order the grids store them."""
+    return [(a, b) for a in range(dim) for b in range(a, dim)]
+
+
+def sym_triples(dim: int) -> list[tuple[int, int, int]]:
+    """The a <= b <= c components of a fully symmetric three-index tensor (the dipole tensor's gradient)."""
+    return [(a, b, c) for a in range(dim) for b in range(a, dim) for c in range(b, dim)]
+
+
+def dipole_tensors(offsets: np.ndarray, h: float, dim: int) -> tuple[np.ndarray, np.ndarray]:
+    """Dipole tensor T_ab and its gradient S_abc = dT_ab/dx_c at the points ``offsets`` (..., dim) m, for lattice
+    spacing ``h``: returned as (len(sym_pairs), ...) and (len(sym_triples), ...) arrays in 1/m^3 and 1/m^4 (2D:
+    1/m^2, 1/m^3). At r = 0: T = -I/(3 h^3) (2D: -I/(2 h^2)), S = 0."""
+    x = np.moveaxis(np.asarray(offsets, dtype=np.float64), -1, 0)
+    r2 = np.sum(x * x, axis=0)
+    zero = r2 == 0.0
+    r2s = np.where(zero, 1.0, r2)
+    if dim == 3:
+        c, k1, k2, k3 = 1.0 / (4.0 * math.pi), 3.0, 15.0, 3.0
+        inv_r3 = r2s ** -1.5
+        t_xx, t_i = k1 * inv_r3 / r2s, inv_r3  # 3 x x / r^5, 1 / r^3
+        s_xxx, s_x = k2 * inv_r3 / (r2s * r2s), k3 * inv_r3 / r2s  # 15 / r^7, 3 / r^5
+        self_term = -1.0 / (3.0 * h**3)
+    else:
+        c = 1.0 / (2.0 * math.pi)
+        inv_r2 = 1.0 / r2s
+        t_xx, t_i = 2.0 * inv_r2 * inv_r2, inv_r2  # 2 x x / r^4, 1 / r^2
+        s_xxx, s_x = 8.0 * inv_r2**3, 2.0 * inv_r2 * inv_r2  # 8 / r^6, 2 / r^4
+        self_term = -1.0 / (2.0 * h**2)
+    T = []
+    for a, b in sym_pairs(dim):
+        t = c * (t_xx * x[a] * x[b] - (t_i if a == b else 0.0))
+        T.append(np.where(zero, self_term if a == b else 0.0, t))
+    S = []
+    for a, b, d in sym_triples(dim):
+        delta = (x[d] if a == b else 0.0) + (x[b] if a == d else 0.0) + (x[a] if b == d else 0.0)
+        S.append(np.where(zero, 0.0, c * (-s_xxx * x[a] * x[b] * x[d] + s_x * delta)))
+    return np.array(T), np.array(S)
+
+
+@functools.cache
+def make_interaction_kernels(dim: int, scalar) -> dict:
+    """The deposit and gather kernels of the interaction grid for ``dim`` and ``scalar`` (grids in float64)."""
+    s = make_stencil(dim, scalar)
+    t = s.types
+    vec, mat, ivec, v3, m3 = t.vec, t.mat, t.ivec, t.v3, t.m3
+    NS = s.NS
+    inplane, bspline_weights, local_coords = s.inplane, s.bspline_weights, s.local_coords
+    outside_block, flat_index, stencil_node = s.outside_block, s.flat_index, s.stencil_node
+    n_sym = dim * (dim + 1) // 2
+    vsym = wp.types.vector(length=n_sym, dtype=wp.float64)
+
+    @wp.kernel
+    def deposit_moments(
+        x: wp.array(dtype=vec),
+        F: wp.array(dtype=mat),
+        Br: wp.array(dtype=v3),
+        vol0: wp.array(dtype=scalar),
+        lo: vec,
+        inv_h: scalar,
+        shape: ivec,
+        n_total: int,
+        scale: wp.float64,
+        M: wp.array(dtype=wp.float64),
+    ):
+        """Spread particle ``p``'s moment F Br V0 ``scale`` (A m^2; 2D: A m, in-plane) onto its stencil's nodes:
+        M[a n_total + node] holds component a."""
+        p = wp.tid()
+        Fbr = F[p] * inplane(Br[p])
+        if wp.length_sq(Fbr) == scalar(0.0):
+            return
+        base, fx = local_coords(x[p], lo, inv_h)
+        if outside_block(base, shape):
+            return
+        w0, w1, w2 = bspline_weights(fx)
+        first = flat_index(base, shape)
+        size = wp.float64(vol0[p]) * scale
+        for q in range(NS):
+            weight, o, idx = stencil_node(q, w0, w1, w2, first, shape)
+            wq = wp.float64(weight) * size
+            for a in range(dim):
+                wp.atomic_add(M, a * n_total + idx, wq * wp.float64(Fbr[a]))
+
+    @wp.kernel
+    def gather_field(
+        x: wp.array(dtype=vec),
+        lo: vec,
+        inv_h: scalar,
+        shape: ivec,
+        n_total: int,
+        fields: wp.array(dtype=wp.float64),
+        mu0: wp.float64,
+        B: wp.array(dtype=v3),
+        G: wp.array(dtype=m3),
+    ):
+        """B = mu0 H and grad B = mu0 grad H at particle ``p`` from the node fields (H: components 0 .. dim-1,
+        then the symmetric grad H in :func:`sym_pairs` order); zero outside the grid."""
+        p = wp.tid()
+        base, fx = local_coords(x[p], lo, inv_h)
+        b = v3()
+        g = m3()
+        if not outside_block(base, shape):
+            w0, w1, w2 = bspline_weights(fx)
+            first = flat_index(base, shape)
+            hv = wp.vec3d()
+            gs = vsym()
+            for q in range(NS):
+                weight, o, idx = stencil_node(q, w0, w1, w2, first, shape)
+                wq = wp.float64(weight)
+                for a in range(dim):
+                    hv[a] = hv[a] + wq * fields[a * n_total + idx]
+                for c in range(n_sym):
+                    gs[c] = gs[c] + wq * fields[(dim + c) * n_total + idx]
+            for a in range(dim):
+                b[a] = scalar(mu0 * hv[a])
+            c = int(0)
+            for a in range(dim):
+                for e in range(a, dim):
+                    value = scalar(mu0 * gs[c])
+                    g[a, e] = value
+                    g[e, a] = value
+                    c += 1
+        B[p] = b
+        G[p] = g
+
+    @wp.kernel
+    def add_field(B_int: wp.array(dtype=v3), G_int: wp.array(dtype=m3), keep: int, B: wp.array(dtype=v3), G: wp.array(dtype=m3)):
+        """B += B_int, G += G_int (``keep`` = 0: B = B_int, G = G_int)."""
+        p = wp.tid()
+        if keep != 0:
+            B[p] = B[p] + B_int[p]
+            G[p] = G[p] + G_int[p]
+        else:
+            B[p] = B_int[p]
+            G[p] = G_int[p]
+
+    return {"deposit_moments": deposit_moments, "gather_field": gather_field, "add_field": add_field}
+
+
+@functools.lru_cache(maxsize=4)
+def _kernel_spectra(padded: tuple, h: float, dim: int):
+    """rFFTs of T and grad T sampled at every signed circular offset of a grid of ``padded`` nodes."""
+    axes = [np.fft.fftfreq(n, 1.0 / n) * h for n in padded]  # 0, 1, ..., -2, -1 times h
+    offsets = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1)
+    T, S = dipole_tensors(offsets, h, dim)
+    spatial = tuple(range(1, dim + 1))
+    return sfft.rfftn(T, axes=spatial), sfft.rfftn(S, axes=spatial)
+
+
+def _triple_index(dim: int) -> dict:
+    index = {}
+    for c, tri in enumerate(sym_triples(dim)):
+        a, b, d = tri
+        for perm in {(a, b, d), (a, d, b), (b, a, d), (b, d, a), (d, a, b), (d, b, a)}:
+            index[perm] = c
+    return index
+
+
+class MagneticInteraction:
+    """The bodies' own field at the particles of a :class:`~magsoro.mpm.solver.Model`, refreshed on demand.
+
+    ``depth`` (2D): the out-of-plane thickness the particle volumes include; the 2D field is that of line dipoles
+    of moment m / depth per unit length. After :meth:`refresh`, ``B`` and ``G`` (device arrays, the model's
+    scalar) hold mu0 H and mu0 grad H at the particles; :meth:`field_at` gives the total B of the bodies at any
+    points (a magnetometer's reading).
+    """
+
+    def __init__(self, model, depth: float = 1.0):
+        self.model = model
+        self.dim, self.h = model.dim, float(model.dx)
+        self.depth = float(depth) if model.dim == 2 else 1.0
+        self.k = make_interaction_kernels(model.dim, model.scalar)
+        self.magnetised = np.linalg.norm(model.host["remanence"][:, : model.dim], axis=1) > 0
+        n = model.n_particles
+        self.B = wp.zeros(n, dtype=model.kernels["v3"], device=model.device)
+        self.G = wp.zeros(n, dtype=model.kernels["m3"], device=model.device)
+        self.refreshes = 0
+        self.host_reads = 0
+        self._padded = None
+        self._lo_node = None
+        self._n = None  # nodes of the box in use (<= padded // 2 + 1 per axis)
+        self._M = self._fields = None
+        self._on_cpu = wp.get_device(model.device).is_cpu
+
+    @property
+    def active(self) -> bool:
+        return bool(self.magnetised.any())
+
+    # -- the grid ------------------------------------------------------------------------------------------
+    def _fit(self, x_np: np.ndarray, extra_points=None) -> None:
+        """Place the grid over the magnetised particles (and ``extra_points``), aligned with the model's grid;
+        a new padded size (and kernel spectra) only when the box outgrows the current one."""
+        m, h = self.model, self.h
+        pts = x_np[self.magnetised].astype(np.float64)
+        if extra_points is not None and len(extra_points):
+            pts = np.concatenate([pts, np.asarray(extra_points, dtype=np.float64)[:, : self.dim]])
+        lo = np.floor((pts.min(axis=0) - m.domain_lo) / h).astype(np.int64) - MARGIN
+        hi = np.ceil((pts.max(axis=0) - m.domain_lo) / h).astype(np.int64) + MARGIN
+        n = hi - lo + 1
+        if self._padded is None or np.any(2 * n - 1 > np.asarray(self._padded)):
+            grow = np.maximum(n, np.ceil(1.25 * n).astype(np.int64))  # room to move before the next resize
+            self._padded = tuple(int(sfft.next_fast_len(int(2 * g - 1), real=True)) for g in grow)
+            total = int(np.prod(self._padded))
+            dev = m.device
+            self._M = wp.zeros(self.dim * total, dtype=wp.float64, device=dev)
+            self._fields = wp.zeros((self.dim + len(sym_pairs(self.dim))) * total, dtype=wp.float64, device=dev)
+        self._lo_node, self._n = lo, n
+
+    def _grid_args(self):
+        k = self.model.kernels
+        sc = self.model.scalar
+        lo = k["vec"](*[sc(self.model.domain_lo[a] + self._lo_node[a] * self.h) for a in range(self.dim)])
+        return lo, sc(1.0 / self.h), k["ivec"](*self._padded), int(np.prod(self._padded))
+
+    def _solve(self, x: wp.array, F: wp.array) -> None:
+        """Deposit the moments at positions ``x`` with deformation gradients ``F`` and convolve."""
+        m = self.model
+        lo, inv_h, shape, total = self._grid_args()
+        self._M.zero_()
+        scale = 1.0 / (MU0 * self.depth)
+        wp.launch(self.k["deposit_moments"], dim=m.n_particles, device=m.device,
+                  inputs=[x, F, m.Br, m.vol0, lo, inv_h, shape, total, wp.float64(scale), self._M])
+        dim, padded = self.dim, self._padded
+        if not self._on_cpu:
+            self.host_reads += 1
+        M = self._M.numpy().reshape((dim,) + padded)
+        spatial = tuple(range(1, dim + 1))
+        Mk = sfft.rfftn(M, axes=spatial, workers=-1)
+        Tk, Sk = _kernel_spectra(padded, self.h, dim)
+        pair = {p: i for i, p in enumerate(sym_pairs(dim))}
+        tri = _triple_index(dim)
+        out = []
+        for a in range(dim):
+            out.append(sum(Tk[pair[tuple(sorted((a, b)))]] * Mk[b] for b in range(dim)))
+        for a, e in sym_pairs(dim):
+            out.append(sum(Sk[tri[(a, e, b)]] * Mk[b] for b in range(dim)))
+        fields = sfft.irfftn(np.array(out), s=padded, axes=spatial, workers=-1)
+        if self._on_cpu:
+            self._fields.numpy()[:] = fields.ravel()
+        else:
+            self._fields.assign(fields.ravel())
+        self._M_host = M
+
+    # -- public ---------------------------------------------------------------------------------------------
+    def refresh(self, x: wp.array, F: wp.array) -> None:
+        """Recompute ``B`` and ``G`` at the particles for positions ``x`` and deformation gradients ``F``."""
+        m = self.model
+        if not self.active:
+            return
+        if not self._on_cpu:
+            self.host_reads += 1
+        self._fit(x.numpy())
+        self._solve(x, F)
+        lo, inv_h, shape, total = self._grid_args()
+        wp.launch(self.k["gather_field"], dim=m.n_particles, device=m.device,
+                  inputs=[x, lo, inv_h, shape, total, self._fields, wp.float64(MU0), self.B, self.G])
+        self.refreshes += 1
+
+    def add_to(self, B: wp.array, G: wp.array, keep: bool) -> None:
+        """Add the last refresh's field into the engine's per-particle arrays (``keep`` False: overwrite)."""
+        wp.launch(self.k["add_field"], dim=self.model.n_particles, device=self.model.device,
+                  inputs=[self.B, self.G, 1 if keep else 0, B, G])
+
+    def field_at(self, points, x: wp.array, F: wp.array) -> np.ndarray:
+        """Flux density B = mu0 (H + M) (T, (P, 3)) of the bodies' magnetisation at ``points`` (P, dim or 3) m, for
+        the particle positions ``x`` and deformation gradients ``F``. Points inside the grid take the node fields
+        with the particles' weights; points outside it the field of the node dipoles summed directly."""
+        pts = np.atleast_2d(np.asarray(points, dtype=np.float64))[:, : self.dim]
+        out = np.zeros((len(pts), 3))
+        if not self.active:
+            return out
+        self._fit(x.numpy())
+        self._solve(x, F)
+        dim, h, padded = self.dim, self.h, self._padded
+        fields = self._fields.numpy().reshape((-1,) + padded)
+        M = self._M_host
+        lo = self.model.domain_lo + self._lo_node * h
+        for i, p in enumerate(pts):
+            g = (p - lo) / h
+            base = np.floor(g - 0.5).astype(np.int64)
+            if np.all(base >= 0) and np.all(base + 2 < self._n):
+                fx = g - base
+                w = [np.array([0.5 * (1.5 - f) ** 2, 0.75 - (f - 1.0) ** 2, 0.5 * (f - 0.5) ** 2]) for f in fx]
+                weights = functools.reduce(np.multiply.outer, w)
+                sl = tuple(slice(b, b + 3) for b in base)
+                H = np.array([np.sum(weights * fields[a][sl]) for a in range(dim)])
+                Mp = np.array([np.sum(weights * M[a][sl]) for a in range(dim)]) / (h**dim)
+                out[i, :dim] = MU0 * (H + Mp)
+            else:
+                nodes = np.nonzero(np.any(M != 0.0, axis=0))
+                moments = np.stack([M[a][nodes] for a in range(dim)], axis=-1)
+                pos = lo + np.stack(nodes, axis=-1) * h
+                T, _ = dipole_tensors(p - pos, h, dim)
+                pairs = sym_pairs(dim)
+                H = np.zeros(dim)
+                for c, (a, b) in enumerate(pairs):
+                    H[a] += np.sum(T[c] * moments[:, b])
+                    if a != b:
+                        H[b] += np.sum(T[c] * moments[:, a])
+                out[i, :dim] = MU0 * H
+        return out
