@@ -1,5 +1,6 @@
 """Run benchmark scenes and report steps per second, particle-steps per second, phases and the reference ratio."""
 
+import dataclasses
 import datetime
 import platform
 import resource
@@ -14,7 +15,7 @@ from magsoro.bench.reference import ReferenceStep
 from magsoro.bench.scenes import SCENES, build
 from magsoro.mpm.solver import Solver
 
-DEFAULT_STEPS = {"walker": 300, "walker_1m": 300, "walker_total": 300, "beam2d": 1000, "block1m": 3, "sweep": 60}
+DEFAULT_STEPS = {"walker": 300, "walker_1m": 300, "walker_total": 300, "walker_dipole": 300, "beam2d": 1000, "block1m": 3, "sweep": 60}
 
 
 #: Timed rounds per scene: engine and reference alternate, ``steps`` each, so both see the same machine; the
@@ -39,9 +40,25 @@ def run_scene(name: str, device: str = "cpu", steps: int | None = None, threads:
         a, b = b, a
     h = model.host
     ref = ReferenceStep(h["positions"], h["volumes"], h["mass"], float(h["shear_modulus"][0]), float(h["bulk_modulus"][0]), model.dx, dt, device)
-    engine_s, window_s, ref_s = [], [], []
+    engine_s, window_s, ref_s, off_s = [], [], [], []
     reads = {}
+    off = None
+    if settings.magnetic_interaction != "none":
+        # the same scene without the interaction, timed in the same rounds: the cost ratio of the interaction
+        off = Solver(model, dataclasses.replace(settings, magnetic_interaction="none"))
+        oa, ob = off.new_state(), off.new_state()
+        for _ in range(5):
+            off.step(oa, ob, control, dt)
+            oa, ob = ob, oa
     for _ in range(rounds):
+        if off is not None:
+            wp.synchronize_device(device)
+            t0 = time.perf_counter()
+            for _ in range(steps):
+                off.step(oa, ob, control, dt)
+                oa, ob = ob, oa
+            wp.synchronize_device(device)
+            off_s.append(time.perf_counter() - t0)
         wp.synchronize_device(device)
         reads0 = solver.host_reads
         t0 = time.perf_counter()
@@ -101,6 +118,12 @@ def run_scene(name: str, device: str = "cpu", steps: int | None = None, threads:
         "phases_ms": phases,
         "grid": solver.grid_info(),
     }
+    if off is not None:
+        out["interaction_every"] = settings.interaction_every
+        out["interaction_off_ms_per_step"] = 1e3 * float(np.median(off_s)) / steps
+        out["interaction_off_ms_per_step_rounds"] = [1e3 * e / steps for e in off_s]
+        # each round's checked timing against the one without interaction run right before it
+        out["interaction_cost_ratio"] = float(np.median([e / o for e, o in zip(engine_s, off_s)]))
     if name == "sweep":
         # the batch against the same copies run one after another: the walker timed in this call
         from magsoro.bench.scenes import SWEEP_FREQUENCIES_HZ
@@ -155,4 +178,4 @@ def names_or_all(names):
         from magsoro.errors import MagsoroError
 
         raise MagsoroError(f"unknown benchmark scene(s) {unknown}; available: {', '.join(SCENES)}")
-    return list(names) or ["walker", "walker_total", "walker_1m", "beam2d", "block1m", "sweep"]
+    return list(names) or ["walker", "walker_total", "walker_dipole", "walker_1m", "beam2d", "block1m", "sweep"]

@@ -7,7 +7,7 @@ from pathlib import Path
 
 
 def register(sub):
-    p = sub.add_parser("bench", help="time the fixed benchmark scenes", description="Time benchmark scenes (walker, walker_1m, beam2d, block1m, sweep) against a bare reference MPM step.")
+    p = sub.add_parser("bench", help="time the fixed benchmark scenes", description="Time benchmark scenes (walker, walker_total, walker_dipole, walker_1m, beam2d, block1m, sweep) against a bare reference MPM step.")
     p.add_argument("names", nargs="*", help="scenes to run (default: all)")
     p.add_argument("--device", default="cpu", help="cpu or cuda[:N]")
     p.add_argument("--steps", type=int, help="timed steps per scene (default depends on the scene)")

@@ -75,7 +75,7 @@ def dipole_tensors(offsets: np.ndarray, h: float, dim: int) -> tuple[np.ndarray,
 
 @functools.cache
 def make_interaction_kernels(dim: int, scalar) -> dict:
-    """The deposit and gather kernels of the interaction grid for ``dim`` and ``scalar`` (grids in float64)."""
+    """The deposit and gather kernels of the interaction grid for ``dim`` and ``scalar`` (grids in ``scalar``)."""
     s = make_stencil(dim, scalar)
     t = s.types
     vec, mat, ivec, v3, m3 = t.vec, t.mat, t.ivec, t.v3, t.m3
@@ -83,7 +83,7 @@ def make_interaction_kernels(dim: int, scalar) -> dict:
     inplane, bspline_weights, local_coords = s.inplane, s.bspline_weights, s.local_coords
     outside_block, flat_index, stencil_node = s.outside_block, s.flat_index, s.stencil_node
     n_sym = dim * (dim + 1) // 2
-    vsym = wp.types.vector(length=n_sym, dtype=wp.float64)
+    vsym = wp.types.vector(length=n_sym, dtype=scalar)
 
     @wp.kernel
     def deposit_moments(
@@ -95,8 +95,8 @@ def make_interaction_kernels(dim: int, scalar) -> dict:
         inv_h: scalar,
         shape: ivec,
         n_total: int,
-        scale: wp.float64,
-        M: wp.array(dtype=wp.float64),
+        scale: scalar,
+        M: wp.array(dtype=scalar),
     ):
         """Spread particle ``p``'s moment F Br V0 ``scale`` (A m^2; 2D: A m, in-plane) onto its stencil's nodes:
         M[a n_total + node] holds component a."""
@@ -109,12 +109,11 @@ def make_interaction_kernels(dim: int, scalar) -> dict:
             return
         w0, w1, w2 = bspline_weights(fx)
         first = flat_index(base, shape)
-        size = wp.float64(vol0[p]) * scale
+        moment = Fbr * (vol0[p] * scale)
         for q in range(NS):
             weight, o, idx = stencil_node(q, w0, w1, w2, first, shape)
-            wq = wp.float64(weight) * size
             for a in range(dim):
-                wp.atomic_add(M, a * n_total + idx, wq * wp.float64(Fbr[a]))
+                wp.atomic_add(M, a * n_total + idx, weight * moment[a])
 
     @wp.kernel
     def gather_field(
@@ -123,8 +122,8 @@ def make_interaction_kernels(dim: int, scalar) -> dict:
         inv_h: scalar,
         shape: ivec,
         n_total: int,
-        fields: wp.array(dtype=wp.float64),
-        mu0: wp.float64,
+        fields: wp.array(dtype=scalar),
+        mu0: scalar,
         B: wp.array(dtype=v3),
         G: wp.array(dtype=m3),
     ):
@@ -137,21 +136,20 @@ def make_interaction_kernels(dim: int, scalar) -> dict:
         if not outside_block(base, shape):
             w0, w1, w2 = bspline_weights(fx)
             first = flat_index(base, shape)
-            hv = wp.vec3d()
+            hv = vec()
             gs = vsym()
             for q in range(NS):
                 weight, o, idx = stencil_node(q, w0, w1, w2, first, shape)
-                wq = wp.float64(weight)
                 for a in range(dim):
-                    hv[a] = hv[a] + wq * fields[a * n_total + idx]
+                    hv[a] = hv[a] + weight * fields[a * n_total + idx]
                 for c in range(n_sym):
-                    gs[c] = gs[c] + wq * fields[(dim + c) * n_total + idx]
+                    gs[c] = gs[c] + weight * fields[(dim + c) * n_total + idx]
             for a in range(dim):
-                b[a] = scalar(mu0 * hv[a])
+                b[a] = mu0 * hv[a]
             c = int(0)
             for a in range(dim):
                 for e in range(a, dim):
-                    value = scalar(mu0 * gs[c])
+                    value = mu0 * gs[c]
                     g[a, e] = value
                     g[e, a] = value
                     c += 1
@@ -173,22 +171,24 @@ def make_interaction_kernels(dim: int, scalar) -> dict:
 
 
 @functools.lru_cache(maxsize=4)
-def _kernel_spectra(padded: tuple, h: float, dim: int):
-    """rFFTs of T and grad T sampled at every signed circular offset of a grid of ``padded`` nodes."""
+def _kernel_spectra(padded: tuple, h: float, dim: int, real: str = "float64") -> np.ndarray:
+    """The convolution's spectra as one (dim + len(sym_pairs), dim, ...) array: output c (H_a, then grad H in
+    :func:`sym_pairs` order) from moment component b, the rFFT of T_ab or of dT_ae/dx_b sampled at every signed
+    circular offset of a grid of ``padded`` nodes, in the precision ``real``."""
     axes = [np.fft.fftfreq(n, 1.0 / n) * h for n in padded]  # 0, 1, ..., -2, -1 times h
     offsets = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1)
     T, S = dipole_tensors(offsets, h, dim)
     spatial = tuple(range(1, dim + 1))
-    return sfft.rfftn(T, axes=spatial), sfft.rfftn(S, axes=spatial)
-
-
-def _triple_index(dim: int) -> dict:
-    index = {}
-    for c, tri in enumerate(sym_triples(dim)):
-        a, b, d = tri
-        for perm in {(a, b, d), (a, d, b), (b, a, d), (b, d, a), (d, a, b), (d, b, a)}:
-            index[perm] = c
-    return index
+    Tk, Sk = sfft.rfftn(T, axes=spatial), sfft.rfftn(S, axes=spatial)
+    pair = {p: i for i, p in enumerate(sym_pairs(dim))}
+    tri = {}
+    for c, (a, b, d) in enumerate(sym_triples(dim)):
+        for perm in ((a, b, d), (a, d, b), (b, a, d), (b, d, a), (d, a, b), (d, b, a)):
+            tri[perm] = c
+    rows = [[Tk[pair[tuple(sorted((a, b)))]] for b in range(dim)] for a in range(dim)]
+    rows += [[Sk[tri[(a, e, b)]] for b in range(dim)] for a, e in sym_pairs(dim)]
+    complex_type = np.complex64 if real == "float32" else np.complex128
+    return np.array(rows, dtype=complex_type)
 
 
 class MagneticInteraction:
@@ -233,19 +233,24 @@ class MagneticInteraction:
         hi = np.ceil((pts.max(axis=0) - m.domain_lo) / h).astype(np.int64) + MARGIN
         n = hi - lo + 1
         if self._padded is None or np.any(2 * n - 1 > np.asarray(self._padded)):
-            grow = np.maximum(n, np.ceil(1.25 * n).astype(np.int64))  # room to move before the next resize
-            self._padded = tuple(int(sfft.next_fast_len(int(2 * g - 1), real=True)) for g in grow)
-            total = int(np.prod(self._padded))
-            dev = m.device
-            self._M = wp.zeros(self.dim * total, dtype=wp.float64, device=dev)
-            self._fields = wp.zeros((self.dim + len(sym_pairs(self.dim))) * total, dtype=wp.float64, device=dev)
+            # two nodes of room per axis before the next resize; the spectra depend on the size only, so a body
+            # that moves without growing keeps them
+            self._padded = tuple(int(sfft.next_fast_len(int(2 * (g + 2) - 1), real=True)) for g in n)
+        # the grids hold the box only (the transforms pad it); reallocated only when the box outgrows them
+        total = int(np.prod(n))
+        n_out = self.dim + len(sym_pairs(self.dim))
+        if self._M is None or self._M.shape[0] < self.dim * total:
+            dev, sc = m.device, m.scalar
+            cap = int(np.prod(np.asarray(self._padded) // 2 + 1))
+            self._M = wp.zeros(self.dim * cap, dtype=sc, device=dev)
+            self._fields = wp.zeros(n_out * cap, dtype=sc, device=dev)
         self._lo_node, self._n = lo, n
 
     def _grid_args(self):
         k = self.model.kernels
         sc = self.model.scalar
         lo = k["vec"](*[sc(self.model.domain_lo[a] + self._lo_node[a] * self.h) for a in range(self.dim)])
-        return lo, sc(1.0 / self.h), k["ivec"](*self._padded), int(np.prod(self._padded))
+        return lo, sc(1.0 / self.h), k["ivec"](*[int(v) for v in self._n]), int(np.prod(self._n))
 
     def _solve(self, x: wp.array, F: wp.array) -> None:
         """Deposit the moments at positions ``x`` with deformation gradients ``F`` and convolve."""
@@ -254,26 +259,31 @@ class MagneticInteraction:
         self._M.zero_()
         scale = 1.0 / (MU0 * self.depth)
         wp.launch(self.k["deposit_moments"], dim=m.n_particles, device=m.device,
-                  inputs=[x, F, m.Br, m.vol0, lo, inv_h, shape, total, wp.float64(scale), self._M])
-        dim, padded = self.dim, self._padded
+                  inputs=[x, F, m.Br, m.vol0, lo, inv_h, shape, total, m.scalar(scale), self._M])
+        dim, padded, n = self.dim, self._padded, tuple(int(v) for v in self._n)
         if not self._on_cpu:
             self.host_reads += 1
-        M = self._M.numpy().reshape((dim,) + padded)
-        spatial = tuple(range(1, dim + 1))
-        Mk = sfft.rfftn(M, axes=spatial, workers=-1)
-        Tk, Sk = _kernel_spectra(padded, self.h, dim)
-        pair = {p: i for i, p in enumerate(sym_pairs(dim))}
-        tri = _triple_index(dim)
-        out = []
-        for a in range(dim):
-            out.append(sum(Tk[pair[tuple(sorted((a, b)))]] * Mk[b] for b in range(dim)))
-        for a, e in sym_pairs(dim):
-            out.append(sum(Sk[tri[(a, e, b)]] * Mk[b] for b in range(dim)))
-        fields = sfft.irfftn(np.array(out), s=padded, axes=spatial, workers=-1)
+        M = self._M.numpy()[: dim * total].reshape((dim,) + n)
+        # grids and transforms in the model's precision (float32 halves their cost). The box is a corner of the
+        # padded grid: the forward transforms pad one axis at a time and the inverse ones keep the box's rows of
+        # each axis before the next, which skips the zero rows and the rows not read back (about half the work).
+        Mk = sfft.rfft(M, n=padded[-1], axis=dim, workers=-1)
+        for axis in range(dim - 1, 0, -1):
+            Mk = sfft.fft(Mk, n=padded[axis - 1], axis=axis, workers=-1)
+        K = _kernel_spectra(padded, self.h, dim, np.dtype(self.model.np_scalar).name)  # (outputs, dim, ...)
+        out = np.empty((K.shape[0],) + Mk.shape[1:], dtype=Mk.dtype)
+        for c in range(K.shape[0]):
+            np.multiply(K[c, 0], Mk[0], out=out[c])
+            for b in range(1, dim):
+                out[c] += K[c, b] * Mk[b]
+        for axis in range(1, dim):
+            out = sfft.ifft(out, axis=axis, workers=-1)[(slice(None),) * axis + (slice(0, n[axis - 1]),)]
+        fields = sfft.irfft(out, n=padded[-1], axis=dim, workers=-1)[..., : n[-1]]
+        size = fields.size
         if self._on_cpu:
-            self._fields.numpy()[:] = fields.ravel()
+            self._fields.numpy()[:size] = fields.ravel()
         else:
-            self._fields.assign(fields.ravel())
+            self._fields[:size].assign(fields.ravel())
         self._M_host = M
 
     # -- public ---------------------------------------------------------------------------------------------
@@ -288,7 +298,7 @@ class MagneticInteraction:
         self._solve(x, F)
         lo, inv_h, shape, total = self._grid_args()
         wp.launch(self.k["gather_field"], dim=m.n_particles, device=m.device,
-                  inputs=[x, lo, inv_h, shape, total, self._fields, wp.float64(MU0), self.B, self.G])
+                  inputs=[x, lo, inv_h, shape, total, self._fields, m.scalar(MU0), self.B, self.G])
         self.refreshes += 1
 
     def add_to(self, B: wp.array, G: wp.array, keep: bool) -> None:
@@ -307,8 +317,9 @@ class MagneticInteraction:
         self._fit(x.numpy())
         self._solve(x, F)
         dim, h, padded = self.dim, self.h, self._padded
-        fields = self._fields.numpy().reshape((-1,) + padded)
-        M = self._M_host
+        n = tuple(int(v) for v in self._n)
+        fields = self._fields.numpy()[: (dim + len(sym_pairs(dim))) * int(np.prod(n))].reshape((-1,) + n).astype(np.float64)
+        M = self._M_host.astype(np.float64)
         lo = self.model.domain_lo + self._lo_node * h
         for i, p in enumerate(pts):
             g = (p - lo) / h

@@ -920,10 +920,12 @@ class Solver:
         part), refreshed at every interaction_every-th step and after a return to an earlier state."""
         step, every = state_in.step, self.settings.interaction_every
         last = self._interaction_step
-        if last is None or step < last or step - last >= every:
+        fresh = last is None or step < last or step - last >= every
+        if fresh:
             self.interaction.refresh(state_in.x, state_in.F)
             self._interaction_step = step
-        self.interaction.add_to(self.B_particle, self.G_particle, keep)
+        if fresh or keep:  # without other non-uniform fields the particle arrays keep it between refreshes
+            self.interaction.add_to(self.B_particle, self.G_particle, keep)
 
     def _update_colliders(self, control: Control, t: float) -> None:
         """The collider table at time t, copied to the device only when it changed (resting colliders: no copy)."""
