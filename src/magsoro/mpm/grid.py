@@ -109,9 +109,12 @@ def make_grid(dim: int, scalar, two_fields: bool = False) -> dict:
         """Velocity of one field of a node after damping, gravity, the domain walls and the rigid colliders."""
         # damping f = -c p (seed 000 eq 17), integrated exactly over the step so any c is stable
         vel = momentum / m * gs.damping_factor + gs.dt * gs.gravity
-        vel = walls(vel, pos, gs)
+        # colliders before the walls: a friction floor within two cells of the domain's edge takes its friction
+        # from the approaching normal velocity, which a slip wall applied first would have removed (a block on
+        # such a floor slid as if frictionless)
         if gs.n_colliders > 0:
             vel = colliders(vel, pos, gs)
+        vel = walls(vel, pos, gs)
         return vel
 
     @wp.kernel

@@ -804,14 +804,9 @@ class Solver:
         if check or not self._window_open:
             self._check_and_fit(state_in, 0.0 if check or self._total else reach)
             self.open_window()
-        fields = self._fields(control)
-        b0 = fields.uniform_value(t)
-        if fields.has_gradient:
-            fields.evaluate(state_in.x, self.B_particle, self.G_particle, t)
-        if self.interaction is not None:
-            self._interact(state_in, keep=fields.has_gradient)
+        b0, has_gradient = self._particle_fields(control, state_in)
         self._update_colliders(control, t)
-        L = self._launch_set(state_in, state_out, control, fields.has_gradient or self.interaction is not None)
+        L = self._launch_set(state_in, state_out, control, has_gradient)
         self._set_step_values(L, b0, dt)
         self._clear_grid()
         tick = self._phase("other", tick)
@@ -914,6 +909,17 @@ class Solver:
             )
         if not self._fits(lo, hi):
             self._refit(lo, hi)
+
+    def _particle_fields(self, control: Control, state_in: State):
+        """The field at the particles at the state's time: the uniform part (returned, T) and, when there is a
+        non-uniform one (field sources with a gradient, the bodies' own field), B and grad B per particle in
+        B_particle and G_particle. Returns (uniform B, whether there is a non-uniform part)."""
+        fields = self._fields(control)
+        if fields.has_gradient:
+            fields.evaluate(state_in.x, self.B_particle, self.G_particle, state_in.time)
+        if self.interaction is not None:
+            self._interact(state_in, keep=fields.has_gradient)
+        return fields.uniform_value(state_in.time), fields.has_gradient or self.interaction is not None
 
     def _interact(self, state_in: State, keep: bool) -> None:
         """Add the bodies' own field to the per-particle field (``keep`` False: it is the only non-uniform
