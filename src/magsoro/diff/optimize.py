@@ -67,6 +67,9 @@ class Problem:
         sim = self.scene.simulation
         if precision is not None:
             sim.precision = precision
+        if sim.magnetic_interaction != "none":
+            raise MagsoroError(f"{self.scene_path}: simulation.magnetic_interaction: the differentiable rollout has no "
+                               f"magnetic interaction between bodies; set it to 'none' to optimise this scene")
         self.built = build(self.scene, device=device, source=str(self.scene_path))
         self.raw = _absolute_paths(read_toml_file(self.scene_path, MagsoroError, "scene file"), self.scene_path.parent.resolve())
         self.duration = float(duration if duration is not None else sim.duration)

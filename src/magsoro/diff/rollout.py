@@ -143,6 +143,9 @@ class Rollout:
         if st.formulation != "updated":
             raise ValueError(f"the differentiable rollout runs the updated-Lagrangian engine only; the scene asks for "
                              f"simulation.formulation = {st.formulation!r}")
+        if st.magnetic_interaction != "none":
+            raise ValueError("the differentiable rollout has no magnetic interaction between bodies; give the scene "
+                             "simulation.magnetic_interaction = 'none'")
         groups = int(m.host["contact_group"].max()) + 1
         if st.contact is not None and st.contact.active(groups):
             raise ValueError("the differentiable rollout has no contact between bodies or self-contact; give the scene "
