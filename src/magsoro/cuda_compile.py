@@ -260,6 +260,7 @@ def _catalogue() -> tuple:
     from magsoro.mpm.grid import make_grid
     from magsoro.mpm.interaction import make_interaction_kernels
     from magsoro.mpm.kernels import _stress_kernel
+    from magsoro.mpm.static import make_static_kernels
     from magsoro.mpm.p2g import make_p2g
 
     scalars = {"float32": wp.float32, "float64": wp.float64}
@@ -286,6 +287,7 @@ def _catalogue() -> tuple:
     for dim in DIMS:
         for sname in SCALAR_NAMES:
             groups += _groups_of(f"interaction {dim}D {sname}", _fresh(make_interaction_kernels, dim, scalars[sname]), seen)
+            groups += _groups_of(f"static {dim}D {sname}", _fresh(make_static_kernels, dim, scalars[sname]), seen)
     for dim in DIMS:
         groups += _groups_of(f"bench reference {dim}D", _fresh(reference_kernels, dim), seen)
     # kernels defined at module level (the differentiable rollout's, and any new module's)

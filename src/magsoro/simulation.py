@@ -160,6 +160,39 @@ class Simulation:
             "magnetization": direction,
         }
 
+    # -- statics -------------------------------------------------------------------------------------------
+    def solve_static(self, levels=None, t: float | None = None, on_level: Callable | None = None):
+        """Equilibria by Newton's method (:mod:`magsoro.mpm.static`) under the loads at time ``t`` (default
+        simulation.duration), the fields scaled by each of ``levels`` in turn (default [static] levels) and
+        gravity in full; each level starts from the previous equilibrium and the state holds the last converged
+        one. ``on_level(sim, level_result)`` after each converged level. Returns a StaticResult; stops at the
+        first level that does not converge (its message names the level)."""
+        from magsoro.mpm.static import StaticResult, StaticSolver
+
+        cfg = self.scene.static
+        t = self.scene.simulation.duration if t is None else float(t)
+        levels = cfg.levels if levels is None else list(levels)
+        t0 = _time.perf_counter()
+        solver = StaticSolver(self, t, tolerance=cfg.tolerance, max_iterations=cfg.max_iterations)
+        self.state.time = t
+        out = StaticResult(True)
+        for level in levels:
+            res = solver.solve_level(level)
+            out.levels.append(res)
+            solver.write_state()
+            if not res.converged:
+                out.converged = False
+                out.message = (f"level {level:g} did not converge ({res.message}); the state is the last converged "
+                               f"level's: insert intermediate levels, raise static.max_iterations, or check the loads")
+                break
+            if on_level is not None:
+                on_level(self, res)
+        out.wall_time = _time.perf_counter() - t0
+        out.residual_evaluations = solver.residual_evaluations
+        if out.converged:
+            out.message = f"{len(levels)} level(s) converged"
+        return out
+
     # -- stepping ------------------------------------------------------------------------------------------
     def _next_dt(self, remaining: float, speed: float | None = None) -> float:
         """The next step: the fixed dt, or the CFL bound for the top speed of the last check (``speed`` when

@@ -21,6 +21,10 @@ def register(sub):
                    help="instead of the motion, find the static equilibrium under the loads at the end of the scene "
                         "(fields and collider paths at t = duration) by dynamic relaxation with kinetic damping; "
                         "writes the initial and the relaxed state")
+    p.add_argument("--static", action="store_true",
+                   help="instead of the motion, solve the static equilibria by Newton's method (float64, total-Lagrangian "
+                        "form) under the loads at t = duration, the fields scaled by each of [static] levels; writes one "
+                        "metrics row and frame per level (first column 'level'); no colliders or contact yet")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=run)
 
@@ -39,7 +43,23 @@ def run(args) -> int:
     wall0 = time.perf_counter()
     preview = getattr(args, "preview", False)
     scene = load_scene(args.scene, preview=preview)  # every check happens before the output folder is touched
+    static = getattr(args, "static", False)
+    if static:
+        if getattr(args, "equilibrium", False):
+            raise SceneError("--static and --equilibrium: give one of them")
+        if scene.simulation.formulation == "updated":
+            raise SceneError(f"{args.scene}: simulation.formulation: --static solves the total-Lagrangian form; set it to 'auto' or 'total'")
+        scene.simulation.precision = "float64"
+        scene.simulation.formulation = "total"
     sim = Simulation(scene, device=args.device, source=args.scene)
+    if static:
+        from magsoro.errors import SimulationError
+        from magsoro.mpm.static import check_supported
+
+        try:
+            check_supported(sim)
+        except SimulationError as exc:
+            raise SceneError(f"{args.scene}: --static: {exc}") from None
     echo = read_scene_toml(args.scene)
     if preview:
         from magsoro.scene.load import apply_preview
@@ -51,6 +71,8 @@ def run(args) -> int:
     writer = RunWriter(args.out, sim, echo, particles=scene.output.particles)
     if getattr(args, "equilibrium", False):
         return _relax(args, sim, writer, duration, wall0)
+    if static:
+        return _static(args, sim, writer, wall0)
     bar = None
     if not args.quiet:
         from tqdm import tqdm
@@ -126,6 +148,36 @@ def _relax(args, sim, writer, t_loads: float, wall0: float) -> int:
     if status != "completed":
         print(f"magsoro run --equilibrium: {status}: {message}", file=sys.stderr)
         return 1 if status == "failed" else _interrupted_status(signum)
+    if not args.quiet:
+        print(f"{message} in {wall:.1f} s; results in {args.out}")
+    return 0
+
+
+def _static(args, sim, writer, wall0: float) -> int:
+    """``--static``: the unloaded state (level 0), then the equilibrium at each level of [static] levels."""
+    from dataclasses import asdict
+
+    from magsoro.errors import SimulationError
+    from magsoro.simulation import RunResult
+
+    writer.columns[0] = "level"
+    writer.record(sim, stamp=0.0)
+    try:
+        res = sim.solve_static(on_level=lambda s, lev: writer.record(s, stamp=lev.level))
+        status, message, wall = ("completed" if res.converged else "failed"), res.message, res.wall_time
+        writer.info["static"] = {"converged": res.converged, "levels": [asdict(r) for r in res.levels],
+                                 "residual_evaluations": res.residual_evaluations, "wall_time": res.wall_time,
+                                 "t_loads": sim.time}
+    except SimulationError as exc:
+        status, message, wall = "failed", str(exc), time.perf_counter() - wall0
+    except KeyboardInterrupt as exc:
+        writer.finish(RunResult("interrupted", 0, sim.time, time.perf_counter() - wall0, str(exc) or "interrupted by the user",
+                                getattr(exc, "signum", None)), time.perf_counter() - wall0)
+        return _interrupted_status(getattr(exc, "signum", None))
+    writer.finish(RunResult(status, 0, sim.time, wall, message), time.perf_counter() - wall0)
+    if status != "completed":
+        print(f"magsoro run --static: failed: {message}", file=sys.stderr)
+        return 1
     if not args.quiet:
         print(f"{message} in {wall:.1f} s; results in {args.out}")
     return 0

@@ -87,9 +87,12 @@ class RunWriter:
             self.info["progress"] = {"time": sim.time, "steps": sim.steps}
         atomic_write_json(self.dir / "run.json", self.info)
 
-    def record(self, sim) -> None:
+    def record(self, sim, stamp: float | None = None) -> None:
+        """Append a metrics row and a frame of the current state, stamped with the simulated time (or
+        ``stamp``: the load level of a static run, whose first column is then 'level')."""
+        stamp = sim.time if stamp is None else float(stamp)
         self.beat(sim, force=True)
-        self.rows.append([sim.time] + list(sim.probe_values().values()))
+        self.rows.append([stamp] + list(sim.probe_values().values()))
         buf = io.StringIO()
         buf.write(",".join(self.columns) + "\n")
         for r in self.rows:
@@ -110,7 +113,7 @@ class RunWriter:
                     "magnetization_direction": p["magnetization"].astype(np.float32),
                 },
             )
-            self.frames.append((sim.time, name))
+            self.frames.append((stamp, name))
             write_pvd(self.dir / "particles.pvd", self.frames)
 
     def finish(self, result, wall_total: float) -> None:

@@ -712,6 +712,16 @@ class Contact(Strict):
     pairs: list[ContactPair] = Field(default_factory=list, description="Per-pair overrides ([[contact.pairs]] tables).")
 
 
+class Static(Strict):
+    """[static] table: what `magsoro run --static` (and Simulation.solve_static) solves: the equilibria under the
+    loads at t = simulation.duration, with the fields scaled by each level in turn (docs/engine.md, "Static
+    solver")."""
+
+    levels: list[Annotated[float, Field(allow_inf_nan=False)]] = Field(default_factory=lambda: [1.0], min_length=1, max_length=10000, description="Field scale factors, solved in this order, each from the previous equilibrium. Default [1.0].")
+    tolerance: float = Field(default=1e-8, gt=0, lt=1, description="Newton tolerance: largest node force over the out-of-balance force of the undeformed body under the level's load.")
+    max_iterations: int = Field(default=25, ge=1, le=1000, description="Newton iterations per load increment before the increment is halved.")
+
+
 class Output(Strict):
     """What a run writes."""
 
@@ -749,6 +759,7 @@ class Scene(Strict):
     contact: Contact = Field(default_factory=Contact, description="[contact] table: friction between bodies and self-contact.")
     name: str | None = Field(default=None, description="Scene title.")
     preview: Preview | None = Field(default=None, description="[preview] table: coarser settings for `magsoro run --preview`.")
+    static: Static = Field(default_factory=Static, description="[static] table: load levels and tolerance of `magsoro run --static`.")
     _base_dir: object = PrivateAttr(default=None)
     _source_path: object = PrivateAttr(default=None)
     _material_libraries: object = PrivateAttr(default_factory=list)

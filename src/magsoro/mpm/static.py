@@ -1,0 +1,428 @@
+"""Quasi-static solver: equilibrium shapes by Newton's method on the engine's own total-Lagrangian discretisation.
+
+The unknowns are the displacements u of the free nodes of the reference grid block (the total-Lagrangian form's
+grid: nodes carrying particle mass that are not held by a clamp). A displacement field puts every particle at
+x_p = X_p + sum_i w_ip u_i with F_p = I + sum_i u_i (x) grad w_ip (the engine's MLS gradient, as its total-form
+gather computes them), and the residual is the node force of the engine's own scatter (p2g with zero velocity and
+a unit step: the stress divergence of every elastic law, the magnetic stress, the gradient force) plus gravity.
+Equilibrium is R(u) = 0.
+
+Newton-Raphson with a backtracking line search on |R|; the tangent dR/du is assembled from the particles as a
+finite-element stiffness is, -V0 g_i . A . g_j with A = dP/dF of each particle's law (central differences of the
+law at the particle's F: a local derivative, accurate to about 1e-10), plus the terms of a non-uniform field
+(:meth:`StaticSolver.tangent`). Finite differences of the whole residual are not accurate enough: a slender beam's
+bending stiffness is about (t/L)^2 of the entries, and the tangent's error along the bending mode stalled Newton
+to linear convergence. The linear systems are solved by a sparse direct solver (SuperLU). Loads are applied in adaptive increments from the
+last converged state (halved when Newton fails, grown when it converges quickly). float64 is recommended: the
+tolerance is relative to the out-of-balance force of the undeformed body under the full load, 1e-8 by default.
+
+Not handled yet: rigid colliders and domain walls (refused), contact between bodies (refused), limit points
+(arc length) and buckling detection: a symmetric problem stays on its symmetric branch.
+"""
+
+import functools
+import math
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+import warp as wp
+
+from magsoro.errors import SimulationError
+from magsoro.constants import MU0
+from magsoro.mpm.materials import make_material_functions
+from magsoro.mpm.solver import block_struct, bodies_array, contact_grid
+from magsoro.mpm.stencil import make_stencil
+
+#: central-difference step of the material tangent dP/dF (dimensionless) and of the field's gradient (cells)
+F_STEP = 1e-6
+X_STEP = 1e-4
+#: a Newton step is taken while |R| stays below this many times the lowest residual of the solve
+GROWTH = 1.0e3
+
+
+@functools.cache
+def make_static_kernels(dim: int, scalar) -> dict:
+    s = make_stencil(dim, scalar)
+    t = s.types
+    vec, mat, Block = t.vec, t.mat, t.Block
+    NS = s.NS
+    bspline_weights, local_coords, flat_index, stencil_node = s.bspline_weights, s.local_coords, s.flat_index, s.stencil_node
+
+    @wp.kernel
+    def place_particles(X: wp.array(dtype=vec), u: wp.array(dtype=vec), block: Block, clamped: wp.array(dtype=wp.int32),
+                        x: wp.array(dtype=vec), F: wp.array(dtype=mat)):
+        """Positions X + sum w u_i and deformation gradients I + sum u_i (x) grad w of the node displacements
+        ``u`` (the total-Lagrangian gather with v = u and a unit step); clamped particles keep X and F = I, as
+        the engine's gather holds them."""
+        p = wp.tid()
+        if clamped[p] != 0:
+            x[p] = X[p]
+            F[p] = wp.identity(n=dim, dtype=scalar)
+            return
+        inv_dx = scalar(1.0) / block.dx
+        base, fx = local_coords(X[p], block.lo, inv_dx)
+        w0, w1, w2 = bspline_weights(fx)
+        first = flat_index(base, block.shape)
+        disp = vec()
+        S = mat()
+        for q in range(NS):
+            weight, of, idx = stencil_node(q, w0, w1, w2, first, block.shape)
+            wu = weight * u[idx]
+            disp = disp + wu
+            S = S + wp.outer(wu, of)
+        x[p] = X[p] + disp
+        F[p] = wp.identity(n=dim, dtype=scalar) + (scalar(4.0) * inv_dx) * (S - wp.outer(disp, fx))
+
+    elastic_stress = make_material_functions(dim, scalar)["elastic_stress"]
+    Bodies = t.Bodies
+
+    @wp.kernel
+    def particle_stress(F: wp.array(dtype=mat), bodies: wp.array(dtype=Bodies), P: wp.array(dtype=mat)):
+        """Elastic first Piola stress of every particle at ``F`` (its own law and moduli)."""
+        p = wp.tid()
+        b = bodies[0]
+        P[p] = elastic_stress(F[p], b.material_model[p], b.shear[p], b.bulk[p], b.material_params[p])
+
+    return {"place_particles": place_particles, "particle_stress": particle_stress}
+
+
+@dataclass
+class LevelResult:
+    """One solved load level: field scale ``level``, converged or not, Newton iterations and load increments."""
+
+    level: float
+    converged: bool
+    iterations: int
+    increments: int
+    residual: float  # |R|_inf at the end, N (2D: per the scene's depth)
+    residual_relative: float
+    wall_time: float
+    message: str = ""
+
+
+@dataclass
+class StaticResult:
+    """Outcome of :meth:`magsoro.simulation.Simulation.solve_static`: one LevelResult per level solved."""
+
+    converged: bool
+    levels: list = field(default_factory=list)
+    wall_time: float = 0.0
+    message: str = ""
+    residual_evaluations: int = 0
+
+
+def check_supported(sim) -> None:
+    """Raise SimulationError naming what the static solver cannot take in ``sim`` (form, contact, colliders, the
+    bodies' own field)."""
+    solver = sim.solver
+    if solver.settings.formulation != "total":
+        raise SimulationError("the static solver works on the total-Lagrangian form (simulation.formulation = 'total' or 'auto')")
+    if solver._contact:
+        raise SimulationError("the static solver has no contact between bodies yet; give the scene one body (or "
+                              "contact.friction = 'sticky')")
+    if sim.control.colliders:
+        raise SimulationError("the static solver has no rigid colliders yet; remove [[colliders]] or use --equilibrium")
+    if solver.interaction is not None:
+        raise SimulationError("the static solver has no magnetic interaction between bodies yet "
+                              "(simulation.magnetic_interaction = 'none', or use --equilibrium)")
+
+
+class StaticSolver:
+    """Newton solver for the equilibria of a :class:`magsoro.simulation.Simulation` built in the total-Lagrangian
+    form without contact or colliders. Loads: the fields at time ``t`` scaled by a level, gravity in full."""
+
+    def __init__(self, sim, t: float, tolerance: float = 1e-8, max_iterations: int = 25):
+        self.sim, self.t = sim, float(t)
+        self.tolerance, self.max_iterations = float(tolerance), int(max_iterations)
+        solver, model = sim.solver, sim.model
+        st = solver.settings
+        check_supported(sim)
+        self.solver, self.model = solver, model
+        self.dim, self.dev, self.sc = model.dim, model.device, model.scalar
+        k = model.kernels
+        self.k = k
+        self.kk = make_static_kernels(self.dim, self.sc)
+        state = sim.state
+        solver._check_and_fit(state, 0.0)  # the reference grid block, its held nodes
+        self.block = block_struct(model, solver.org, solver.shape)
+        self.n_nodes = int(solver.n_active)
+        n = model.n_particles
+        self.x = wp.zeros(n, dtype=k["vec"], device=self.dev)
+        self.F = wp.zeros(n, dtype=k["mat"], device=self.dev)
+        self.zero_v = wp.zeros(n, dtype=k["vec"], device=self.dev)
+        self.zero_C = wp.zeros(n, dtype=k["mat"], device=self.dev)
+        self.u = wp.zeros(self.n_nodes, dtype=k["vec"], device=self.dev)
+        self.bodies = bodies_array(model)
+        self.ct = contact_grid(model)
+        grid = k["GridArrays"]()
+        grid.p, grid.m, grid.clamp = solver.grid_p, solver.grid_m, solver.grid_clamp
+        self.grid = wp.array([grid], dtype=k["GridArrays"], device=self.dev)
+        g = np.zeros(self.dim)
+        g[:] = np.asarray(st.gravity, dtype=np.float64).ravel()[: self.dim]
+        self.gravity = g
+        self.fields = solver._fields(sim.control)
+        self.residual_evaluations = 0
+        # free nodes: carrying mass, not held
+        self._scatter(np.zeros((self.n_nodes, self.dim)), 0.0, 0.0)
+        mass = solver.grid_m.numpy()[: self.n_nodes].astype(np.float64)
+        held = solver._held.numpy()[: self.n_nodes] != 0
+        self.node_mass = mass
+        self.free = np.flatnonzero((mass > 0) & ~held)
+        shape = np.asarray(solver.shape, dtype=np.int64)
+        self.shape = shape
+        self.coords = np.stack(np.unravel_index(np.arange(self.n_nodes), tuple(shape)), axis=1)
+        self.dof_of_node = np.full(self.n_nodes, -1, dtype=np.int64)
+        self.dof_of_node[self.free] = np.arange(len(self.free))
+        self.u_nodes = np.zeros((self.n_nodes, self.dim))
+        self.field_level = 0.0
+        self.gravity_level = 0.0
+
+    # -- residual -----------------------------------------------------------------------------------------
+    def _place(self, u_nodes: np.ndarray) -> None:
+        self.u.assign(u_nodes.astype(self.model.np_scalar))
+        wp.launch(self.kk["place_particles"], dim=self.model.n_particles, device=self.dev,
+                  inputs=[self.model.X0, self.u, self.block, self.model.clamped, self.x, self.F])
+
+    def _scatter(self, u_nodes: np.ndarray, field_level: float, gravity_level: float) -> np.ndarray:
+        """Node forces (n_nodes, dim) at the displacement ``u_nodes`` under the given load levels."""
+        solver, model, k, sc = self.solver, self.model, self.k, self.sc
+        self._place(u_nodes)
+        applied = k["Applied"]()
+        b0 = self.fields.uniform_value(self.t) * field_level
+        applied.B_uniform = k["v3"](*[sc(b) for b in b0])
+        has_gradient = self.fields.has_gradient or solver.interaction is not None
+        applied.has_gradient = 1 if has_gradient else 0
+        if has_gradient:
+            B, G = solver.B_particle, solver.G_particle
+            B.zero_()
+            G.zero_()
+            if self.fields.has_gradient:
+                self.fields.evaluate(self.x, B, G, self.t)
+                if field_level != 1.0:
+                    Bn, Gn = B.numpy(), G.numpy()
+                    B.assign(Bn * field_level)
+                    G.assign(Gn * field_level)
+            if solver.interaction is not None:  # the bodies' own field is not scaled: it is not a load
+                solver.interaction.refresh(self.x, self.F)
+                solver.interaction.add_to(B, G, keep=True)
+        applied.B, applied.G = solver.B_particle, solver.G_particle
+        solver.grid_p.zero_()
+        solver.grid_m.zero_()
+        solver.error.zero_()
+        wp.launch(k["p2g"], dim=model.n_particles, device=self.dev,
+                  inputs=[model.X0, self.zero_v, self.zero_C, self.F, self.bodies, applied, self.block, sc(1.0),
+                          self.grid, solver.error, 1, self.ct])
+        self.residual_evaluations += 1
+        f = solver.grid_p.numpy()[: self.n_nodes].astype(np.float64)
+        m = solver.grid_m.numpy()[: self.n_nodes].astype(np.float64)
+        return f + m[:, None] * (gravity_level * self.gravity)[None, :]
+
+    def residual(self, u_nodes, field_level, gravity_level) -> np.ndarray:
+        """Out-of-balance force of the free nodes, flat (n_free * dim,)."""
+        return self._scatter(u_nodes, field_level, gravity_level)[self.free].ravel()
+
+    def _valid(self) -> bool:
+        F = self.F.numpy().astype(np.float64)
+        return bool(np.all(np.isfinite(F)) and np.all(np.linalg.det(F) > 0.0))
+
+    # -- tangent --------------------------------------------------------------------------------------------
+    def _stencil(self):
+        """Per particle: flat node indices (N, 3^dim), weights (N, 3^dim) and reference weight gradients
+        (N, 3^dim, dim) of the engine's quadratic B-splines on the reference grid block (MLS: grad w =
+        (4/dx^2) w (x_i - x_p))."""
+        if getattr(self, "_stencil_cache", None) is None:
+            m, dim = self.model, self.dim
+            X = m.host["positions"]
+            lo = m.domain_lo + self.solver.org * m.dx
+            xg = (X - lo) / m.dx
+            base = np.floor(xg - 0.5).astype(np.int64)
+            fx = xg - base
+            w1d = np.stack([0.5 * (1.5 - fx) ** 2, 0.75 - (fx - 1.0) ** 2, 0.5 * (fx - 0.5) ** 2], axis=1)  # (N, 3, dim)
+            offs = np.stack(np.meshgrid(*[np.arange(3)] * dim, indexing="ij"), axis=-1).reshape(-1, dim)  # (S, dim)
+            w = np.ones((len(X), len(offs)))
+            for a in range(dim):
+                w *= w1d[:, offs[:, a], a]
+            nodes = np.ravel_multi_index(tuple((base[:, None, :] + offs[None]).transpose(2, 0, 1)), tuple(self.shape))
+            grad = (4.0 / m.dx) * w[:, :, None] * (offs[None, :, :] - fx[:, None, :])
+            self._stencil_cache = (nodes, w, grad)
+        return self._stencil_cache
+
+    def _material_tangent(self) -> np.ndarray:
+        """dP/dF (N, dim, dim, dim, dim), A[p, a, c, b, d] = dP_ac / dF_bd, by central differences of each
+        particle's own law at the current F (a local, well-conditioned derivative)."""
+        k, dim, n = self.model.kernels, self.dim, self.model.n_particles
+        F0 = self.F.numpy().astype(np.float64)
+        Fw = wp.zeros(n, dtype=k["mat"], device=self.dev)
+        Pw = wp.zeros(n, dtype=k["mat"], device=self.dev)
+        A = np.zeros((n, dim, dim, dim, dim))
+        for b in range(dim):
+            for d in range(dim):
+                P = []
+                for sign in (1.0, -1.0):
+                    Fp = F0.copy()
+                    Fp[:, b, d] += sign * F_STEP
+                    Fw.assign(Fp.astype(self.model.np_scalar))
+                    wp.launch(self.kk["particle_stress"], dim=n, device=self.dev, inputs=[Fw, self.bodies, Pw])
+                    P.append(Pw.numpy().astype(np.float64))
+                A[:, :, :, b, d] = (P[0] - P[1]) / (2.0 * F_STEP)
+        return A
+
+    def _field_terms(self, field_level: float):
+        """B, grad B (T, T/m; the model's in-plane part) at the particles' current positions and the gradient's
+        derivative along each axis (central differences of the sources), all scaled by ``field_level``; None
+        without a non-uniform source."""
+        if not self.fields.has_gradient:
+            return None
+        dim, n, k = self.dim, self.model.n_particles, self.model.kernels
+        B = wp.zeros(n, dtype=k["v3"], device=self.dev)
+        G = wp.zeros(n, dtype=k["m3"], device=self.dev)
+        x0 = self.x.numpy().astype(np.float64)
+        xs = wp.zeros(n, dtype=k["vec"], device=self.dev)
+        self.fields.evaluate(self.x, B, G, self.t)
+        G0 = G.numpy().astype(np.float64)[:, :dim, :dim] * field_level
+        h = X_STEP * self.model.dx
+        dG = np.zeros((n, dim, dim, dim))  # dG[p, a, b, e] = d(dB_a/dx_b)/dx_e
+        for e in range(dim):
+            Gs = []
+            for sign in (1.0, -1.0):
+                xx = x0.copy()
+                xx[:, e] += sign * h
+                xs.assign(xx.astype(self.model.np_scalar))
+                self.fields.evaluate(xs, B, G, self.t)
+                Gs.append(G.numpy().astype(np.float64)[:, :dim, :dim])
+            dG[:, :, :, e] = (Gs[0] - Gs[1]) / (2.0 * h) * field_level
+        return G0, dG
+
+    def tangent(self, u_nodes, field_level, gravity_level, r0=None):
+        """dR/du on the free DOFs, assembled from the particles (sparse, CSC):
+
+        - elastic: -V0 A_acbd g_i^c g_j^d with A = dP/dF of each particle's law (central differences) and g the
+          reference weight gradients (F = I + sum_j u_j g_j^T);
+        - with a non-uniform field, the magnetic stress's change with position, V0 / mu0 G_ab Br_c g_i^c w_j,
+          and the gradient force f = G^T m (m = F Br V0 / mu0)'s change with F and with position, w_i (G_ba
+          Br_c V0 / mu0 g_j^c + d(G_ba)/dx_e m_b w_j).
+        The bodies' own field is left out of the tangent (it enters the residual)."""
+        from scipy import sparse
+
+        self._scatter(u_nodes, field_level, gravity_level)  # x and F at u
+        dim = self.dim
+        nodes, w, g = self._stencil()
+        V0 = self.model.host["volumes"]
+        A = self._material_tangent()
+        A[self.model.host["clamped"]] = 0.0  # held particles keep F = I whatever the nodes do
+        S = nodes.shape[1]
+        n_dof = len(self.free) * dim
+        terms = self._field_terms(field_level)
+        Br = self.model.host["remanence"]
+        chunk = max(1, 2_000_000 // (S * S * dim * dim))
+        J = sparse.csc_matrix((n_dof, n_dof))
+        for lo in range(0, len(V0), chunk):
+            sl = slice(lo, lo + chunk)
+            blk = -np.einsum("p,pacbd,psc,ptd->psatb", V0[sl], A[sl], g[sl], g[sl], optimize=True)
+            if terms is not None:
+                G0, dG = terms
+                br = Br[sl, :dim]
+                Fbr = np.einsum("pbc,pc->pb", self.F.numpy().astype(np.float64)[sl], br)
+                m = Fbr * (V0[sl] / MU0)[:, None]
+                if dim == 2:  # plane strain: the moment's z part (Br_z, F_zz = 1) meets dB_z/dx, not in G0
+                    pass
+                coef = V0[sl] / MU0
+                # magnetic stress: -(1/mu0) B (x) Br moves with x: dP_ac/dx_e = -(1/mu0) G_ae Br_c
+                blk += np.einsum("p,pab,pc,psc,pt->psatb", coef, G0[sl], br, g[sl], w[sl], optimize=True)
+                # gradient force on node i: w_i G_ba m_b
+                blk += np.einsum("p,ps,pba,pc,ptc->psatb", coef, w[sl], G0[sl], br, g[sl], optimize=True)
+                blk += np.einsum("ps,pbae,pb,pt->psatb", w[sl], dG[sl], m, w[sl], optimize=True)
+            rows = self.dof_of_node[nodes[sl]]  # (p, S)
+            ri = (rows[:, :, None, None, None] * dim + np.arange(dim)[None, None, :, None, None]) * np.ones((1, 1, 1, S, dim), dtype=np.int64)
+            ci = (rows[:, None, None, :, None] * dim + np.arange(dim)[None, None, None, None, :]) * np.ones((1, S, dim, 1, 1), dtype=np.int64)
+            ok = (ri >= 0) & (ci >= 0) & (rows[:, :, None, None, None] >= 0) & (rows[:, None, None, :, None] >= 0)
+            J = J + sparse.coo_matrix((blk[ok], (ri[ok], ci[ok])), shape=(n_dof, n_dof)).tocsc()
+        J.eliminate_zeros()
+        return J
+
+    # -- Newton ---------------------------------------------------------------------------------------------
+    def _newton(self, u_nodes, field_level, gravity_level, scale):
+        """Newton with line search from ``u_nodes``. Returns (u, converged, iterations, |R|_inf, message)."""
+        from scipy.sparse.linalg import splu
+
+        r_full = self._scatter(u_nodes, field_level, gravity_level)
+        r = r_full[self.free].ravel()
+        norm = float(np.abs(r).max()) if r.size else 0.0
+        best = norm
+        for it in range(self.max_iterations + 1):
+            if norm <= self.tolerance * scale:
+                return u_nodes, True, it, norm, ""
+            if it == self.max_iterations:
+                break
+            J = self.tangent(u_nodes, field_level, gravity_level, r_full)
+            try:
+                du = splu(J).solve(-r)
+            except RuntimeError as exc:  # singular tangent
+                return u_nodes, False, it, norm, f"singular tangent ({exc})"
+            step = np.zeros_like(u_nodes)
+            step[self.free] = du.reshape(-1, self.dim)
+            # Non-monotone line search: the full step may raise |R| for an iteration (the nodes at the bodies'
+            # edges carry little stiffness, and their forces answer the first step nonlinearly), after which
+            # Newton converges quadratically; a step is taken when F stays invertible and |R| stays within
+            # GROWTH times the lowest residual of this solve, else halved.
+            alpha = 1.0
+            while alpha >= 1.0 / 256:
+                trial = u_nodes + alpha * step
+                r_try_full = self._scatter(trial, field_level, gravity_level)
+                if self._valid():
+                    r_try = r_try_full[self.free].ravel()
+                    n_try = float(np.abs(r_try).max())
+                    if math.isfinite(n_try) and n_try < GROWTH * best:
+                        u_nodes, r_full, r, norm = trial, r_try_full, r_try, n_try
+                        best = min(best, norm)
+                        break
+                alpha *= 0.5
+            else:
+                return u_nodes, False, it + 1, norm, "the line search found no step that lowers the residual"
+        return u_nodes, False, self.max_iterations, norm, f"no convergence in {self.max_iterations} Newton iterations"
+
+    def solve_level(self, level: float, gravity_level: float = 1.0) -> LevelResult:
+        """Equilibrium under the fields scaled by ``level`` and gravity scaled by ``gravity_level``, reached in
+        load increments from the last converged state."""
+        t0 = time.perf_counter()
+        start = (self.field_level, self.gravity_level)
+        target = (float(level), float(gravity_level))
+        # the force scale of the tolerance: the out-of-balance force of the undeformed body under the target load
+        r_ref = self._scatter(np.zeros_like(self.u_nodes), *target)[self.free]
+        scale = max(float(np.abs(r_ref).max()), 1e-30)
+        s, ds = 0.0, 1.0
+        iterations = increments = 0
+        u = self.u_nodes.copy()
+        message = ""
+        while s < 1.0 - 1e-12:
+            ds = min(ds, 1.0 - s)
+            s_try = s + ds
+            load = tuple(a + s_try * (b - a) for a, b in zip(start, target))
+            u_new, ok, its, norm, message = self._newton(u.copy(), load[0], load[1], scale)
+            iterations += its
+            if ok:
+                u, s = u_new, s_try
+                increments += 1
+                self.u_nodes = u
+                self.field_level, self.gravity_level = load
+                if its <= 4:
+                    ds *= 2.0
+            else:
+                ds *= 0.5
+                if ds < 1e-4:
+                    self._scatter(self.u_nodes, self.field_level, self.gravity_level)
+                    return LevelResult(level, False, iterations, increments, norm, norm / scale, time.perf_counter() - t0,
+                                       f"load increment below 1e-4 of the level at {s:.4g} of the way: {message}")
+        r = self._scatter(u, *target)[self.free]
+        norm = float(np.abs(r).max()) if r.size else 0.0
+        return LevelResult(level, True, iterations, increments, norm, norm / scale, time.perf_counter() - t0)
+
+    def write_state(self) -> None:
+        """Put the equilibrium into the simulation's state: x and F of the last residual, v = C = 0."""
+        self._scatter(self.u_nodes, self.field_level, self.gravity_level)
+        state = self.sim.state
+        wp.copy(state.x, self.x)
+        wp.copy(state.F, self.F)
+        state.v.zero_()
+        state.C.zero_()
