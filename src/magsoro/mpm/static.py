@@ -16,8 +16,15 @@ to linear convergence. The linear systems are solved by a sparse direct solver (
 last converged state (halved when Newton fails, grown when it converges quickly). float64 is recommended: the
 tolerance is relative to the out-of-balance force of the undeformed body under the full load, 1e-8 by default.
 
+Stability: after each load increment the eigenvalue nearest zero of the symmetric stiffness -(J + J^T)/2 is
+computed (shift-invert about zero; as the load passes a bifurcation the eigenvalue that turns negative is the one
+nearest zero). A negative one means the equilibrium is unstable (a symmetric beam past its buckling load, which
+Newton keeps straight, as it converges to saddles as readily as to minima): the solver adds an imperfection force
+along that mode (sized to move the level's stable start by BRANCH_KICKS cells, larger in turn until the result is stable), follows it up and takes it away again, which
+leaves the body on the stable branch, and reports the level as buckled.
+
 Not handled yet: rigid colliders and domain walls (refused), contact between bodies (refused), limit points
-(arc length) and buckling detection: a symmetric problem stays on its symmetric branch.
+(arc length: a snap-through is passed only if a load increment lands beyond it).
 """
 
 import functools
@@ -37,6 +44,12 @@ from magsoro.mpm.stencil import make_stencil
 #: central-difference step of the material tangent dP/dF (dimensionless) and of the field's gradient (cells)
 F_STEP = 1e-6
 X_STEP = 1e-4
+#: the imperfection forces along a mode of negative stiffness that switch to the buckled branch, tried in turn until
+#: the equilibrium left when the force is taken away is stable: the force that would move the level's (stable)
+#: starting state this many cells along the mode at its largest node
+BRANCH_KICKS = (0.1, 1.0, 10.0)
+#: branch switches within one level before the solver gives up
+MAX_SWITCHES = 4
 #: a Newton step is taken while |R| stays below this many times the lowest residual of the solve
 GROWTH = 1.0e3
 
@@ -99,6 +112,8 @@ class LevelResult:
     residual_relative: float
     wall_time: float
     message: str = ""
+    lowest_eigenvalue: float | None = None  # of the symmetric stiffness -(J + J^T)/2 at the equilibrium, N/m
+    buckled: bool = False  # the equilibrium reached first was unstable; the branch was switched (docstring)
 
 
 @dataclass
@@ -163,6 +178,7 @@ class StaticSolver:
         self.gravity = g
         self.fields = solver._fields(sim.control)
         self.residual_evaluations = 0
+        self.extra_force = None  # (n_nodes, dim) N: the imperfection force of a branch switch
         # free nodes: carrying mass, not held
         self._scatter(np.zeros((self.n_nodes, self.dim)), 0.0, 0.0)
         mass = solver.grid_m.numpy()[: self.n_nodes].astype(np.float64)
@@ -216,7 +232,8 @@ class StaticSolver:
         self.residual_evaluations += 1
         f = solver.grid_p.numpy()[: self.n_nodes].astype(np.float64)
         m = solver.grid_m.numpy()[: self.n_nodes].astype(np.float64)
-        return f + m[:, None] * (gravity_level * self.gravity)[None, :]
+        f = f + m[:, None] * (gravity_level * self.gravity)[None, :]
+        return f if self.extra_force is None else f + self.extra_force
 
     def residual(self, u_nodes, field_level, gravity_level) -> np.ndarray:
         """Out-of-balance force of the free nodes, flat (n_free * dim,)."""
@@ -382,19 +399,16 @@ class StaticSolver:
                 return u_nodes, False, it + 1, norm, "the line search found no step that lowers the residual"
         return u_nodes, False, self.max_iterations, norm, f"no convergence in {self.max_iterations} Newton iterations"
 
-    def solve_level(self, level: float, gravity_level: float = 1.0) -> LevelResult:
-        """Equilibrium under the fields scaled by ``level`` and gravity scaled by ``gravity_level``, reached in
-        load increments from the last converged state."""
-        t0 = time.perf_counter()
-        start = (self.field_level, self.gravity_level)
-        target = (float(level), float(gravity_level))
-        # the force scale of the tolerance: the out-of-balance force of the undeformed body under the target load
-        r_ref = self._scatter(np.zeros_like(self.u_nodes), *target)[self.free]
-        scale = max(float(np.abs(r_ref).max()), 1e-30)
+    def _increments(self, start, target, scale, watch: bool = False):
+        """Load increments from the current state at load ``start`` to ``target`` (field, gravity levels):
+        halved when Newton fails, doubled after a quick convergence. With ``watch``, the lowest stiffness is
+        checked after every increment and the walk stops at the first unstable one, the solver keeping the
+        stable state before it. Returns (status, iterations, increments, |R|, fraction reached, message,
+        unstable load, its eigenvalue, its mode) with status 'done', 'failed' or 'unstable'."""
         s, ds = 0.0, 1.0
         iterations = increments = 0
         u = self.u_nodes.copy()
-        message = ""
+        norm, message = 0.0, ""
         while s < 1.0 - 1e-12:
             ds = min(ds, 1.0 - s)
             s_try = s + ds
@@ -402,6 +416,13 @@ class StaticSolver:
             u_new, ok, its, norm, message = self._newton(u.copy(), load[0], load[1], scale)
             iterations += its
             if ok:
+                if watch:
+                    before = (self.u_nodes, self.field_level, self.gravity_level)
+                    self.u_nodes, (self.field_level, self.gravity_level) = u_new, load
+                    lam, mode = self.lowest_mode()
+                    if lam is not None and lam < 0.0:
+                        self.u_nodes, self.field_level, self.gravity_level = before
+                        return "unstable", iterations, increments, norm, s, "", load, lam, mode
                 u, s = u_new, s_try
                 increments += 1
                 self.u_nodes = u
@@ -411,12 +432,96 @@ class StaticSolver:
             else:
                 ds *= 0.5
                 if ds < 1e-4:
-                    self._scatter(self.u_nodes, self.field_level, self.gravity_level)
-                    return LevelResult(level, False, iterations, increments, norm, norm / scale, time.perf_counter() - t0,
-                                       f"load increment below 1e-4 of the level at {s:.4g} of the way: {message}")
-        r = self._scatter(u, *target)[self.free]
+                    return "failed", iterations, increments, norm, s, message, None, None, None
+        return "done", iterations, increments, norm, 1.0, "", None, None, None
+
+    def _switch_branch(self, load, lam, mode, scale):
+        """From the current stable state, reach ``load`` where the path's equilibrium is unstable (lowest
+        stiffness ``lam`` along ``mode``) on the stable branch: an imperfection force along the mode, sized by
+        BRANCH_KICKS, followed up to the load and taken away in steps. Returns (ok, iterations, increments,
+        |R|, message)."""
+        u0, start = self.u_nodes.copy(), (self.field_level, self.gravity_level)
+        lam_start, _ = self.lowest_mode()
+        direction = np.zeros_like(u0)
+        direction[self.free] = mode.reshape(-1, self.dim)
+        direction /= max(float(np.abs(direction).max()), 1e-300)
+        iterations = increments = 0
+        norm, message = 0.0, ""
+        for kick in BRANCH_KICKS:
+            self.u_nodes, (self.field_level, self.gravity_level) = u0.copy(), start
+            force = direction * abs(lam_start or lam) * kick * self.model.dx
+            self.extra_force = force
+            try:
+                status, its, inc, norm, _, message, *_ = self._increments(start, load, scale)
+                iterations, increments = iterations + its, increments + inc
+                ok = status == "done"
+                for amount in (0.5, 0.25, 0.125, 0.0625, 0.0):  # take the force away in steps
+                    if not ok:
+                        break
+                    self.extra_force = amount * force
+                    u_new, ok, its, norm, message = self._newton(self.u_nodes.copy(), load[0], load[1], scale)
+                    iterations += its
+                    if ok:
+                        self.u_nodes = u_new
+            finally:
+                self.extra_force = None
+            if not ok:
+                break
+            lam_now, _ = self.lowest_mode()
+            if lam_now is None or lam_now >= 0.0:
+                return True, iterations, increments, norm, ""
+        self.u_nodes, (self.field_level, self.gravity_level) = u0, start
+        return False, iterations, increments, norm, message or "the equilibrium stayed unstable after the largest imperfection"
+
+    def solve_level(self, level: float, gravity_level: float = 1.0) -> LevelResult:
+        """Equilibrium under the fields scaled by ``level`` and gravity scaled by ``gravity_level``, reached in
+        load increments from the last converged state, each checked for stability; at the first unstable one
+        the solver switches to the stable branch and goes on (module docstring)."""
+        t0 = time.perf_counter()
+        start = (self.field_level, self.gravity_level)
+        target = (float(level), float(gravity_level))
+        # the force scale of the tolerance: the out-of-balance force of the undeformed body under the target load
+        r_ref = self._scatter(np.zeros_like(self.u_nodes), *target)[self.free]
+        scale = max(float(np.abs(r_ref).max()), 1e-30)
+        iterations = increments = 0
+        buckled, lam = False, None
+        for _ in range(MAX_SWITCHES + 1):
+            here = (self.field_level, self.gravity_level)
+            status, its, inc, norm, reached, message, load, lam, mode = self._increments(here, target, scale, watch=True)
+            iterations, increments = iterations + its, increments + inc
+            if status == "done":
+                break
+            if status == "failed":
+                self._scatter(self.u_nodes, self.field_level, self.gravity_level)
+                return LevelResult(level, False, iterations, increments, norm, norm / scale, time.perf_counter() - t0,
+                                   f"load increment below 1e-4 of the level at {reached:.4g} of the way: {message}", lam, buckled)
+            buckled = True
+            ok, its, inc, norm, message = self._switch_branch(load, lam, mode, scale)
+            iterations, increments = iterations + its, increments + inc
+            if not ok:
+                self._scatter(self.u_nodes, self.field_level, self.gravity_level)
+                return LevelResult(level, False, iterations, increments, norm, norm / scale, time.perf_counter() - t0,
+                                   f"unstable equilibrium at field level {load[0]:.4g} (lowest stiffness {lam:.3g} N/m); the "
+                                   f"switch to a stable branch did not converge: {message}", lam, True)
+        lam, _ = self.lowest_mode()
+        r = self._scatter(self.u_nodes, *target)[self.free]
         norm = float(np.abs(r).max()) if r.size else 0.0
-        return LevelResult(level, True, iterations, increments, norm, norm / scale, time.perf_counter() - t0)
+        return LevelResult(level, True, iterations, increments, norm, norm / scale, time.perf_counter() - t0,
+                           "", lam, buckled)
+
+    def lowest_mode(self):
+        """Lowest eigenvalue (N/m) and mode of the symmetric stiffness -(J + J^T)/2 at the current
+        equilibrium (shift-invert about zero); (None, None) when the eigensolver does not converge."""
+        from scipy.sparse.linalg import ArpackNoConvergence, eigsh
+
+        K = -self.tangent(self.u_nodes, self.field_level, self.gravity_level)
+        K = 0.5 * (K + K.T)
+        try:
+            vals, vecs = eigsh(K.tocsc(), k=1, sigma=0.0, which="LM", v0=np.ones(K.shape[0]))
+        except (ArpackNoConvergence, RuntimeError):
+            return None, None
+        mode = vecs[:, 0]
+        return float(vals[0]), mode if mode[np.argmax(np.abs(mode))] > 0 else -mode  # a reproducible sign
 
     def write_state(self) -> None:
         """Put the equilibrium into the simulation's state: x and F of the last residual, v = C = 0."""
