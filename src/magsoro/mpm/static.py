@@ -478,7 +478,6 @@ class StaticSolver:
         load increments from the last converged state, each checked for stability; at the first unstable one
         the solver switches to the stable branch and goes on (module docstring)."""
         t0 = time.perf_counter()
-        start = (self.field_level, self.gravity_level)
         target = (float(level), float(gravity_level))
         # the force scale of the tolerance: the out-of-balance force of the undeformed body under the target load
         r_ref = self._scatter(np.zeros_like(self.u_nodes), *target)[self.free]
