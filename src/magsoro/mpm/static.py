@@ -179,6 +179,7 @@ class StaticSolver:
         self.fields = solver._fields(sim.control)
         self.residual_evaluations = 0
         self.extra_force = None  # (n_nodes, dim) N: the imperfection force of a branch switch
+        self._last_tangent = None
         # free nodes: carrying mass, not held
         self._scatter(np.zeros((self.n_nodes, self.dim)), 0.0, 0.0)
         mass = solver.grid_m.numpy()[: self.n_nodes].astype(np.float64)
@@ -333,30 +334,44 @@ class StaticSolver:
         terms = self._field_terms(field_level)
         Br = self.model.host["remanence"]
         chunk = max(1, 2_000_000 // (S * S * dim * dim))
-        J = sparse.csc_matrix((n_dof, n_dof))
+        values = []
         for lo in range(0, len(V0), chunk):
             sl = slice(lo, lo + chunk)
             blk = -np.einsum("p,pacbd,psc,ptd->psatb", V0[sl], A[sl], g[sl], g[sl], optimize=True)
-            if terms is not None:
+            if terms is not None:  # (a 2D scene's out-of-plane moment, Br_z, is left out of the tangent)
                 G0, dG = terms
                 br = Br[sl, :dim]
                 Fbr = np.einsum("pbc,pc->pb", self.F.numpy().astype(np.float64)[sl], br)
                 m = Fbr * (V0[sl] / MU0)[:, None]
-                if dim == 2:  # plane strain: the moment's z part (Br_z, F_zz = 1) meets dB_z/dx, not in G0
-                    pass
                 coef = V0[sl] / MU0
                 # magnetic stress: -(1/mu0) B (x) Br moves with x: dP_ac/dx_e = -(1/mu0) G_ae Br_c
                 blk += np.einsum("p,pab,pc,psc,pt->psatb", coef, G0[sl], br, g[sl], w[sl], optimize=True)
                 # gradient force on node i: w_i G_ba m_b
                 blk += np.einsum("p,ps,pba,pc,ptc->psatb", coef, w[sl], G0[sl], br, g[sl], optimize=True)
                 blk += np.einsum("ps,pbae,pb,pt->psatb", w[sl], dG[sl], m, w[sl], optimize=True)
-            rows = self.dof_of_node[nodes[sl]]  # (p, S)
+            values.append(blk.reshape(blk.shape[0], -1))
+        keep, inverse, indices, indptr = self._pattern(nodes, chunk)
+        data = np.bincount(inverse, weights=np.concatenate(values, axis=0).ravel()[keep], minlength=len(indices))
+        return sparse.csc_matrix((data, indices, indptr), shape=(n_dof, n_dof))
+
+    def _pattern(self, nodes, chunk):
+        """The tangent's sparsity pattern, computed once (the stencils and free nodes do not change): which of the
+        particles' (S dim)^2 block entries fall on free rows and columns, where each goes in the CSC data, and
+        the CSC row indices and column pointers."""
+        if getattr(self, "_pattern_cache", None) is None:
+            dim, S = self.dim, nodes.shape[1]
+            n_dof = len(self.free) * dim
+            rows = self.dof_of_node[nodes]  # (N, S)
             ri = (rows[:, :, None, None, None] * dim + np.arange(dim)[None, None, :, None, None]) * np.ones((1, 1, 1, S, dim), dtype=np.int64)
             ci = (rows[:, None, None, :, None] * dim + np.arange(dim)[None, None, None, None, :]) * np.ones((1, S, dim, 1, 1), dtype=np.int64)
-            ok = (ri >= 0) & (ci >= 0) & (rows[:, :, None, None, None] >= 0) & (rows[:, None, None, :, None] >= 0)
-            J = J + sparse.coo_matrix((blk[ok], (ri[ok], ci[ok])), shape=(n_dof, n_dof)).tocsc()
-        J.eliminate_zeros()
-        return J
+            ok = (rows[:, :, None, None, None] >= 0) & (rows[:, None, None, :, None] >= 0) & np.ones_like(ri, dtype=bool)
+            keep = np.flatnonzero(ok.reshape(-1))
+            key = ci.reshape(-1)[keep] * n_dof + ri.reshape(-1)[keep]  # column-major order
+            unique, inverse = np.unique(key, return_inverse=True)
+            indices = (unique % n_dof).astype(np.int32)
+            indptr = np.searchsorted(unique // n_dof, np.arange(n_dof + 1)).astype(np.int32)
+            self._pattern_cache = (keep, inverse, indices, indptr)
+        return self._pattern_cache
 
     # -- Newton ---------------------------------------------------------------------------------------------
     def _newton(self, u_nodes, field_level, gravity_level, scale):
@@ -373,6 +388,7 @@ class StaticSolver:
             if it == self.max_iterations:
                 break
             J = self.tangent(u_nodes, field_level, gravity_level, r_full)
+            self._last_tangent = J  # the stability check after convergence reuses it (one step from the solution)
             try:
                 du = splu(J).solve(-r)
             except RuntimeError as exc:  # singular tangent
@@ -419,7 +435,7 @@ class StaticSolver:
                 if watch:
                     before = (self.u_nodes, self.field_level, self.gravity_level)
                     self.u_nodes, (self.field_level, self.gravity_level) = u_new, load
-                    lam, mode = self.lowest_mode()
+                    lam, mode = self.lowest_mode(self._last_tangent if its > 0 else None)
                     if lam is not None and lam < 0.0:
                         self.u_nodes, self.field_level, self.gravity_level = before
                         return "unstable", iterations, increments, norm, s, "", load, lam, mode
@@ -508,12 +524,13 @@ class StaticSolver:
         return LevelResult(level, True, iterations, increments, norm, norm / scale, time.perf_counter() - t0,
                            "", lam, buckled)
 
-    def lowest_mode(self):
-        """Lowest eigenvalue (N/m) and mode of the symmetric stiffness -(J + J^T)/2 at the current
-        equilibrium (shift-invert about zero); (None, None) when the eigensolver does not converge."""
+    def lowest_mode(self, tangent=None):
+        """Eigenvalue nearest zero (N/m) and its mode of the symmetric stiffness -(J + J^T)/2 at the current
+        equilibrium (shift-invert about zero), from ``tangent`` when given (the last Newton iteration's, one
+        converged step away); (None, None) when the eigensolver does not converge."""
         from scipy.sparse.linalg import ArpackNoConvergence, eigsh
 
-        K = -self.tangent(self.u_nodes, self.field_level, self.gravity_level)
+        K = -(tangent if tangent is not None else self.tangent(self.u_nodes, self.field_level, self.gravity_level))
         K = 0.5 * (K + K.T)
         try:
             vals, vecs = eigsh(K.tocsc(), k=1, sigma=0.0, which="LM", v0=np.ones(K.shape[0]))
