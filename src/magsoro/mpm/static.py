@@ -348,7 +348,7 @@ class StaticSolver:
                 blk += np.einsum("p,pab,pc,psc,pt->psatb", coef, G0[sl], br, g[sl], w[sl], optimize=True)
                 # gradient force on node i: w_i G_ba m_b
                 blk += np.einsum("p,ps,pba,pc,ptc->psatb", coef, w[sl], G0[sl], br, g[sl], optimize=True)
-                blk += np.einsum("ps,pbae,pb,pt->psatb", w[sl], dG[sl], m, w[sl], optimize=True)
+                blk += np.einsum("ps,pbae,pb,pt->psate", w[sl], dG[sl], m, w[sl], optimize=True)
             values.append(blk.reshape(blk.shape[0], -1))
         keep, inverse, indices, indptr = self._pattern(nodes, chunk)
         data = np.bincount(inverse, weights=np.concatenate(values, axis=0).ravel()[keep], minlength=len(indices))
