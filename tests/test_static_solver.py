@@ -205,3 +205,21 @@ def test_tangent_is_the_residual_derivative_in_a_non_uniform_field(tmp_path):
         um[st.free] -= v.reshape(-1, 2)
         fd = (st.residual(up, level, 1.0) - st.residual(um, level, 1.0)) / 2
         assert np.abs(fd - J @ v).max() < 1e-4 * np.abs(fd).max()
+
+
+def test_field_probe_reads_the_level_of_the_static_solve():
+    """Field probes and Simulation.field_at after a static solve read the applied field of the level solved (they
+    read the unscaled field): total minus the bodies' own field is the level times the scene's 5.9 mT."""
+    from magsoro.scene import load_scene
+    from magsoro.simulation import Simulation
+
+    scene = load_scene(SCENE)
+    scene.simulation.precision = "float64"
+    sim = Simulation(scene)
+    point = np.array([[0.01, -0.008]])
+    for level in (0.25, 1.0):
+        assert sim.solve_static(levels=[level]).converged
+        total = sim.field_at(point)
+        bodies = sim._probe_interaction.field_at(point, sim.state.x, sim.state.F)
+        applied = total - bodies
+        assert applied[0] == pytest.approx([0.0, level * 0.0059, 0.0], abs=1e-9)

@@ -76,6 +76,7 @@ class Simulation:
         self._spare = self.solver.new_state()
         self.probes = self.built.probes
         self._probe_interaction = None  # the bodies' field for field probes (the solver's when it has one)
+        self.field_scale = 1.0  # the applied fields' scale in field_at and the field probes: a static solve's level
         sim = scene.simulation
         self.fixed_dt = sim.dt
         self._field_peak = self.solver.field_magnitude(self.control)
@@ -131,7 +132,7 @@ class Simulation:
             p3[:, 2] = self.solver.settings.plane_z
         B = np.zeros((len(pts), 3))
         for s in self.control.sources:
-            B += np.asarray(s.B(p3, self.time), dtype=np.float64).reshape(len(pts), 3)
+            B += self.field_scale * np.asarray(s.B(p3, self.time), dtype=np.float64).reshape(len(pts), 3)
         if self._probe_interaction is None:
             self._probe_interaction = self.solver.interaction or MagneticInteraction(self.model, self.solver.settings.depth)
         return B + self._probe_interaction.field_at(pts, self.state.x, self.state.F)
@@ -166,7 +167,8 @@ class Simulation:
         simulation.duration), the fields scaled by each of ``levels`` in turn (default [static] levels) and
         gravity in full; each level starts from the previous equilibrium and the state holds the last converged
         one. ``on_level(sim, level_result)`` after each converged level. Returns a StaticResult; stops at the
-        first level that does not converge (its message names the level)."""
+        first level that does not converge (its message names the level). Afterwards :meth:`field_at` and the
+        field probes read the applied fields scaled by the last level solved."""
         from magsoro.mpm.static import StaticResult, StaticSolver
 
         cfg = self.scene.static
@@ -180,6 +182,7 @@ class Simulation:
             res = solver.solve_level(level)
             out.levels.append(res)
             solver.write_state()
+            self.field_scale = solver.field_level  # field probes read the applied field of the level solved
             if not res.converged:
                 out.converged = False
                 out.message = (f"level {level:g} did not converge ({res.message}); the state is the last converged "

@@ -161,6 +161,7 @@ def _static(args, sim, writer, wall0: float) -> int:
     from magsoro.simulation import RunResult
 
     writer.columns[0] = "level"
+    sim.field_scale = 0.0  # the unloaded row: field probes read no applied field
     writer.record(sim, stamp=0.0)
     try:
         res = sim.solve_static(on_level=lambda s, lev: writer.record(s, stamp=lev.level))
