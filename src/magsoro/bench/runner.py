@@ -26,6 +26,19 @@ ROUNDS = 5
 WINDOW = 200
 
 
+def _timed_steps(solver, states: list, control, dt: float, steps: int, device: str) -> float:
+    """Wall time (s) of ``steps`` checked steps of ``solver`` between the two ``states`` (swapped in place)."""
+    a, b = states
+    wp.synchronize_device(device)
+    t0 = time.perf_counter()
+    for _ in range(steps):
+        solver.step(a, b, control, dt)
+        a, b = b, a
+    wp.synchronize_device(device)
+    states[:] = [a, b]
+    return time.perf_counter() - t0
+
+
 def run_scene(name: str, device: str = "cpu", steps: int | None = None, threads: int | None = None, rounds: int = ROUNDS) -> dict:
     """Time ``name``. ``threads``: CPU threads of the engine's step (None: its automatic choice); the reference
     kernel always runs on one thread, so on CPU the ratio also carries the engine's threading."""
@@ -46,28 +59,16 @@ def run_scene(name: str, device: str = "cpu", steps: int | None = None, threads:
     if settings.magnetic_interaction != "none":
         # the same scene without the interaction, timed in the same rounds: the cost ratio of the interaction
         off = Solver(model, dataclasses.replace(settings, magnetic_interaction="none"))
-        oa, ob = off.new_state(), off.new_state()
-        for _ in range(5):
-            off.step(oa, ob, control, dt)
-            oa, ob = ob, oa
+        off_states = [off.new_state(), off.new_state()]
+        _timed_steps(off, off_states, control, dt, 5, device)
+    states = [a, b]
     for _ in range(rounds):
         if off is not None:
-            wp.synchronize_device(device)
-            t0 = time.perf_counter()
-            for _ in range(steps):
-                off.step(oa, ob, control, dt)
-                oa, ob = ob, oa
-            wp.synchronize_device(device)
-            off_s.append(time.perf_counter() - t0)
-        wp.synchronize_device(device)
+            off_s.append(_timed_steps(off, off_states, control, dt, steps, device))
         reads0 = solver.host_reads
-        t0 = time.perf_counter()
-        for _ in range(steps):
-            solver.step(a, b, control, dt)
-            a, b = b, a
-        wp.synchronize_device(device)
-        engine_s.append(time.perf_counter() - t0)
+        engine_s.append(_timed_steps(solver, states, control, dt, steps, device))
         reads["checked"] = (solver.host_reads - reads0) / steps
+        a, b = states
         # the same steps in check windows (the loop Simulation.run uses): one host read per WINDOW steps
         reads0 = solver.host_reads
         t0 = time.perf_counter()
@@ -81,6 +82,7 @@ def run_scene(name: str, device: str = "cpu", steps: int | None = None, threads:
                     raise RuntimeError(f"bench {name}: a check window failed ({problem}); lower WINDOW")
         wp.synchronize_device(device)
         window_s.append(time.perf_counter() - t0)
+        states[:] = [a, b]
         reads["window"] = (solver.host_reads - reads0) / steps
         ref_s.append(ref.time(steps))
     # phase split from a separate, synchronised pass (timing each phase adds synchronisation)
