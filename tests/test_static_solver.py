@@ -196,7 +196,7 @@ def test_tangent_is_the_residual_derivative_in_a_non_uniform_field(tmp_path):
     assert st.solve_level(0.5).converged
     u, level = st.u_nodes.copy(), 0.7
     r_full = st._scatter(u, level, 1.0)
-    J = st.tangent(u, level, 1.0, r_full)
+    J = st.tangent(u, level, 1.0)
     newton = splu(J).solve(-r_full[st.free].ravel())
     for v in (np.random.default_rng(0).normal(size=newton.size), newton):
         v = v / np.abs(v).max() * 1e-3 * sim.model.dx

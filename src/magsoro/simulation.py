@@ -115,9 +115,12 @@ class Simulation:
     def probe_values(self) -> dict[str, float]:
         """Current value of every probe column (m; field probes: T)."""
         x = self.state.x.numpy()
+        sensors = [p for p in self.probes if p.kind == "field"]
+        # every field probe from one solve of the bodies' field
+        fields = dict(zip((p.name for p in sensors), self.field_at(np.array([p.where(x) for p in sensors])))) if sensors else {}
         out = {}
         for p in self.probes:
-            value = self.field_at(p.where(x)[None])[0] if p.kind == "field" else p.evaluate(x)
+            value = fields[p.name] if p.kind == "field" else p.evaluate(x)
             out.update(zip(p.columns(self.dim), value.tolist()))
         return out
 

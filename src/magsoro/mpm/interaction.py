@@ -26,7 +26,7 @@ import warp as wp
 from scipy import fft as sfft
 
 from magsoro.constants import MU0
-from magsoro.mpm.stencil import make_stencil
+from magsoro.mpm.stencil import host_bspline, make_stencil
 
 MODES = ("none", "dipole")
 MARGIN = 2  # nodes kept between the magnetised particles' box and the grid's edge (the stencil's reach)
@@ -316,30 +316,28 @@ class MagneticInteraction:
             return out
         self._fit(x.numpy())
         self._solve(x, F)
-        dim, h, padded = self.dim, self.h, self._padded
+        dim, h = self.dim, self.h
         n = tuple(int(v) for v in self._n)
         fields = self._fields.numpy()[: (dim + len(sym_pairs(dim))) * int(np.prod(n))].reshape((-1,) + n).astype(np.float64)
         M = self._M_host.astype(np.float64)
         lo = self.model.domain_lo + self._lo_node * h
+        base, _, w3 = host_bspline(pts, lo, h)
+        inside = np.all(base >= 0, axis=1) & np.all(base + 2 < self._n, axis=1)
+        if not inside.all():  # the node dipoles, summed directly at the points outside the grid
+            nodes = np.nonzero(np.any(M != 0.0, axis=0))
+            moments = np.stack([M[a][nodes] for a in range(dim)], axis=-1)
+            pos = lo + np.stack(nodes, axis=-1) * h
         for i, p in enumerate(pts):
-            g = (p - lo) / h
-            base = np.floor(g - 0.5).astype(np.int64)
-            if np.all(base >= 0) and np.all(base + 2 < self._n):
-                fx = g - base
-                w = [np.array([0.5 * (1.5 - f) ** 2, 0.75 - (f - 1.0) ** 2, 0.5 * (f - 0.5) ** 2]) for f in fx]
-                weights = functools.reduce(np.multiply.outer, w)
-                sl = tuple(slice(b, b + 3) for b in base)
+            if inside[i]:
+                weights = functools.reduce(np.multiply.outer, [w3[:, i, a] for a in range(dim)])
+                sl = tuple(slice(b, b + 3) for b in base[i])
                 H = np.array([np.sum(weights * fields[a][sl]) for a in range(dim)])
                 Mp = np.array([np.sum(weights * M[a][sl]) for a in range(dim)]) / (h**dim)
                 out[i, :dim] = MU0 * (H + Mp)
             else:
-                nodes = np.nonzero(np.any(M != 0.0, axis=0))
-                moments = np.stack([M[a][nodes] for a in range(dim)], axis=-1)
-                pos = lo + np.stack(nodes, axis=-1) * h
                 T, _ = dipole_tensors(p - pos, h, dim)
-                pairs = sym_pairs(dim)
                 H = np.zeros(dim)
-                for c, (a, b) in enumerate(pairs):
+                for c, (a, b) in enumerate(sym_pairs(dim)):
                     H[a] += np.sum(T[c] * moments[:, b])
                     if a != b:
                         H[b] += np.sum(T[c] * moments[:, a])

@@ -29,6 +29,7 @@ from magsoro.mpm.interaction import MODES as INTERACTION_MODES
 from magsoro.mpm.interaction import MagneticInteraction
 from magsoro.mpm.kernels import F_FROM_GRID, F_FROM_REMAP, F_TOTAL, make_kernels
 from magsoro.mpm.materials import LAWS, describe_codes
+from magsoro.mpm.stencil import host_bspline
 from magsoro.mpm.timestep import cfl_time_step
 
 PRECISIONS = {"float32": (wp.float32, np.float32), "float64": (wp.float64, np.float64)}
@@ -607,10 +608,7 @@ class Solver:
         X = m.host["positions"]
         mass = m.host["mass"]
         held_p = m.host["clamped"]
-        xg = (X - m.domain_lo) / m.dx
-        base = np.floor(xg - 0.5).astype(np.int64)
-        fx = xg - base
-        w = [0.5 * (1.5 - fx) ** 2, 0.75 - (fx - 1.0) ** 2, 0.5 * (fx - 0.5) ** 2]
+        base, _, w = host_bspline(X, m.domain_lo, m.dx)
         n_nodes = int(np.prod(self.shape))
         total = np.zeros(n_nodes)
         clamped = np.zeros(n_nodes)

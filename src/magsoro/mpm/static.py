@@ -39,7 +39,7 @@ from magsoro.errors import SimulationError
 from magsoro.constants import MU0
 from magsoro.mpm.materials import make_material_functions
 from magsoro.mpm.solver import block_struct, bodies_array, contact_grid
-from magsoro.mpm.stencil import make_stencil
+from magsoro.mpm.stencil import host_bspline, make_stencil
 
 #: central-difference step of the material tangent dP/dF (dimensionless) and of the field's gradient (cells)
 F_STEP = 1e-6
@@ -252,15 +252,11 @@ class StaticSolver:
         if getattr(self, "_stencil_cache", None) is None:
             m, dim = self.model, self.dim
             X = m.host["positions"]
-            lo = m.domain_lo + self.solver.org * m.dx
-            xg = (X - lo) / m.dx
-            base = np.floor(xg - 0.5).astype(np.int64)
-            fx = xg - base
-            w1d = np.stack([0.5 * (1.5 - fx) ** 2, 0.75 - (fx - 1.0) ** 2, 0.5 * (fx - 0.5) ** 2], axis=1)  # (N, 3, dim)
+            base, fx, w1d = host_bspline(X, m.domain_lo + self.solver.org * m.dx, m.dx)  # w1d: (3, N, dim)
             offs = np.stack(np.meshgrid(*[np.arange(3)] * dim, indexing="ij"), axis=-1).reshape(-1, dim)  # (S, dim)
             w = np.ones((len(X), len(offs)))
             for a in range(dim):
-                w *= w1d[:, offs[:, a], a]
+                w *= w1d[offs[:, a], :, a].T
             nodes = np.ravel_multi_index(tuple((base[:, None, :] + offs[None]).transpose(2, 0, 1)), tuple(self.shape))
             grad = (4.0 / m.dx) * w[:, :, None] * (offs[None, :, :] - fx[:, None, :])
             self._stencil_cache = (nodes, w, grad)
@@ -312,7 +308,7 @@ class StaticSolver:
             dG[:, :, :, e] = (Gs[0] - Gs[1]) / (2.0 * h) * field_level
         return G0, dG
 
-    def tangent(self, u_nodes, field_level, gravity_level, r0=None):
+    def tangent(self, u_nodes, field_level, gravity_level):
         """dR/du on the free DOFs, assembled from the particles (sparse, CSC):
 
         - elastic: -V0 A_acbd g_i^c g_j^d with A = dP/dF of each particle's law (central differences) and g the
@@ -387,7 +383,7 @@ class StaticSolver:
                 return u_nodes, True, it, norm, ""
             if it == self.max_iterations:
                 break
-            J = self.tangent(u_nodes, field_level, gravity_level, r_full)
+            J = self.tangent(u_nodes, field_level, gravity_level)
             self._last_tangent = J  # the stability check after convergence reuses it (one step from the solution)
             try:
                 du = splu(J).solve(-r)

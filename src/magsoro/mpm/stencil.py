@@ -12,9 +12,21 @@ argument is copied for every task of a CPU launch, an array of it is not.
 import functools
 from types import SimpleNamespace
 
+import numpy as np
 import warp as wp
 
 from magsoro.mpm.contact import make_contact
+
+
+def host_bspline(X, lo, dx: float):
+    """The quadratic B-spline stencil on the host (numpy, float64), as the kernels' ``local_coords`` and
+    ``bspline_weights`` compute it: for points ``X`` (N, dim) on a grid of spacing ``dx`` whose node 0 is at
+    ``lo``, the base node (N, dim) int64, the offset fx from it in cells, and the weights (3, N, dim) of the nodes
+    base, base + 1, base + 2 along each axis."""
+    xg = (np.asarray(X, dtype=np.float64) - lo) / dx
+    base = np.floor(xg - 0.5).astype(np.int64)
+    fx = xg - base
+    return base, fx, np.stack([0.5 * (1.5 - fx) ** 2, 0.75 - (fx - 1.0) ** 2, 0.5 * (fx - 0.5) ** 2])
 
 
 @functools.cache
