@@ -23,8 +23,9 @@ The gap to reality is stated in the summary and in ``info``: the blocks are fill
 the tilted blocks are stair-stepped and every block sits up to half a particle spacing off its drawn centre; the
 closed form for the drawn squares (uniformly magnetised polygons, edge charges) differs from the particle sets'
 by 1.3 % in force on the full grid, 3.5 % on the preview grid (``info["drawn_squares_force_error"]``). The grid's
-lattice of dipoles does not conserve angular momentum exactly: the closed ring turns slowly as a whole
-(``info["spurious_spin"]``). The path of the fold depends on the grid: on the full grid neighbours first snap
+lattice of dipoles does not conserve angular momentum exactly: each block's own spurious torque is removed at
+every refresh, the grid's error in the torques between blocks is not, and the closed ring may turn slowly as a
+whole (``info["spurious_spin"]``). The path of the fold depends on the grid: on the full grid neighbours first snap
 face to face in pairs (outer hinges near 180 degrees) before the pairs close the ring; the preview's 2-cell
 hinges never fold that far. Touching blocks share one velocity field (they stick; no contact law between them).
 """
@@ -59,7 +60,7 @@ class ChainDesign:
 
     blocks: int = 4                  # magnetic blocks
     side: float = 2.0e-3             # square blocks: a square has no preferred axis, so the grid's lattice of
-                                     # dipoles gives a lone block almost no spurious self-torque (a 4:1 bar does)
+                                     # dipoles has little spurious self-torque to remove (a 4:1 bar has more)
     gap: float = 2.0e-3              # hinge length between the facing block faces (= side: room to fold 90 deg)
     hinge_thickness: float = 0.5e-3  # a quarter of the face: soft in bending, 4 cells thick at full resolution
     bend: float = 45.0               # each hinge's initial bend (the open "C"), degrees
