@@ -86,9 +86,9 @@ def test_quadratic_convergence():
     assert any(b < 1e3 * a * a for a, b in zip(rel, falls)), rel
 
 
-def test_cli_static_writes_levels_and_refuses_colliders(tmp_path):
+def test_cli_static_writes_levels_and_refuses_contact(tmp_path):
     """`magsoro run --static`: one metrics row per level after the unloaded one, run.json's static entry; a scene
-    with a collider is refused with one line naming the flag, before the output folder is touched."""
+    with contact between bodies is refused with one line naming the flag, before the output folder is touched."""
     scene = tmp_path / "beam.toml"
     scene.write_text(SCENE.read_text().replace("[output]", "[static]\nlevels = [0.5, 1.0]\n\n[output]"))
     out = tmp_path / "out"
@@ -101,12 +101,14 @@ def test_cli_static_writes_levels_and_refuses_colliders(tmp_path):
 
     info = json.loads((out / "run.json").read_text())
     assert info["status"] == "completed" and info["precision"] == "float64" and len(info["static"]["levels"]) == 2
-    bad = tmp_path / "floor.toml"
-    bad.write_text(SCENE.read_text() + '\n[[colliders]]\ntype = "half_space"\npoint = [0.0, -0.01]\nnormal = [0.0, 1.0]\n')
+    bad = tmp_path / "two.toml"
+    bad.write_text(SCENE.read_text().replace("[output]", '[[bodies]]\nname = "pad"\nshape = { type = "rectangle", '
+                   'center = [0.0106, -0.004], size = [0.004, 0.001] }\nmaterial = { density = 1000.0, shear_modulus '
+                   '= 1.0e5 }\n\n[contact]\nfriction = 0.3\n\n[output]'))
     run = subprocess.run([sys.executable, "-m", "magsoro", "run", str(bad), "--static", "--out", str(tmp_path / "o2")],
                          capture_output=True, text=True)
-    assert run.returncode == 2 and "--static: the static solver has no rigid colliders" in run.stderr
     ours = [ln for ln in run.stderr.strip().splitlines() if not ln.startswith("Warp")]  # Warp's no-driver notice
+    assert run.returncode == 2 and "--static" in ours[0] and ("contact" in ours[0] or "total-Lagrangian" in ours[0])
     assert len(ours) == 1 and not (tmp_path / "o2").exists()
 
 

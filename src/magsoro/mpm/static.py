@@ -23,8 +23,10 @@ Newton keeps straight, as it converges to saddles as readily as to minima): the 
 along that mode (sized to move the level's stable start by BRANCH_KICKS cells, larger in turn until the result is stable), follows it up and takes it away again, which
 leaves the body on the stable branch, and reports the level as buckled.
 
-Not handled yet: rigid colliders and domain walls (refused), contact between bodies (refused), limit points
-(arc length: a snap-through is passed only if a load increment lands beyond it).
+Rigid colliders act at the nodes as the engine's total-Lagrangian form has them, by a penalty with stick and
+Coulomb slip (:mod:`magsoro.mpm.static_contact`; each level reports the penetration left). Not handled yet: domain
+walls, contact between bodies (refused), limit points (arc length: a snap-through is passed only if a load
+increment lands beyond it).
 """
 
 import functools
@@ -114,6 +116,7 @@ class LevelResult:
     message: str = ""
     lowest_eigenvalue: float | None = None  # of the symmetric stiffness -(J + J^T)/2 at the equilibrium, N/m
     buckled: bool = False  # the equilibrium reached first was unstable; the branch was switched (docstring)
+    penetration: float | None = None  # m: the largest overlap of a node with a collider at the end (static_contact)
 
 
 @dataclass
@@ -136,8 +139,6 @@ def check_supported(sim) -> None:
     if solver._contact:
         raise SimulationError("the static solver has no contact between bodies yet; give the scene one body (or "
                               "contact.friction = 'sticky')")
-    if sim.control.colliders:
-        raise SimulationError("the static solver has no rigid colliders yet; remove [[colliders]] or use --equilibrium")
     if solver.interaction is not None:
         raise SimulationError("the static solver has no magnetic interaction between bodies yet "
                               "(simulation.magnetic_interaction = 'none', or use --equilibrium)")
@@ -179,6 +180,7 @@ class StaticSolver:
         self.fields = solver._fields(sim.control)
         self.residual_evaluations = 0
         self.extra_force = None  # (n_nodes, dim) N: the imperfection force of a branch switch
+        self.contact = None  # the colliders' penalty (magsoro.mpm.static_contact), set up below
         self._last_tangent = None
         # free nodes: carrying mass, not held
         self._scatter(np.zeros((self.n_nodes, self.dim)), 0.0, 0.0)
@@ -194,6 +196,10 @@ class StaticSolver:
         self.u_nodes = np.zeros((self.n_nodes, self.dim))
         self.field_level = 0.0
         self.gravity_level = 0.0
+        if sim.control.colliders:
+            from magsoro.mpm.static_contact import ColliderPenalty
+
+            self.contact = ColliderPenalty(self, sim.control.colliders, self.t, st.plane_z, st.depth)
 
     # -- residual -----------------------------------------------------------------------------------------
     def _place(self, u_nodes: np.ndarray) -> None:
@@ -234,6 +240,8 @@ class StaticSolver:
         f = solver.grid_p.numpy()[: self.n_nodes].astype(np.float64)
         m = solver.grid_m.numpy()[: self.n_nodes].astype(np.float64)
         f = f + m[:, None] * (gravity_level * self.gravity)[None, :]
+        if self.contact is not None:
+            f = f + self.contact.forces(u_nodes)
         return f if self.extra_force is None else f + self.extra_force
 
     def residual(self, u_nodes, field_level, gravity_level) -> np.ndarray:
@@ -348,7 +356,10 @@ class StaticSolver:
             values.append(blk.reshape(blk.shape[0], -1))
         keep, inverse, indices, indptr = self._pattern(nodes, chunk)
         data = np.bincount(inverse, weights=np.concatenate(values, axis=0).ravel()[keep], minlength=len(indices))
-        return sparse.csc_matrix((data, indices, indptr), shape=(n_dof, n_dof))
+        J = sparse.csc_matrix((data, indices, indptr), shape=(n_dof, n_dof))
+        if self.contact is not None:  # the colliders' springs at u (the scatter above evaluated them)
+            J = (J + self.contact.tangent(self.free, self.dof_of_node)).tocsc()
+        return J
 
     def _pattern(self, nodes, chunk):
         """The tangent's sparsity pattern, computed once (the stencils and free nodes do not change): which of the
@@ -375,12 +386,20 @@ class StaticSolver:
         from scipy.sparse.linalg import splu
 
         r_full = self._scatter(u_nodes, field_level, gravity_level)
+        if self.contact is not None:
+            self.contact.commit()
         r = r_full[self.free].ravel()
         norm = float(np.abs(r).max()) if r.size else 0.0
         best = norm
         for it in range(self.max_iterations + 1):
             if norm <= self.tolerance * scale:
-                return u_nodes, True, it, norm, ""
+                if self.contact is None or not self.contact.release():
+                    return u_nodes, True, it, norm, ""
+                # nodes that pull left the colliders' active set: solve again without them
+                r_full = self._scatter(u_nodes, field_level, gravity_level)
+                r = r_full[self.free].ravel()
+                norm = best = float(np.abs(r).max())
+                continue
             if it == self.max_iterations:
                 break
             J = self.tangent(u_nodes, field_level, gravity_level)
@@ -395,16 +414,23 @@ class StaticSolver:
             # edges carry little stiffness, and their forces answer the first step nonlinearly), after which
             # Newton converges quadratically; a step is taken when F stays invertible and |R| stays within
             # GROWTH times the lowest residual of this solve, else halved.
-            alpha = 1.0
+            # A step that changes which nodes touch a collider is taken whatever its residual: the tangent it
+            # came from did not know the new contacts, and the next one will (an active-set iteration).
+            contacts = self.contact.signature() if self.contact is not None else None
+            alpha = 1.0 if self.contact is None else self.contact.step_limit(u_nodes, step)
+            first = alpha
             while alpha >= 1.0 / 256:
                 trial = u_nodes + alpha * step
                 r_try_full = self._scatter(trial, field_level, gravity_level)
                 if self._valid():
                     r_try = r_try_full[self.free].ravel()
                     n_try = float(np.abs(r_try).max())
-                    if math.isfinite(n_try) and n_try < GROWTH * best:
+                    changed = contacts is not None and alpha == first and self.contact.signature() != contacts
+                    if math.isfinite(n_try) and (n_try < GROWTH * best or changed):
                         u_nodes, r_full, r, norm = trial, r_try_full, r_try, n_try
-                        best = min(best, norm)
+                        best = norm if changed else min(best, norm)  # new contacts: a new problem, a new reference
+                        if self.contact is not None:
+                            self.contact.commit()
                         break
                 alpha *= 0.5
             else:
@@ -439,6 +465,9 @@ class StaticSolver:
                 increments += 1
                 self.u_nodes = u
                 self.field_level, self.gravity_level = load
+                if self.contact is not None:  # anchors of new contacts; sliding ones follow (static_contact)
+                    self._scatter(u, *load)
+                    self.contact.accept(u)
                 if its <= 4:
                     ds *= 2.0
             else:
@@ -518,7 +547,7 @@ class StaticSolver:
         r = self._scatter(self.u_nodes, *target)[self.free]
         norm = float(np.abs(r).max()) if r.size else 0.0
         return LevelResult(level, True, iterations, increments, norm, norm / scale, time.perf_counter() - t0,
-                           "", lam, buckled)
+                           "", lam, buckled, None if self.contact is None else self.contact.penetration)
 
     def lowest_mode(self, tangent=None):
         """Eigenvalue nearest zero (N/m) and its mode of the symmetric stiffness -(J + J^T)/2 at the current

@@ -1,0 +1,274 @@
+"""Rigid colliders in the quasi-static solver (:mod:`magsoro.mpm.static`): node penalty with stick and Coulomb slip.
+
+Where the engine's total-Lagrangian form meets a collider (:mod:`magsoro.mpm.grid`) the static solver does too: at
+the grid nodes, each at its reference position plus the mass-weighted displacement of its particles,
+x~_i = X_i + sum_p m_p w_ip (x_p - X_p) / m_i, which is linear in the node unknowns, x~ = X + W u with
+W_ij = sum_p m_p w_ip w_jp / m_i. A node is in contact when its signed distance phi(x~_i) to the collider (at
+the solve's time) is below the engine's skin s (0.1 cells).
+
+The constraint phi >= s is imposed by a penalty: a node in contact is pushed out along the collider's normal n with
+f_n = k (s - phi) n, k = PENALTY x (K + 4G/3)_max x dx^(dim-2) (2D: times the scene's depth, the node forces'
+thickness): per cell, PENALTY times the stiffest material's P-wave modulus. The penetration left at equilibrium is
+f_n / k, so about p / (PENALTY (K + 4G/3)) cells for a contact pressure p: 1e-3 cells for p = 1 % of the P-wave
+modulus. Every level reports the largest penetration (m) it left.
+
+Tangential: "slip" colliders push along the normal only. "friction" and "sticky" ones tie a node that touches to
+an anchor, the point of the surface under the node where it first touched (its position at the last converged
+load increment, moved with the collider's path), by a spring k along the surface. With "friction" the tangential
+force is capped at mu |f_n| (Coulomb): past the cap the node slides and its anchor follows it at the end of the
+increment, so the force stays on the cone (a return map per load increment: the static answer depends on the
+load path, as friction does). "sticky" ties all directions (the node also cannot leave: the engine's sticky nodes
+move with the collider). Anchors are only updated between load increments, so within one Newton solve the
+contact law is a fixed piecewise-linear spring and the tangent is exact except at the slip cap (whose direction
+change is left out). The forces enter the node residual as W^T f, and the tangent as -W^T K_c W.
+"""
+
+import numpy as np
+from scipy import sparse
+
+from magsoro.mpm.colliders import MODES
+
+#: penalty stiffness per cell, as a multiple of the stiffest particle's P-wave modulus K + 4G/3
+PENALTY = 10.0
+#: the engine's contact skin (cells): a node touches a collider from this signed distance down
+SKIN_CELLS = 0.1
+#: friction's elastic slip (cells): a node sticks while it is within this tangential distance of its anchor, the
+#: friction force growing to mu f_n over it; beyond, it slides at mu f_n (a regularised Coulomb law)
+SLIP_CELLS = 5e-3
+#: a Newton step is cut so that no node ends deeper than this (cells) past its contact level
+STEP_DEPTH = 0.25
+#: a held node pulling by more than this (cells out of its level) at a converged state leaves the active set
+RELEASE = 1e-6
+
+
+class ColliderPenalty:
+    """The colliders' node forces and their tangent for a :class:`~magsoro.mpm.static.StaticSolver`."""
+
+    def __init__(self, static, colliders, t: float, plane_z: float = 0.0, depth: float = 1.0):
+        model = static.model
+        self.static, self.colliders, self.t = static, list(colliders), float(t)
+        self.dim, self.dx = model.dim, float(model.dx)
+        self.plane_z = float(plane_z)
+        self.skin = SKIN_CELLS * self.dx
+        self.slip = SLIP_CELLS * self.dx
+        h = model.host
+        p_wave = float(np.max(h["bulk_modulus"] + 4.0 / 3.0 * h["shear_modulus"]))
+        self.k = PENALTY * p_wave * self.dx ** (self.dim - 2) * (depth if self.dim == 2 else 1.0)
+        nodes, w, _ = static._stencil()
+        n_nodes, n = static.n_nodes, model.n_particles
+        P = sparse.csr_matrix((w.ravel(), (np.repeat(np.arange(n), nodes.shape[1]), nodes.ravel())), shape=(n, n_nodes))
+        mass = np.bincount(nodes.ravel(), weights=(w * h["mass"][:, None]).ravel(), minlength=n_nodes)
+        self.touchable = np.flatnonzero(mass > 0)
+        inv = np.zeros(n_nodes)
+        inv[self.touchable] = 1.0 / mass[self.touchable]
+        self.W = (sparse.diags(inv) @ P.T @ sparse.diags(h["mass"]) @ P).tocsr()  # x~ = X + W u
+        self.X = (model.domain_lo + static.solver.org * self.dx) + static.coords * self.dx  # node reference positions
+        # the level each node is held at: the skin, or where it starts when it starts closer (the engine stops a
+        # node's inward motion there; it does not push it out)
+        X_touch = self.X[self.touchable]
+        self.level = [np.minimum(self.skin, self._sdf(c, X_touch)[0]) for c in self.colliders]
+        self.anchor = [dict() for _ in self.colliders]  # node -> anchor point relative to the collider's position
+        self.sticking = [dict() for _ in self.colliders]  # node -> whether it stuck in the last evaluation
+        self._active = []  # per collider: nodes, normals, stiffness blocks of the last evaluation
+        # the active set (module docstring): nodes held by each collider's normal spring during a Newton solve; they
+        # join when they reach their level and leave only at a converged state where they pull
+        self.held = [np.zeros(0, np.int64) for _ in self.colliders]
+        self._touching = [np.zeros(0, np.int64) for _ in self.colliders]
+        self._gaps = [None for _ in self.colliders]
+        self.penetration = 0.0
+        self._last_u = np.zeros((n_nodes, self.dim))
+
+    # -- geometry ---------------------------------------------------------------------------------------------
+    def positions(self, u_nodes: np.ndarray) -> np.ndarray:
+        """x~ (n_nodes, dim): the nodes where the colliders act."""
+        return self.X + self.W @ u_nodes
+
+    def _sdf(self, c, pts: np.ndarray):
+        """Signed distance (m) and outward unit normal (in-plane) of collider ``c`` at ``pts`` (P, dim): the
+        distance exactly, the normal by central differences of it (1e-6 cells)."""
+        def lift(p):
+            q = np.zeros((len(p), 3))
+            q[:, : self.dim] = p
+            if self.dim == 2:
+                q[:, 2] = self.plane_z
+            return q
+
+        phi = c.signed_distance(lift(pts), self.t)
+        e = 1e-6 * self.dx
+        grad = np.zeros((len(pts), self.dim))
+        for a in range(self.dim):
+            step = np.zeros(self.dim)
+            step[a] = e
+            grad[:, a] = (c.signed_distance(lift(pts + step), self.t) - c.signed_distance(lift(pts - step), self.t)) / (2 * e)
+        norm = np.linalg.norm(grad, axis=1)
+        return phi, grad / np.where(norm > 0, norm, 1.0)[:, None]
+
+    def _origin(self, c) -> np.ndarray:
+        return c.row(self.t)[3 : 3 + self.dim]
+
+    # -- forces and tangent -------------------------------------------------------------------------------------
+    def forces(self, u_nodes: np.ndarray) -> np.ndarray:
+        """Node forces (n_nodes, dim) at ``u_nodes``: W^T f of the contact forces f at x~."""
+        xt = self.positions(u_nodes)
+        f = np.zeros_like(xt)
+        self._active = []
+        self.penetration = 0.0
+        for ci, c in enumerate(self.colliders):
+            nodes = self.touchable
+            phi, nrm = self._sdf(c, xt[nodes])
+            mode = MODES[c.mode]
+            tied = np.array(list(self.anchor[ci]), dtype=np.int64) if mode != MODES["slip"] else np.zeros(0, np.int64)
+            touching = nodes[phi <= self.level[ci]]
+            act = np.union1d(touching, self.held[ci])
+            if mode == MODES["sticky"]:
+                act = np.union1d(act, tied)
+            self._touching[ci] = touching
+            if len(act) == 0:
+                self._active.append(None)
+                continue
+            sel = np.searchsorted(nodes, act)
+            ph, n = phi[sel], nrm[sel]
+            gap = self.level[ci][sel] - ph  # > 0: in contact; < 0 on a held node: it pulls until released
+            self.penetration = max(self.penetration, float(np.max(gap, initial=0.0)))
+            self._gaps[ci] = (act, gap)
+            fn_mag = self.k * gap
+            force = fn_mag[:, None] * n
+            blocks = self.k * np.einsum("pi,pj->pij", n, n)
+            fn_mag = np.maximum(fn_mag, 0.0)
+            inside = gap >= 0.0
+            if mode != MODES["slip"]:
+                origin = self._origin(c)
+                last = self.positions(self._last_u)[act]
+                stuck = np.zeros(len(act), bool)
+                for j, node in enumerate(act):
+                    a = self.anchor[ci].get(int(node))
+                    if a is None:  # first touch: the surface point under the node's last converged position
+                        if not inside[j]:
+                            continue
+                        phl, nl = self._sdf(c, last[j : j + 1])
+                        a = last[j] - (phl[0] - self.level[ci][sel[j]]) * nl[0] - origin
+                    d = xt[node] - (a + origin)
+                    if mode == MODES["sticky"]:
+                        force[j] = -self.k * d
+                        blocks[j] = self.k * np.eye(self.dim)
+                        stuck[j] = True
+                        continue
+                    # regularised Coulomb (module docstring): f_t = -mu f_n P_t d / max(|P_t d|, slip)
+                    Pt = np.eye(self.dim) - np.outer(n[j], n[j])
+                    dt = Pt @ d
+                    length = float(np.linalg.norm(dt))
+                    mu, fn = c.friction, fn_mag[j]
+                    dfn = self.k * n[j] if gap[j] > 0.0 else np.zeros(self.dim)  # -d f_n / dx
+                    if length <= self.slip:  # sticking: a spring of stiffness mu f_n / slip
+                        force[j] -= (mu * fn / self.slip) * dt
+                        if fn > 0.0:
+                            blocks[j] += (mu * fn / self.slip) * Pt - (mu / self.slip) * np.outer(dt, dfn)
+                        else:  # not pressed yet (a node just reaching its level): the tangent takes mu k, so a
+                            blocks[j] += mu * self.k * Pt  # step that will press it is not free to slide
+                        stuck[j] = True
+                    else:  # sliding: mu f_n against the offset's direction; the cap grows with f_n, the direction turns
+                        t_hat = dt / length
+                        force[j] -= mu * fn * t_hat
+                        blocks[j] += (mu * fn / length) * (Pt - np.outer(t_hat, t_hat)) - mu * np.outer(t_hat, dfn)
+                self.sticking[ci] = {int(node): bool(s) for node, s in zip(act, stuck)}
+            f[act] += force
+            self._active.append((act, blocks))
+        return self.W.T @ f
+
+    def commit(self) -> None:
+        """The last evaluation's touching nodes join the active set (after an accepted Newton iterate)."""
+        self.held = [np.union1d(h, t) for h, t in zip(self.held, self._touching)]
+
+    def release(self) -> bool:
+        """At a converged state: nodes of the active set that pull (gap below -RELEASE cells) leave it.
+        Returns whether any did (the state is then to be solved again)."""
+        changed = False
+        for ci, entry in enumerate(self._gaps):
+            if entry is None:
+                continue
+            act, gap = entry
+            pulling = act[gap < -RELEASE * self.dx]
+            if len(pulling):
+                self.held[ci] = np.setdiff1d(self.held[ci], pulling)
+                changed = True
+        return changed
+
+    def step_limit(self, u_nodes: np.ndarray, step: np.ndarray) -> float:
+        """The largest fraction (<= 1) of a Newton ``step`` from ``u_nodes`` after which no node lies deeper than
+        STEP_DEPTH cells past its level (bisection): a step taken without the contacts it would make is cut
+        before it drives nodes, and the particles next to them, deep into a collider."""
+        def depth(alpha):
+            xt = self.positions(u_nodes + alpha * step)[self.touchable]
+            return max(float(np.max(lvl - self._sdf(c, xt)[0])) for c, lvl in zip(self.colliders, self.level))
+
+        limit = STEP_DEPTH * self.dx
+        if depth(1.0) <= limit:
+            return 1.0
+        lo, hi = 0.0, 1.0
+        for _ in range(12):
+            mid = 0.5 * (lo + hi)
+            lo, hi = (mid, hi) if depth(mid) <= limit else (lo, mid)
+        return max(lo, 1.0 / 256)
+
+    def signature(self) -> tuple:
+        """Which nodes were in contact in the last :meth:`forces` evaluation (to tell a change of the set)."""
+        return tuple(None if e is None else e[0].tobytes() for e in self._active)
+
+    def tangent(self, free: np.ndarray, dof_of_node: np.ndarray) -> sparse.csc_matrix:
+        """d(W^T f)/du on the free DOFs (n_free dim square), from the last :meth:`forces` evaluation:
+        -W^T K_c W with K_c the contact springs' block-diagonal stiffness."""
+        dim = self.dim
+        n_nodes = self.W.shape[0]
+        rows, cols, vals = [], [], []
+        for entry in self._active:
+            if entry is None:
+                continue
+            act, blocks = entry
+            for a in range(dim):
+                for b in range(dim):
+                    rows.append(act * dim + a)
+                    cols.append(act * dim + b)
+                    vals.append(-blocks[:, a, b])
+        n_full = n_nodes * dim
+        if not rows:
+            return sparse.csc_matrix((len(free) * dim, len(free) * dim))
+        K = sparse.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(n_full, n_full))
+        Wd = sparse.kron(self.W, sparse.identity(dim), format="csr")
+        dofs = (free[:, None] * dim + np.arange(dim)[None, :]).ravel()
+        Wf = Wd[:, dofs]
+        return (Wf.T @ K @ Wf).tocsc()
+
+    def accept(self, u_nodes: np.ndarray) -> None:
+        """After a converged load increment: new contacts keep their anchors, sliding nodes' anchors follow them
+        onto the Coulomb cone, nodes that left a friction or slip collider forget theirs."""
+        xt = self.positions(u_nodes)
+        for ci, c in enumerate(self.colliders):
+            mode = MODES[c.mode]
+            if mode == MODES["slip"]:
+                continue
+            origin = self._origin(c)
+            phi, nrm = self._sdf(c, xt[self.touchable])
+            touching = set(int(v) for v in self.touchable[phi <= self.level[ci]])
+            last = self.positions(self._last_u)
+            new = {}
+            for node in touching | set(self.anchor[ci]):
+                j = int(np.searchsorted(self.touchable, node))
+                a = self.anchor[ci].get(node)
+                if a is None:
+                    if node not in touching:
+                        continue
+                    phl, nl = self._sdf(c, last[node : node + 1])
+                    a = last[node] - (phl[0] - self.level[ci][j]) * nl[0] - origin
+                if mode == MODES["friction"]:
+                    if node not in touching:
+                        continue  # separated: free again
+                    if not self.sticking[ci].get(node, True):  # slid: the anchor follows to the elastic slip
+                        n = nrm[j]
+                        d = xt[node] - (a + origin)
+                        dt = d - np.dot(d, n) * n
+                        length = float(np.linalg.norm(dt))
+                        if length > self.slip:
+                            a = a + dt * (1.0 - self.slip / length)
+                new[node] = a
+            self.anchor[ci] = new
+        self._last_u = u_nodes.copy()
