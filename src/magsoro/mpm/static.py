@@ -54,6 +54,8 @@ BRANCH_KICKS = (0.1, 1.0, 10.0)
 MAX_SWITCHES = 4
 #: a Newton step is taken while |R| stays below this many times the lowest residual of the solve
 GROWTH = 1.0e3
+#: the tangent's diagonal shift (relative to its median diagonal) that regularises the corner nodes' null modes
+NULL_SHIFT = 1.0e-10
 
 
 @functools.cache
@@ -357,6 +359,12 @@ class StaticSolver:
         keep, inverse, indices, indptr = self._pattern(nodes, chunk)
         data = np.bincount(inverse, weights=np.concatenate(values, axis=0).ravel()[keep], minlength=len(indices))
         J = sparse.csc_matrix((data, indices, indptr), shape=(n_dof, n_dof))
+        # Nodes at a body's corners that reach only one or two particles have more unknowns than the particles
+        # have strains: their combinations that move no particle are null modes of the tangent (the residual has
+        # no part along them, so they do not change the equilibrium). A shift of NULL_SHIFT of the median
+        # diagonal keeps the factorisation regular and leaves them unmoved.
+        shift = NULL_SHIFT * float(np.median(np.abs(J.diagonal()))) if n_dof else 0.0
+        J = (J - shift * sparse.identity(n_dof, format="csc")).tocsc()
         if self.contact is not None:  # the colliders' springs at u (the scatter above evaluated them)
             J = (J + self.contact.tangent(self.free, self.dof_of_node)).tocsc()
         return J
