@@ -9,13 +9,17 @@ import pytest
 import warp as wp
 from pydantic import ValidationError
 
-from magsoro.mpm.materials import DEFAULT_LAW, LAW_NAMES, LAWS, PARAMETER_KEYS, describe_codes, make_material_functions
+from magsoro.mpm.materials import (DEFAULT_LAW, FIT_MODEL_LAWS, LAW_NAMES, LAW_PARAM_COUNT, LAWS, PARAMETER_KEYS,
+                                   describe_codes, make_material_functions)
 
 LAW_LIST = list(LAWS.values())
 
 
 def _example(law):
-    return {p.key: p.example for p in law.parameters}
+    return {p.key: list(p.example) if p.terms else p.example for p in law.parameters}
+
+
+EXAMPLES = {p.key: list(p.example) if p.terms else p.example for law in LAW_LIST for p in law.parameters}
 
 
 def test_registry_shape():
@@ -23,12 +27,20 @@ def test_registry_shape():
     assert DEFAULT_LAW in LAWS
     for law in LAW_LIST:
         assert law.required and set(law.required) <= set(law.keys)
-        assert len(law.pack(_example(law))) == 3
+        assert len(law.pack(_example(law))) == LAW_PARAM_COUNT
         assert law.initial_shear_modulus(_example(law)) > 0
+        assert law.problem(_example(law)) is None
     for dim in (2, 3):
         for scalar in (wp.float32, wp.float64):
             assert set(make_material_functions(dim, scalar)["laws"]) == set(LAWS)
-    assert describe_codes() == "0 (Neo-Hookean), 1 (Mooney-Rivlin) or 2 (Yeoh)"
+    assert describe_codes() == "0 (Neo-Hookean), 1 (Mooney-Rivlin), 2 (Yeoh), 3 (Ogden) or 4 (polynomial)"
+
+
+def test_every_fit_material_model_has_a_law():
+    from magsoro.characterization.hyperelastic import MODEL_NAMES
+
+    assert set(FIT_MODEL_LAWS) == set(MODEL_NAMES)
+    assert set(FIT_MODEL_LAWS.values()) <= set(LAWS)
 
 
 def test_schema_takes_the_registry_names():
@@ -36,7 +48,7 @@ def test_schema_takes_the_registry_names():
 
     allowed = tuple(a for a in typing.get_args(Material.model_fields["model"].annotation) if a is not type(None))
     assert allowed == (typing.Literal[LAW_NAMES],)
-    assert typing.get_args(allowed[0]) == LAW_NAMES == ("neo-hookean", "mooney-rivlin", "yeoh")
+    assert typing.get_args(allowed[0]) == LAW_NAMES == ("neo-hookean", "mooney-rivlin", "yeoh", "ogden", "polynomial")
     for key in PARAMETER_KEYS:  # a law's new parameter key needs its Material field
         assert key in Material.model_fields, key
     for law in LAW_LIST:
@@ -47,7 +59,7 @@ def test_schema_takes_the_registry_names():
         others = [k for k in PARAMETER_KEYS if k not in law.keys]
         if others:
             with pytest.raises(ValidationError, match=f"model '{law.name}' does not use {others[0]}"):
-                Material(density=1000.0, model=law.name, **required, **{others[0]: 1.0e5})
+                Material(density=1000.0, model=law.name, **required, **{others[0]: EXAMPLES[others[0]]})
         missing = dict(required)
         missing.pop(law.required[0])
         with pytest.raises(ValidationError, match=f"model '{law.name}' needs {law.required[0]}"):
@@ -66,7 +78,7 @@ def test_unknown_model_lists_the_registry_names():
 
     with pytest.raises(ValidationError) as err:
         Material(density=1000.0, model="ogden3", C10=1.0e4)
-    assert "Input should be 'neo-hookean', 'mooney-rivlin' or 'yeoh'" in str(err.value)
+    assert "Input should be 'neo-hookean', 'mooney-rivlin', 'yeoh', 'ogden' or 'polynomial'" in str(err.value)
     d = copy.deepcopy(BASE)
     d["bodies"][0]["material"] = {"density": 1000.0, "model": "ogden3", "C10": 1.0e4}
     with pytest.raises(SceneError) as err:
@@ -91,6 +103,7 @@ def test_scene_and_engine_use_the_registry(law):
 def test_model_refuses_unknown_codes():
     from magsoro.mpm.solver import Model
 
-    with pytest.raises(ValueError, match=r"material_model must be 0 \(Neo-Hookean\), 1 \(Mooney-Rivlin\) or 2 \(Yeoh\)"):
+    with pytest.raises(ValueError, match=r"material_model must be 0 \(Neo-Hookean\), 1 \(Mooney-Rivlin\), 2 \(Yeoh\), "
+                                         r"3 \(Ogden\) or 4 \(polynomial\)"):
         Model(np.zeros((1, 2)), 1e-6, 1000.0, 1e5, 2e6, np.zeros(3), 0, False, dx=1e-3, domain_lo=(-0.01, -0.01),
               domain_hi=(0.01, 0.01), material_model=len(LAWS))

@@ -57,7 +57,7 @@ def test_material_from_fit_material_entry(tmp_path):
     sim = Simulation(scene)
     assert sim.model.host["material_model"][0] == 2
     assert sim.model.host["shear_modulus"][0] == pytest.approx(2 * C10, rel=1e-3)
-    assert sim.model.host["material_params"][0] == pytest.approx([C10, C20, C30], rel=1e-2)
+    assert sim.model.host["material_params"][0] == pytest.approx([C10, C20, C30, 0.0, 0.0, 0.0], rel=1e-2)
 
 
 @pytest.mark.parametrize(

@@ -6,20 +6,25 @@ import pytest
 import warp as wp
 
 from magsoro.mpm.kernels import make_kernels
-from magsoro.mpm.materials import LAWS
+from magsoro.mpm.materials import LAW_PARAM_COUNT, LAWS
 from magsoro.validation.closed_form import central_difference_stress
 
 
-def _evaluate(dim, Fs, G, K, model=0, prm=(0.0, 0.0, 0.0)):
+def _evaluate(dim, Fs, G, K, model=0, prm=()):
+    """``prm``: the law numbers, zero-padded to LAW_PARAM_COUNT."""
     k = make_kernels(dim, wp.float64)
     F = wp.array(np.asarray(Fs, dtype=np.float64), dtype=k["mat"])
     P = wp.zeros(len(Fs), dtype=k["mat"])
     psi = wp.zeros(len(Fs), dtype=wp.float64)
-    wp.launch(k["stress_kernel"], dim=len(Fs), inputs=[F, model, G, K, k["v3"](*prm), P, psi])
+    wp.launch(k["stress_kernel"], dim=len(Fs), inputs=[F, model, G, K, k["vprm"](*_padded(prm)), P, psi])
     return P.numpy(), psi.numpy()
 
 
 LAW_LIST = list(LAWS.values())
+
+
+def _padded(prm):
+    return tuple(prm) + (0.0,) * (LAW_PARAM_COUNT - len(prm))
 
 
 def _example(law):

@@ -29,6 +29,7 @@ from magsoro.errors import MagsoroError
 from magsoro.fields.device import accumulate_kernel
 from magsoro.mpm.colliders import COLLIDER_STRIDE, MODES, collider_table
 from magsoro.mpm.kernels import F_FROM_GRID, F_FROM_REMAP
+from magsoro.mpm.materials import LAWS
 from magsoro.mpm.solver import block_struct, bodies_array, contact_grid, grid_settings
 
 
@@ -128,8 +129,8 @@ class Rollout:
         largest extent of the bodies, enough for any rigid rotation about a point of the body).
 
     ``run(loss)`` returns the loss and, with ``grad=True``, the gradients as numpy arrays: ``Br`` (N, 3),
-    ``shear`` (N,), ``bulk`` (N,), ``material_params`` (N, 3), ``B_uniform`` (n_steps, 3), ``source_params``
-    (a list, one (n_steps, L_s) array per non-uniform source).
+    ``shear`` (N,), ``bulk`` (N,), ``material_params`` (N, LAW_PARAM_COUNT = 6 of magsoro.mpm.materials),
+    ``B_uniform`` (n_steps, 3), ``source_params`` (a list, one (n_steps, L_s) array per non-uniform source).
     """
 
     def __init__(self, built, dt: float, n_steps: int, segment: int | None = None, margin: float | None = None):
@@ -146,6 +147,11 @@ class Rollout:
         if st.magnetic_interaction != "none":
             raise ValueError("the differentiable rollout has no magnetic interaction between bodies; give the scene "
                              "simulation.magnetic_interaction = 'none'")
+        if np.any(m.host["material_model"] == LAWS["ogden"].code):
+            # its stress goes through wp.eig3, whose adjoint is NaN or wrong at repeated stretches, F = I included
+            raise ValueError("the differentiable rollout cannot differentiate the Ogden law (its principal-stretch "
+                             "stress has no reliable gradient at repeated stretches, the undeformed state included); "
+                             "give the bodies another model (e.g. 'polynomial' or 'yeoh')")
         groups = int(m.host["contact_group"].max()) + 1
         if st.contact is not None and st.contact.active(groups):
             raise ValueError("the differentiable rollout has no contact between bodies or self-contact; give the scene "

@@ -32,11 +32,11 @@ def _stress_kernel(dim: int, scalar):
     t = make_types(dim, scalar)
     elastic = make_material_functions(dim, scalar)
     elastic_stress, elastic_energy = elastic["elastic_stress"], elastic["elastic_energy"]
-    mat, v3 = t.mat, t.v3
+    mat, vprm = t.mat, t.vprm
 
     @wp.kernel
     def stress_kernel(
-        F: wp.array(dtype=mat), model: int, G: scalar, K: scalar, prm: v3, P: wp.array(dtype=mat), psi: wp.array(dtype=scalar)
+        F: wp.array(dtype=mat), model: int, G: scalar, K: scalar, prm: vprm, P: wp.array(dtype=mat), psi: wp.array(dtype=scalar)
     ):
         """First Piola stress and energy density of one law at each F (tests and closed-form checks)."""
         i = wp.tid()
@@ -65,5 +65,5 @@ def make_kernels(dim: int, scalar, contact: bool = False) -> dict:
         contact_classify=ct_ns["contact_classify"],
         Block=t.Block, Bodies=t.Bodies, Applied=t.Applied, GridArrays=t.GridArrays, Particles=t.Particles,
         Checks=t.Checks,
-        vec=t.vec, mat=t.mat, ivec=t.ivec, v3=t.v3, m3=t.m3,
+        vec=t.vec, mat=t.mat, ivec=t.ivec, v3=t.v3, m3=t.m3, vprm=t.vprm,
     )

@@ -28,7 +28,7 @@ from magsoro.mpm.colliders import COLLIDER_STRIDE, MODES, Collider, collider_tab
 from magsoro.mpm.interaction import MODES as INTERACTION_MODES
 from magsoro.mpm.interaction import MagneticInteraction
 from magsoro.mpm.kernels import F_FROM_GRID, F_FROM_REMAP, F_TOTAL, make_kernels
-from magsoro.mpm.materials import LAWS, describe_codes
+from magsoro.mpm.materials import LAW_PARAM_COUNT, LAWS, describe_codes
 from magsoro.mpm.stencil import host_bspline
 from magsoro.mpm.timestep import cfl_time_step
 
@@ -200,9 +200,11 @@ class Model:
 
     positions (N, dim) m; volumes (N,) m^3 (in 2D: area x depth); density (N,) kg/m^3; shear_modulus and
     bulk_modulus (N,) Pa; remanence (N, 3) T in the reference frame; body (N,) int; clamped (N,) bool.
-    material_model (N,) int: 0 Neo-Hookean (default), 1 Mooney-Rivlin, 2 Yeoh, with material_params (N, 3) Pa:
-    (C10, C01, 0) or (C10, C20, C30); shear_modulus is then the initial shear modulus (2 C10 + 2 C01 or
-    2 C10), used for the time step. The laws and their codes: :mod:`magsoro.mpm.materials`.
+    material_model (N,) int: 0 Neo-Hookean (default), 1 Mooney-Rivlin, 2 Yeoh, 3 Ogden, 4 polynomial, with
+    material_params (N, LAW_PARAM_COUNT = 6), moduli Pa, Ogden exponents dimensionless, unused slots 0:
+    (C10, C01, ...), (C10, C20, C30, ...), (mu1, alpha1, mu2, alpha2, mu3, alpha3) or (C10, C01, C20, C11, C02, 0)
+    (MaterialLaw.pack); shear_modulus is then the initial shear modulus (2 (C10 + C01), 2 C10 or sum mu_i), used
+    for the time step. The laws and their codes: :mod:`magsoro.mpm.materials`.
     """
 
     MATERIAL_MODELS = {name: law.code for name, law in LAWS.items()}
@@ -253,7 +255,7 @@ class Model:
             body=np.broadcast_to(np.asarray(body, dtype=np.int32), (n,)).copy(),
             clamped=np.broadcast_to(np.asarray(clamped, dtype=bool), (n,)).copy(),
             material_model=np.broadcast_to(np.asarray(0 if material_model is None else material_model, dtype=np.int32), (n,)).copy(),
-            material_params=np.broadcast_to(np.asarray(0.0 if material_params is None else material_params, dtype=np.float64), (n, 3)).copy(),
+            material_params=np.broadcast_to(np.asarray(0.0 if material_params is None else material_params, dtype=np.float64), (n, LAW_PARAM_COUNT)).copy(),
         )
         h = self.host
         h["mass"] = h["volumes"] * h["density"]
@@ -270,7 +272,7 @@ class Model:
         if not np.all(np.isin(h["material_model"], list(self.MATERIAL_MODELS.values()))):
             raise ValueError(f"material_model must be {describe_codes()}")
         self.material_model = wp.array(h["material_model"], dtype=wp.int32, device=dev)
-        self.material_params = wp.array(h["material_params"].astype(s), dtype=k["v3"], device=dev)
+        self.material_params = wp.array(h["material_params"].astype(s), dtype=k["vprm"], device=dev)
         self.body = wp.array(h["body"], dtype=wp.int32, device=dev)
         self.clamped = wp.array(h["clamped"].astype(np.int32), dtype=wp.int32, device=dev)
         # contact groups (magsoro.mpm.contact): bodies that move as one piece share one; default one per body

@@ -16,6 +16,7 @@ import numpy as np
 import warp as wp
 
 from magsoro.mpm.contact import make_contact
+from magsoro.mpm.materials import LAW_PARAM_COUNT
 
 
 def host_bspline(X, lo, dx: float):
@@ -39,6 +40,7 @@ def make_types(dim: int, scalar) -> SimpleNamespace:
     ivec = wp.types.vector(length=dim, dtype=wp.int32)
     v3 = wp.types.vector(length=3, dtype=scalar)
     m3 = wp.types.matrix(shape=(3, 3), dtype=scalar)
+    vprm = wp.types.vector(length=LAW_PARAM_COUNT, dtype=scalar)  # a particle's law numbers
 
     @wp.struct
     class Block:
@@ -51,15 +53,16 @@ def make_types(dim: int, scalar) -> SimpleNamespace:
     @wp.struct
     class Bodies:
         """Per-particle constants of the model (:class:`magsoro.mpm.solver.Model`): reference volume (m^3),
-        mass (kg), shear and bulk moduli (Pa), material law code and numbers, remanence Br (T, reference frame;
-        in 2D the in-plane part plus Br_z), clamp flag."""
+        mass (kg), shear and bulk moduli (Pa), material law code and its LAW_PARAM_COUNT numbers
+        (:mod:`magsoro.mpm.materials`), remanence Br (T, reference frame; in 2D the in-plane part plus Br_z),
+        clamp flag."""
 
         vol0: wp.array(dtype=scalar)
         mass: wp.array(dtype=scalar)
         shear: wp.array(dtype=scalar)
         bulk: wp.array(dtype=scalar)
         material_model: wp.array(dtype=wp.int32)
-        material_params: wp.array(dtype=v3)
+        material_params: wp.array(dtype=vprm)
         Br: wp.array(dtype=v3)
         clamped: wp.array(dtype=wp.int32)
 
@@ -100,7 +103,7 @@ def make_types(dim: int, scalar) -> SimpleNamespace:
         max_speed: wp.array(dtype=scalar)
         error: wp.array(dtype=wp.int32)
 
-    return SimpleNamespace(vec=vec, mat=mat, ivec=ivec, v3=v3, m3=m3, Block=Block, Bodies=Bodies, Applied=Applied,
+    return SimpleNamespace(vec=vec, mat=mat, ivec=ivec, v3=v3, m3=m3, vprm=vprm, Block=Block, Bodies=Bodies, Applied=Applied,
                            GridArrays=GridArrays, Particles=Particles, Checks=Checks)
 
 

@@ -38,7 +38,7 @@ from magsoro.geometry.primitives import (
     fill_lattice,
 )
 from magsoro.materials.library import MaterialLibraryError, get_material, load_library
-from magsoro.mpm.materials import DEFAULT_LAW, LAWS, PARAMETER_KEYS
+from magsoro.mpm.materials import DEFAULT_LAW, FIT_MODEL_LAWS, LAWS, PARAMETER_KEYS, law_of_file_model
 from magsoro.mpm.colliders import Collider
 from magsoro.mpm.solver import Control, ContactSettings, Model, SolverSettings
 from magsoro.scene.schema import Scene
@@ -173,13 +173,17 @@ def resolve_material(spec, base_dir, key: str, library: dict | None = None) -> d
         if not path.is_file():
             raise SceneError(f"{key}.file: material file '{path}' not found")
         entry = read_toml_file(path, SceneError, f"material file ({key}.file)")
-        model = entry.get("model")
-        if model not in LAWS:
-            raise SceneError(f"{key}.file: '{path}' holds model {model!r}; the engine supports {', '.join(LAWS)}")
+        model = law_of_file_model(entry.get("model"))  # fit-material's model names map onto the laws
+        if model is None:
+            raise SceneError(f"{key}.file: '{path}' holds model {entry.get('model')!r}; the engine supports "
+                             f"{', '.join(LAWS)} and fit-material's {', '.join(FIT_MODEL_LAWS)}")
         values["model"] = model
         if "density" in entry:
             values["density"] = entry["density"]
-        values.update(LAWS[model].from_material_file(entry))
+        try:
+            values.update(LAWS[model].from_material_file(entry))
+        except KeyError as exc:
+            raise SceneError(f"{key}.file: '{path}' lacks parameter {exc} of model {entry.get('model')!r}") from None
     for name in ("model", "density", *PARAMETER_KEYS, "bulk_modulus"):
         v = getattr(spec, name)
         if v is not None:
@@ -188,6 +192,9 @@ def resolve_material(spec, base_dir, key: str, library: dict | None = None) -> d
     law = LAWS[model]
     if values.get("density") is None:
         raise SceneError(f"{key}.density: required (kg/m^3), inline or in the material file")
+    problem = law.problem(values)
+    if problem is not None:
+        raise SceneError(f"{key}: {problem}")
     try:
         params = law.pack(values)
         G = law.initial_shear_modulus(values)
@@ -240,8 +247,8 @@ class Particles:
     """The particles of a scene before any engine object exists (used by build and by `magsoro show`).
 
     positions (N, dim) m; volumes (N,) m^3 (2D: area x depth); density, shear_modulus, bulk_modulus (N,);
-    remanence (N, 3) T; body (N,) int; clamped (N,) bool; material_model (N,) int; material_params (N, 3) Pa;
-    velocity (N, dim) m/s.
+    remanence (N, 3) T; body (N,) int; clamped (N,) bool; material_model (N,) int; material_params
+    (N, LAW_PARAM_COUNT) Pa (Ogden exponents dimensionless); velocity (N, dim) m/s.
     """
 
     positions: np.ndarray

@@ -13,7 +13,7 @@ from typing import Annotated, Literal, Optional, Union
 
 from pydantic import AfterValidator, BaseModel, ConfigDict, Discriminator, Field, PlainValidator, PrivateAttr, Tag, model_validator
 
-from magsoro.mpm.materials import DEFAULT_LAW, LAW_NAMES, LAWS, PARAMETER_KEYS
+from magsoro.mpm.materials import DEFAULT_LAW, LAW_NAMES, LAWS, LIST_KEYS, PARAMETER_KEYS
 
 Vec = list[float]
 
@@ -162,12 +162,30 @@ SHAPES_2D = ("rectangle", "polygon", "arc")
 MaterialModel = Literal[LAW_NAMES]  # the laws of magsoro.mpm.materials
 
 
+def _terms(v: list[float]) -> list[float]:
+    n = LIST_KEYS["mu"]
+    if not 1 <= len(v) <= n:
+        raise ValueError(f"must be a list of 1 to {n} numbers (one per Ogden term), got {len(v)}")
+    return v
+
+
+OgdenTerms = Annotated[list[float], AfterValidator(_terms)]
+
+
 class Material(Strict):
     """Material of a body: a compressible hyperelastic solid with volumetric energy K/2 (J - 1)^2.
 
     model 'neo-hookean' (seed 000 eq 10) takes shear_modulus; 'mooney-rivlin' takes C10 and C01; 'yeoh' takes
-    C10, C20, C30 (W = sum Ci0 (I1b - 3)^i). Instead of inline values, ``file`` may name a material entry written
-    by ``magsoro fit-material --save-material`` (keys given here override the file's).
+    C10, C20, C30 (W = sum Ci0 (I1b - 3)^i); 'ogden' takes the lists mu and alpha of 1 to 3 terms (W = sum_i 2 mu_i /
+    alpha_i^2 (lb1^alpha_i + lb2^alpha_i + lb3^alpha_i - 3), Abaqus's form, with initial shear modulus sum mu_i;
+    one term with alpha = 2 is Neo-Hookean with G = mu; every alpha_i non-zero and sum mu_i > 0; Ogden's
+    sufficient condition for stability, mu_i alpha_i > 0 in every term, which fit-material's fits keep, is not
+    required); 'polynomial' takes C10, C01, C20, C11, C02 (W = sum over 1 <= i + j <= 2 of Cij (I1b - 3)^i
+    (I2b - 3)^j, initial shear modulus 2 (C10 + C01)). I1b, I2b and lb_k are the isochoric invariants and
+    principal stretches (J^(-2/3) I1, J^(-4/3) I2, J^(-1/3) lam_k). Instead of inline values, ``file`` may name a
+    material entry written by ``magsoro fit-material --save-material`` (keys given here override the file's); its
+    model ogden3 is read as 'ogden', polynomial5 as 'polynomial' and linear (P = E strain, which has no strain
+    energy) as 'neo-hookean' with G = E/3, the same small-strain stiffness.
     """
 
     library: str | None = Field(default=None, description="Name of a material library entry (magsoro materials list); keys given here override it. A bare string `material = \"NAME\"` means the same.")
@@ -175,10 +193,14 @@ class Material(Strict):
     model: MaterialModel | None = Field(default=None, description=f"Constitutive model. Default '{DEFAULT_LAW}' (or the file's).")
     density: float | None = Field(default=None, gt=0, description="Mass density, kg/m^3 (required here or in the file).")
     shear_modulus: float | None = Field(default=None, gt=0, description="Neo-Hookean shear modulus G, Pa.")
-    C10: float | None = Field(default=None, gt=0, description="Mooney-Rivlin / Yeoh C10, Pa.")
-    C01: float | None = Field(default=None, description="Mooney-Rivlin C01, Pa (C10 + C01 > 0).")
-    C20: float | None = Field(default=None, description="Yeoh C20, Pa.")
-    C30: float | None = Field(default=None, description="Yeoh C30, Pa.")
+    C10: float | None = Field(default=None, description="Mooney-Rivlin / Yeoh / polynomial C10, Pa (Yeoh: > 0; Mooney-Rivlin, polynomial: C10 + C01 > 0).")
+    C01: float | None = Field(default=None, description="Mooney-Rivlin / polynomial C01, Pa (C10 + C01 > 0). Polynomial default 0.")
+    C20: float | None = Field(default=None, description="Yeoh / polynomial C20, Pa. Default 0.")
+    C30: float | None = Field(default=None, description="Yeoh C30, Pa. Default 0.")
+    mu: Optional[OgdenTerms] = Field(default=None, description="Ogden moduli mu_i, Pa: a list of 1 to 3 (sum > 0, the initial shear modulus).")
+    alpha: Optional[OgdenTerms] = Field(default=None, description="Ogden exponents alpha_i (dimensionless, non-zero), one per mu_i.")
+    C11: float | None = Field(default=None, description="Polynomial C11, Pa. Default 0.")
+    C02: float | None = Field(default=None, description="Polynomial C02, Pa. Default 0.")
     bulk_modulus: float | None = Field(default=None, gt=0, description="Bulk modulus K, Pa. Default 20 x the initial shear modulus (seed 000).")
 
     @model_validator(mode="after")
@@ -197,7 +219,11 @@ class Material(Strict):
         given = [k for k in PARAMETER_KEYS if k not in law.keys and getattr(self, k) is not None]
         if given:
             raise ValueError(f"model '{model}' does not use {', '.join(given)}")
-        if law.initial_shear_modulus({k: getattr(self, k) for k in law.keys if getattr(self, k) is not None}) <= 0:
+        values = {k: getattr(self, k) for k in law.keys if getattr(self, k) is not None}
+        problem = law.problem(values)
+        if problem is not None:
+            raise ValueError(problem)
+        if not law.initial_shear_modulus(values) > 0:
             raise ValueError(f"{model} needs {law.constraint}")
         return self
 

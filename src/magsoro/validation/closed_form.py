@@ -148,7 +148,7 @@ def _stress_and_energy(dim, Fs, G, K):
     if len(kernel.adj.args) == 5:  # (F, G, K, P, psi)
         inputs = [F, G, K, P, psi]
     else:  # (F, material_model, G, K, params, P, psi): material model 0 is Neo-Hookean
-        inputs = [F, 0, G, K, k["v3"](0.0, 0.0, 0.0), P, psi]
+        inputs = [F, 0, G, K, k["vprm"](), P, psi]
     wp.launch(kernel, dim=len(Fs), inputs=inputs, device="cpu")
     return P.numpy(), psi.numpy()
 
