@@ -54,8 +54,13 @@ BRANCH_KICKS = (0.1, 1.0, 10.0)
 MAX_SWITCHES = 4
 #: a Newton step is taken while |R| stays below this many times the lowest residual of the solve
 GROWTH = 1.0e3
-#: the tangent's diagonal shift (relative to its median diagonal) that regularises the corner nodes' null modes
-NULL_SHIFT = 1.0e-10
+#: the largest move of a node in one Newton step, cells
+MAX_STEP = 10.0
+#: per dimension: free nodes lighter than this fraction of the heaviest node are extrapolated from the nodes inward
+#: of them, not solved for (StaticSolver._slaving); 2D tangents have no null modes to remove, so none is
+LIGHT = {2: 0.0, 3: 1.0e-2}
+#: the tangent's diagonal shift (relative to its median diagonal) that regularises any null mode left
+NULL_SHIFT = 1.0e-12
 
 
 @functools.cache
@@ -195,6 +200,7 @@ class StaticSolver:
         self.coords = np.stack(np.unravel_index(np.arange(self.n_nodes), tuple(shape)), axis=1)
         self.dof_of_node = np.full(self.n_nodes, -1, dtype=np.int64)
         self.dof_of_node[self.free] = np.arange(len(self.free))
+        self.E = self._slaving(mass, held)
         self.u_nodes = np.zeros((self.n_nodes, self.dim))
         self.field_level = 0.0
         self.gravity_level = 0.0
@@ -247,8 +253,78 @@ class StaticSolver:
         return f if self.extra_force is None else f + self.extra_force
 
     def residual(self, u_nodes, field_level, gravity_level) -> np.ndarray:
-        """Out-of-balance force of the free nodes, flat (n_free * dim,)."""
-        return self._scatter(u_nodes, field_level, gravity_level)[self.free].ravel()
+        """Out-of-balance force on the unknowns (the free nodes' forces gathered by the slaving), flat."""
+        return self._reduce(self._scatter(u_nodes, field_level, gravity_level))
+
+    # -- the unknowns -------------------------------------------------------------------------------------
+    def _slaving(self, mass: np.ndarray, held: np.ndarray):
+        """The map E from the unknowns to the free nodes' displacements (sparse, n_free dim x n_unknown dim).
+
+        A free node whose mass is below LIGHT of the heaviest node's (the outer layer of nodes a body's particles
+        reach only with the tail of the B-spline, its edges and corners) is not an unknown: its displacement is
+        extrapolated linearly from the two nodes inward of it, u = 2 u_a - u_b, a and b one and two cells towards
+        its particles' centroid (exact for any affine displacement: rigid motions and uniform strains). Left as
+        unknowns, such nodes reach only one or two particles and have more unknowns than those particles have
+        strains: combinations of them that move no particle are null modes of the tangent (in 3D with two cells
+        across a section, 168 of 3150 unknowns), and those that barely move one stall Newton."""
+        from scipy import sparse
+
+        dim = self.dim
+        nodes, w, _ = self._stencil()
+        h = self.model.host
+        wm = w * h["mass"][:, None]
+        centroid = np.stack([np.bincount(nodes.ravel(), weights=(wm * h["positions"][:, a][:, None]).ravel(),
+                                         minlength=self.n_nodes) for a in range(dim)], axis=1)
+        X = (self.model.domain_lo + self.solver.org * self.model.dx) + self.coords * self.model.dx
+        light = np.zeros(self.n_nodes, bool)
+        light[self.free] = mass[self.free] < LIGHT[dim] * mass.max()
+        unknown = self.free[~light[self.free]]
+        column = np.full(self.n_nodes, -1, dtype=np.int64)
+        column[unknown] = np.arange(len(unknown))
+        shape = tuple(int(v) for v in self.shape)
+        memo = {}
+
+        def combination(node: int, depth: int = 0) -> dict:
+            if column[node] >= 0:
+                return {int(column[node]): 1.0}
+            if held[node] or mass[node] <= 0.0 or depth > 8:
+                return {}  # a held node does not move; an empty one is not reached
+            if node not in memo:
+                c = self.coords[node]
+                d = np.clip(np.round((centroid[node] / mass[node] - X[node]) / self.model.dx), -1, 1).astype(np.int64)
+                out = {}
+                inner = [c + d, c + 2 * d]
+                ok = [bool(np.all(q >= 0) and np.all(q < self.shape)) for q in inner]
+                ids = [int(np.ravel_multi_index(tuple(q), shape)) if k else -1 for q, k in zip(inner, ok)]
+                if not ok[0] or not d.any():
+                    memo[node] = {}
+                    return {}
+                linear = ok[1] and (mass[ids[1]] > 0.0 or held[ids[1]])
+                for coef, q in ((2.0, ids[0]), (-1.0, ids[1])) if linear else ((1.0, ids[0]),):
+                    for k, v in combination(q, depth + 1).items():
+                        out[k] = out.get(k, 0.0) + coef * v
+                memo[node] = out
+            return memo[node]
+
+        rows, cols, vals = [], [], []
+        for k, node in enumerate(self.free):
+            for col, v in combination(int(node)).items():
+                for a in range(dim):
+                    rows.append(k * dim + a)
+                    cols.append(col * dim + a)
+                    vals.append(v)
+        self.n_light = int(light.sum())
+        return sparse.csr_matrix((vals, (rows, cols)), shape=(len(self.free) * dim, len(unknown) * dim))
+
+    def _reduce(self, node_forces: np.ndarray) -> np.ndarray:
+        """Forces on the unknowns, E^T f over the free nodes (virtual work), flat."""
+        return self.E.T @ node_forces[self.free].ravel()
+
+    def _expand(self, values: np.ndarray) -> np.ndarray:
+        """Node displacements (n_nodes, dim) of the unknowns' ``values`` (flat): E values on the free nodes."""
+        out = np.zeros((self.n_nodes, self.dim))
+        out[self.free] = (self.E @ values).reshape(-1, self.dim)
+        return out
 
     def _valid(self) -> bool:
         F = self.F.numpy().astype(np.float64)
@@ -359,15 +435,14 @@ class StaticSolver:
         keep, inverse, indices, indptr = self._pattern(nodes, chunk)
         data = np.bincount(inverse, weights=np.concatenate(values, axis=0).ravel()[keep], minlength=len(indices))
         J = sparse.csc_matrix((data, indices, indptr), shape=(n_dof, n_dof))
-        # Nodes at a body's corners that reach only one or two particles have more unknowns than the particles
-        # have strains: their combinations that move no particle are null modes of the tangent (the residual has
-        # no part along them, so they do not change the equilibrium). A shift of NULL_SHIFT of the median
-        # diagonal keeps the factorisation regular and leaves them unmoved.
-        shift = NULL_SHIFT * float(np.median(np.abs(J.diagonal()))) if n_dof else 0.0
-        J = (J - shift * sparse.identity(n_dof, format="csc")).tocsc()
         if self.contact is not None:  # the colliders' springs at u (the scatter above evaluated them)
-            J = (J + self.contact.tangent(self.free, self.dof_of_node)).tocsc()
-        return J
+            J = J + self.contact.tangent(self.free, self.dof_of_node)
+        J = (self.E.T @ J @ self.E).tocsc()  # on the unknowns (_slaving)
+        # what null modes the slaving leaves (a body thinner than its stencil): a shift of NULL_SHIFT of the
+        # median diagonal keeps the factorisation regular; the residual has no part along them
+        n = J.shape[0]
+        shift = NULL_SHIFT * float(np.median(np.abs(J.diagonal()))) if n else 0.0
+        return (J - shift * sparse.identity(n, format="csc")).tocsc()
 
     def _pattern(self, nodes, chunk):
         """The tangent's sparsity pattern, computed once (the stencils and free nodes do not change): which of the
@@ -393,10 +468,12 @@ class StaticSolver:
         """Newton with line search from ``u_nodes``. Returns (u, converged, iterations, |R|_inf, message)."""
         from scipy.sparse.linalg import splu
 
+        if self.contact is not None:
+            self.contact.begin()
         r_full = self._scatter(u_nodes, field_level, gravity_level)
         if self.contact is not None:
             self.contact.commit()
-        r = r_full[self.free].ravel()
+        r = self._reduce(r_full)
         norm = float(np.abs(r).max()) if r.size else 0.0
         best = norm
         for it in range(self.max_iterations + 1):
@@ -405,7 +482,7 @@ class StaticSolver:
                     return u_nodes, True, it, norm, ""
                 # nodes that pull left the colliders' active set: solve again without them
                 r_full = self._scatter(u_nodes, field_level, gravity_level)
-                r = r_full[self.free].ravel()
+                r = self._reduce(r_full)
                 norm = best = float(np.abs(r).max())
                 continue
             if it == self.max_iterations:
@@ -416,8 +493,7 @@ class StaticSolver:
                 du = splu(J).solve(-r)
             except RuntimeError as exc:  # singular tangent
                 return u_nodes, False, it, norm, f"singular tangent ({exc})"
-            step = np.zeros_like(u_nodes)
-            step[self.free] = du.reshape(-1, self.dim)
+            step = self._expand(du)
             # Non-monotone line search: the full step may raise |R| for an iteration (the nodes at the bodies'
             # edges carry little stiffness, and their forces answer the first step nonlinearly), after which
             # Newton converges quadratically; a step is taken when F stays invertible and |R| stays within
@@ -425,13 +501,18 @@ class StaticSolver:
             # A step that changes which nodes touch a collider is taken whatever its residual: the tangent it
             # came from did not know the new contacts, and the next one will (an active-set iteration).
             contacts = self.contact.signature() if self.contact is not None else None
-            alpha = 1.0 if self.contact is None else self.contact.step_limit(u_nodes, step)
+            # a trust region: no node moves more than MAX_STEP cells in one step (a slender body's linearised
+            # step from the straight state can be many times its length)
+            biggest = float(np.abs(step).max()) if step.size else 0.0
+            alpha = min(1.0, MAX_STEP * self.model.dx / biggest) if biggest > 0.0 else 1.0
+            if self.contact is not None:
+                alpha = min(alpha, self.contact.step_limit(u_nodes, alpha * step) * alpha)
             first = alpha
             while alpha >= 1.0 / 256:
                 trial = u_nodes + alpha * step
                 r_try_full = self._scatter(trial, field_level, gravity_level)
                 if self._valid():
-                    r_try = r_try_full[self.free].ravel()
+                    r_try = self._reduce(r_try_full)
                     n_try = float(np.abs(r_try).max())
                     changed = contacts is not None and alpha == first and self.contact.signature() != contacts
                     if math.isfinite(n_try) and (n_try < GROWTH * best or changed):
@@ -491,8 +572,7 @@ class StaticSolver:
         |R|, message)."""
         u0, start = self.u_nodes.copy(), (self.field_level, self.gravity_level)
         lam_start, _ = self.lowest_mode()
-        direction = np.zeros_like(u0)
-        direction[self.free] = mode.reshape(-1, self.dim)
+        direction = self._expand(mode)
         direction /= max(float(np.abs(direction).max()), 1e-300)
         iterations = increments = 0
         norm, message = 0.0, ""
@@ -529,7 +609,7 @@ class StaticSolver:
         t0 = time.perf_counter()
         target = (float(level), float(gravity_level))
         # the force scale of the tolerance: the out-of-balance force of the undeformed body under the target load
-        r_ref = self._scatter(np.zeros_like(self.u_nodes), *target)[self.free]
+        r_ref = self._reduce(self._scatter(np.zeros_like(self.u_nodes), *target))
         scale = max(float(np.abs(r_ref).max()), 1e-30)
         iterations = increments = 0
         buckled, lam = False, None
@@ -552,7 +632,7 @@ class StaticSolver:
                                    f"unstable equilibrium at field level {load[0]:.4g} (lowest stiffness {lam:.3g} N/m); the "
                                    f"switch to a stable branch did not converge: {message}", lam, True)
         lam, _ = self.lowest_mode()
-        r = self._scatter(self.u_nodes, *target)[self.free]
+        r = self._reduce(self._scatter(self.u_nodes, *target))
         norm = float(np.abs(r).max()) if r.size else 0.0
         return LevelResult(level, True, iterations, increments, norm, norm / scale, time.perf_counter() - t0,
                            "", lam, buckled, None if self.contact is None else self.contact.penetration)

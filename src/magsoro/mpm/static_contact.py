@@ -73,6 +73,7 @@ class ColliderPenalty:
         # the active set (module docstring): nodes held by each collider's normal spring during a Newton solve; they
         # join when they reach their level and leave only at a converged state where they pull
         self.held = [np.zeros(0, np.int64) for _ in self.colliders]
+        self._held_accepted = [np.zeros(0, np.int64) for _ in self.colliders]
         self._touching = [np.zeros(0, np.int64) for _ in self.colliders]
         self._gaps = [None for _ in self.colliders]
         self.penetration = 0.0
@@ -123,6 +124,7 @@ class ColliderPenalty:
             if mode == MODES["sticky"]:
                 act = np.union1d(act, tied)
             self._touching[ci] = touching
+            self._gaps[ci] = None
             if len(act) == 0:
                 self._active.append(None)
                 continue
@@ -174,6 +176,11 @@ class ColliderPenalty:
             f[act] += force
             self._active.append((act, blocks))
         return self.W.T @ f
+
+    def begin(self) -> None:
+        """Start a Newton solve from the last accepted state: the active set it had (a failed attempt's additions
+        are dropped)."""
+        self.held = [h.copy() for h in self._held_accepted]
 
     def commit(self) -> None:
         """The last evaluation's touching nodes join the active set (after an accepted Newton iterate)."""
@@ -272,3 +279,4 @@ class ColliderPenalty:
                 new[node] = a
             self.anchor[ci] = new
         self._last_u = u_nodes.copy()
+        self._held_accepted = [h.copy() for h in self.held]
