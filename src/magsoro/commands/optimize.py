@@ -33,6 +33,10 @@ def register(sub) -> None:
     p.add_argument("--margin", type=float, help="grid block margin around the reference bodies, m")
     p.add_argument("--precision", choices=["float32", "float64"], help="override the scene's precision")
     p.add_argument("--no-verify", action="store_true", help="skip the forward re-run of the written scene")
+    p.add_argument("--static", action="store_true",
+                   help="optimise the static equilibrium instead of a rollout: the scene solved by Newton's method at "
+                        "each of its [static] levels (as `magsoro run --static`), the target at the last, gradients by "
+                        "the adjoint of the converged system; variables magnetisation and material")
     p.set_defaults(func=run_optimize)
 
 
@@ -81,11 +85,22 @@ def run_optimize(args) -> int:
             raise MagsoroError(f"{flag}: must be a finite number {low}, got {value}")
     if args.segment is not None and args.segment < 1:
         raise MagsoroError(f"--segment: must be >= 1 steps, got {args.segment}")
-    prob = Problem.from_files(args.scene, args.target, kinds, bodies=bodies, duration=args.duration, dt=args.dt,
-                              segment=args.segment, margin=args.margin, precision=args.precision)
+    static = getattr(args, "static", False)
+    if static:
+        from magsoro.diff.static_adjoint import StaticProblem
+
+        for flag, value in (("--duration", args.duration), ("--dt", args.dt), ("--segment", args.segment),
+                            ("--margin", args.margin), ("--precision", args.precision)):
+            if value is not None:
+                raise MagsoroError(f"{flag}: not used with --static (the static solve is float64, at the scene's levels)")
+        prob = StaticProblem.from_files(args.scene, args.target, kinds, bodies=bodies)
+    else:
+        prob = Problem.from_files(args.scene, args.target, kinds, bodies=bodies, duration=args.duration, dt=args.dt,
+                                  segment=args.segment, margin=args.margin, precision=args.precision)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
-    print(f"{prob.n_steps} steps of {prob.dt:.4g} s, {prob.built.model.n_particles} particles, "
+    what = (f"static equilibrium at levels {prob.levels}" if static else f"{prob.n_steps} steps of {prob.dt:.4g} s")
+    print(f"{what}, {prob.built.model.n_particles} particles, "
           f"{len(prob.design.values())} variables ({', '.join(v.name for v in prob.design.vars)})")
     before = prob.final_state()
     err0 = prob.error(before)
@@ -107,14 +122,29 @@ def run_optimize(args) -> int:
     _render(out / "after.png", after["x"], prob.target, f"optimised design: error {err1:.4g}", body)
     result = {
         "scene": str(args.scene), "target": str(args.target), "vars": kinds, "method": args.method,
-        "steps": prob.n_steps, "dt": prob.dt, "duration": prob.duration,
+        "static": static, "levels": prob.levels if static else None,
+        "steps": None if static else prob.n_steps, "dt": None if static else prob.dt,
+        "duration": None if static else prob.duration,
         "initial_loss": res["initial_loss"], "final_loss": res["loss"],
         "loss_ratio": res["initial_loss"] / res["loss"] if res["loss"] > 0 else None,  # None: the loss reached 0
         "initial_error": err0, "final_error": err1, "evaluations": res["evaluations"], "wall_time_s": res["wall_time"],
         "variables": {n: [float(a), float(b)] for n, a, b in zip(prob.design.names(), res["initial_values"], res["values"])},
         "scene_out": str(scene_out),
     }
-    if not args.no_verify:
+    if not args.no_verify and static:  # the written scene solved from scratch by the static solver
+        from magsoro.scene import load_scene
+
+        scene = load_scene(scene_out)
+        scene.simulation.precision = "float64"
+        sim = Simulation(scene, source=str(scene_out))
+        run = sim.solve_static(levels=prob.levels)
+        if not run.converged:
+            raise MagsoroError(f"the static re-solve of {scene_out} failed: {run.message}")
+        x = sim.state.x.numpy().astype(np.float64)
+        F = sim.state.F.numpy().astype(np.float64)
+        result["rerun_error"] = prob.error({"x": x, "F": F})
+        result["rerun_max_particle_deviation_m"] = float(np.max(np.linalg.norm(x - after["x"], axis=1)))
+    elif not args.no_verify:
         sim = Simulation.from_file(scene_out, device="cpu")
         run = sim.run(duration=prob.duration, record_every=prob.duration)
         if run.status != "completed":
