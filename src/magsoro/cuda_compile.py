@@ -26,8 +26,8 @@ second of compile each.) Every variant the package can create is listed:
 - ``engine {2,3}D {float32,float64}[ (contact)]: p2g | g2p | grid``: the transfers and the grid update, without
   and with the two velocity fields per node of contact (``two_fields``); updated and total Lagrangian are the same
   kernels (a run-time argument);
-- ``engine {2,3}D {float32,float64}: contact | kernels``: ``contact_classify`` and ``stress_kernel`` (one per
-  dimension and precision);
+- ``engine {2,3}D {float32,float64}: contact | kernels``: ``contact_classify`` and the stress kernels
+  (``stress_kernel``, ``body_stress_kernel``; one per dimension and precision);
 - ``fields {2,3}D {float32,float64}: device``: the field accumulate kernel (:mod:`magsoro.fields.device`) for the
   device function of every field source (found from the ``device_func`` methods of the package's sources);
 - ``bench reference {2,3}D: reference``: the bare MLS-MPM step of ``magsoro bench``;

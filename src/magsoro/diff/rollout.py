@@ -152,6 +152,10 @@ class Rollout:
             raise ValueError("the differentiable rollout cannot differentiate the Ogden law (its principal-stretch "
                              "stress has no reliable gradient at repeated stretches, the undeformed state included); "
                              "give the bodies another model (e.g. 'polynomial' or 'yeoh')")
+        if getattr(m, "stimuli", ()):
+            # the eigenstrain tables are set per step from the host; the rollout's tape has no per-step copy of them
+            raise ValueError("the differentiable rollout has no stimulus-driven eigenstrain yet; remove material.stimulus "
+                             "from the bodies (or run the scene with magsoro run)")
         groups = int(m.host["contact_group"].max()) + 1
         if st.contact is not None and st.contact.active(groups):
             raise ValueError("the differentiable rollout has no contact between bodies or self-contact; give the scene "

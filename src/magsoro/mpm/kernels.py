@@ -7,7 +7,9 @@ never drift apart; Warp compiles them for CPU and CUDA alike:
 - :mod:`magsoro.mpm.p2g`: particle to grid (mass, momentum, stress impulse), contact scan, node displacements;
 - :mod:`magsoro.mpm.grid`: node velocities (damping, gravity, walls, colliders, contact);
 - :mod:`magsoro.mpm.g2p`: grid to particle (x, v, C, F), the velocity-gradient remap, the checks' reductions;
-- :mod:`magsoro.mpm.materials`: the constitutive laws; :mod:`magsoro.mpm.contact`: the contact model.
+- :mod:`magsoro.mpm.materials`: the constitutive laws; :mod:`magsoro.mpm.contact`: the contact model;
+- :mod:`magsoro.mpm.eigenstrain`: stimulus-driven eigenstrain (host tables; the stress is
+  :func:`magsoro.mpm.stencil.make_body_elastic`).
 
 Notation: dx grid spacing, inv_dx = 1/dx, particles carry reference volume V0, mass, shear modulus G, bulk
 modulus K, remanence Br (reference frame, in-plane part in 2D).
@@ -22,17 +24,19 @@ from magsoro.mpm.g2p import F_FROM_GRID, F_FROM_REMAP, F_TOTAL, make_g2p
 from magsoro.mpm.grid import grid_settings_struct, make_grid
 from magsoro.mpm.materials import make_material_functions
 from magsoro.mpm.p2g import make_p2g
-from magsoro.mpm.stencil import make_types
+from magsoro.mpm.stencil import make_body_elastic, make_types
 
 __all__ = ["make_kernels", "grid_settings_struct", "F_FROM_GRID", "F_FROM_REMAP", "F_TOTAL"]
 
 
 @functools.cache
-def _stress_kernel(dim: int, scalar):
+def _stress_kernel(dim: int, scalar) -> dict:
     t = make_types(dim, scalar)
     elastic = make_material_functions(dim, scalar)
     elastic_stress, elastic_energy = elastic["elastic_stress"], elastic["elastic_energy"]
-    mat, vprm = t.mat, t.vprm
+    body = make_body_elastic(dim, scalar)
+    body_elastic_stress, body_elastic_energy = body.body_elastic_stress, body.body_elastic_energy
+    mat, vprm, Bodies = t.mat, t.vprm, t.Bodies
 
     @wp.kernel
     def stress_kernel(
@@ -43,7 +47,18 @@ def _stress_kernel(dim: int, scalar):
         P[i] = elastic_stress(F[i], model, G, K, prm)
         psi[i] = elastic_energy(F[i], model, G, K, prm)
 
-    return stress_kernel
+    @wp.kernel
+    def body_stress_kernel(
+        F: wp.array(dtype=mat), bodies: wp.array(dtype=Bodies), P: wp.array(dtype=mat), psi: wp.array(dtype=scalar)
+    ):
+        """Elastic first Piola stress and energy density of every particle of the model at F[p]: its law, moduli
+        and stimulus eigenstrain now (:func:`magsoro.mpm.stencil.make_body_elastic`)."""
+        p = wp.tid()
+        b = bodies[0]
+        P[p] = body_elastic_stress(F[p], b, p)
+        psi[p] = body_elastic_energy(F[p], b, p)
+
+    return {"stress_kernel": stress_kernel, "body_stress_kernel": body_stress_kernel}
 
 
 @functools.cache
@@ -60,7 +75,7 @@ def make_kernels(dim: int, scalar, contact: bool = False) -> dict:
         **make_p2g(dim, scalar, two_fields),
         **make_grid(dim, scalar, two_fields),
         **make_g2p(dim, scalar, two_fields),
-        stress_kernel=_stress_kernel(dim, scalar),
+        **_stress_kernel(dim, scalar),
         ContactGrid=ct_ns["ContactGrid"],
         contact_classify=ct_ns["contact_classify"],
         Block=t.Block, Bodies=t.Bodies, Applied=t.Applied, GridArrays=t.GridArrays, Particles=t.Particles,

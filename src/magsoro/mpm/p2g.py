@@ -6,7 +6,6 @@ import functools
 import warp as wp
 
 from magsoro.constants import MU0
-from magsoro.mpm.materials import make_material_functions
 from magsoro.mpm.stencil import make_stencil
 
 # Unroll the 3^dim-node stencil loops (27 in 3D): constant offsets let the compiler fold the weight selection.
@@ -26,14 +25,14 @@ def make_p2g(dim: int, scalar, two_fields: bool = False) -> dict:
     local_coords, outside_block, flat_index, stencil_node = s.local_coords, s.outside_block, s.flat_index, s.stencil_node
     # Constants are computed here in double precision: literal arithmetic inside a kernel runs in float32.
     inv_mu0 = 1.0 / MU0
-    elastic_stress = make_material_functions(dim, scalar)["elastic_stress"]
+    body_elastic_stress = s.body_elastic_stress
 
     @wp.func
     def particle_stress(Fp: mat, b: Bodies, p: int, B: v3):
-        """First Piola stress of particle ``p``: its elastic law plus the magnetic stress of a hard-magnetic
-        elastomer (seed 000 eq 13), P = -(1/mu0) B (x) Br."""
+        """First Piola stress of particle ``p``: its elastic law (with its stimulus eigenstrain, if any) plus the
+        magnetic stress of a hard-magnetic elastomer (seed 000 eq 13), P = -(1/mu0) B (x) Br."""
         br = b.Br[p]
-        return elastic_stress(Fp, b.material_model[p], b.shear[p], b.bulk[p], b.material_params[p]) - scalar(inv_mu0) * wp.outer(inplane(B), inplane(br))
+        return body_elastic_stress(Fp, b, p) - scalar(inv_mu0) * wp.outer(inplane(B), inplane(br))
 
     @wp.func
     def gradient_force(Fp: mat, b: Bodies, p: int, G: m3):

@@ -110,6 +110,9 @@ def bodies_array(model: "Model", cut=lambda arr: arr) -> wp.array:
     b.vol0, b.mass, b.shear, b.bulk = cut(model.vol0), cut(model.mass), cut(model.shear), cut(model.bulk)
     b.material_model, b.material_params = cut(model.material_model), cut(model.material_params)
     b.Br, b.clamped = cut(model.Br), cut(model.clamped)
+    # the stimulus tables are indexed by each particle's stimulus row, not by particle: never cut
+    b.stimulus, b.stretch_inv, b.stretch_scale = cut(model.stimulus), model.stretch_inv, model.stretch_scale
+    b.n_stimuli = len(model.stimuli)
     return wp.array([b], dtype=k["Bodies"], device=model.device)
 
 
@@ -205,6 +208,9 @@ class Model:
     (C10, C01, ...), (C10, C20, C30, ...), (mu1, alpha1, mu2, alpha2, mu3, alpha3) or (C10, C01, C20, C11, C02, 0)
     (MaterialLaw.pack); shear_modulus is then the initial shear modulus (2 (C10 + C01), 2 C10 or sum mu_i), used
     for the time step. The laws and their codes: :mod:`magsoro.mpm.materials`.
+    stimuli: :class:`magsoro.mpm.eigenstrain.Stimulus` laws (a material's stretch following a stimulus in time),
+    with stimulus (N,) int the row of each particle's (-1: none); :meth:`update_stimuli` sets the tables the kernels
+    read to a time (t = 0 at construction; the solver calls it every step).
     """
 
     MATERIAL_MODELS = {name: law.code for name, law in LAWS.items()}
@@ -228,6 +234,8 @@ class Model:
         material_model=None,
         material_params=None,
         contact_group=None,
+        stimulus=None,
+        stimuli=(),
     ):
         if precision not in PRECISIONS:
             raise ValueError(f"precision must be one of {sorted(PRECISIONS)}, got {precision!r}")
@@ -281,13 +289,59 @@ class Model:
             raise ValueError("contact_group must be >= 0")
         h["contact_group"] = group
         self.contact_group = wp.array(group, dtype=wp.int32, device=dev)
+        self._init_stimuli(stimulus, stimuli)
+
+    def _init_stimuli(self, stimulus, stimuli) -> None:
+        """Per-particle stimulus rows, the device tables of F_s^-1 and f det F_s per stimulus (at t = 0), and the
+        stiffening bound of the time step per particle."""
+        n, dim, k, dev, s = self.n_particles, self.dim, self.kernels, self.device, self.np_scalar
+        h = self.host
+        self.stimuli = tuple(stimuli)
+        rows = np.broadcast_to(np.asarray(-1 if stimulus is None else stimulus, dtype=np.int32), (n,)).copy()
+        if np.any(rows < -1) or np.any(rows >= len(self.stimuli)):
+            raise ValueError(f"stimulus must be -1 (none) or a row of the {len(self.stimuli)} stimuli")
+        for st in self.stimuli:
+            if st.direction is not None and st.direction.size != dim:
+                raise ValueError(f"a stimulus direction needs {dim} components in a {dim}D model, got {st.direction.size}")
+        h["stimulus"] = rows
+        self.stimulus = wp.array(rows, dtype=wp.int32, device=dev)
+        m = max(len(self.stimuli), 1)
+        self.stretch_inv = wp.array(np.broadcast_to(np.eye(dim), (m, dim, dim)).astype(s), dtype=k["mat"], device=dev)
+        self.stretch_scale = wp.ones(m, dtype=self.scalar, device=dev)
+        # squared wave speed factor of each particle's stimulus over its reachable range (1: none)
+        bound = np.array([st.stiffening(dim) for st in self.stimuli] + [1.0])
+        h["stiffening"] = bound[rows]
+        self._stimulus_values = None  # (lambda, f) per stimulus as last uploaded
+        # on the CPU the tables are written through numpy views of the same memory (a Warp copy costs more)
+        self._stimulus_views = (self.stretch_inv.numpy(), self.stretch_scale.numpy()) if wp.get_device(dev).is_cpu else None
+        self.update_stimuli(0.0)
+
+    def update_stimuli(self, t: float) -> bool:
+        """Set the stimulus tables the kernels read (F_s^-1 and f det F_s per stimulus) to time ``t`` (s); copies to
+        the device only when a stimulus' (lambda, f) changed. Returns whether it copied."""
+        if not self.stimuli:
+            return False
+        values = tuple(st.values(t) for st in self.stimuli)
+        if values == self._stimulus_values:
+            return False
+        inv, scale = zip(*(st.tensors(lam, f, self.dim) for st, (lam, f) in zip(self.stimuli, values)))
+        inv, scale = np.asarray(inv).astype(self.np_scalar), np.asarray(scale).astype(self.np_scalar)
+        if self._stimulus_views is not None:
+            self._stimulus_views[0][...] = inv
+            self._stimulus_views[1][...] = scale
+        else:
+            self.stretch_inv.assign(inv)
+            self.stretch_scale.assign(scale)
+        self._stimulus_values = values
+        return True
 
     def wave_speed(self, field_magnitude: float = 0.0) -> float:
-        """Largest elastic wave speed sqrt((K + 4G/3 + |B||Br|/mu0) / rho) over particles, m/s.
-        The magnetic term bounds the stiffening a field of magnitude ``field_magnitude`` (T) adds."""
+        """Largest elastic wave speed sqrt((c (K + 4G/3) + |B||Br|/mu0) / rho) over particles, m/s.
+        The magnetic term bounds the stiffening a field of magnitude ``field_magnitude`` (T) adds; c bounds that of
+        a stimulus, the largest f det F_s it reaches (:meth:`magsoro.mpm.eigenstrain.Stimulus.stiffening`; 1 without)."""
         h = self.host
         br = np.linalg.norm(h["remanence"], axis=1)
-        modulus = h["bulk_modulus"] + 4.0 * h["shear_modulus"] / 3.0 + field_magnitude * br / MU0
+        modulus = (h["bulk_modulus"] + 4.0 * h["shear_modulus"] / 3.0) * h["stiffening"] + field_magnitude * br / MU0
         return float(np.sqrt(np.max(modulus / h["density"])))
 
 
@@ -793,8 +847,8 @@ class Solver:
         """Advance ``state_in`` by ``dt`` seconds into ``state_out``. Raises SimulationError on a bad state.
 
         Phases (docs/engine.md, "Per step"): check the particles against the grid block and the domain; evaluate
-        the drives (fields, colliders) at t; scatter (contact scan, p2g, node displacements); node velocities;
-        gather (g2p and the remap); read the error flags.
+        the drives (fields, colliders, the stimuli of eigenstrain materials) at t; scatter (contact scan, p2g, node
+        displacements); node velocities; gather (g2p and the remap); read the error flags.
 
         ``check=False``: a step inside a check window (:meth:`open_window`, :meth:`close_window`), no host read;
         flags, bounds and top speed accumulate on the device. A window's first step fits the grid block to the
@@ -806,6 +860,8 @@ class Solver:
             self.open_window()
         b0, has_gradient = self._particle_fields(control, state_in)
         self._update_colliders(control, t)
+        if self.model.stimuli:
+            self.model.update_stimuli(t)
         L = self._launch_set(state_in, state_out, control, has_gradient)
         self._set_step_values(L, b0, dt)
         self._clear_grid()

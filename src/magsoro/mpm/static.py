@@ -39,7 +39,6 @@ import warp as wp
 
 from magsoro.errors import SimulationError
 from magsoro.constants import MU0
-from magsoro.mpm.materials import make_material_functions
 from magsoro.mpm.solver import block_struct, bodies_array, contact_grid
 from magsoro.mpm.stencil import host_bspline, make_stencil
 
@@ -96,15 +95,15 @@ def make_static_kernels(dim: int, scalar) -> dict:
         x[p] = X[p] + disp
         F[p] = wp.identity(n=dim, dtype=scalar) + (scalar(4.0) * inv_dx) * (S - wp.outer(disp, fx))
 
-    elastic_stress = make_material_functions(dim, scalar)["elastic_stress"]
+    body_elastic_stress = s.body_elastic_stress
     Bodies = t.Bodies
 
     @wp.kernel
     def particle_stress(F: wp.array(dtype=mat), bodies: wp.array(dtype=Bodies), P: wp.array(dtype=mat)):
-        """Elastic first Piola stress of every particle at ``F`` (its own law and moduli)."""
+        """Elastic first Piola stress of every particle at ``F`` (its own law and moduli, and its eigenstrain when
+        its material has a stimulus): the function the engine's scatter uses."""
         p = wp.tid()
-        b = bodies[0]
-        P[p] = elastic_stress(F[p], b.material_model[p], b.shear[p], b.bulk[p], b.material_params[p])
+        P[p] = body_elastic_stress(F[p], bodies[0], p)
 
     return {"place_particles": place_particles, "particle_stress": particle_stress}
 
@@ -167,6 +166,7 @@ class StaticSolver:
         self.k = k
         self.kk = make_static_kernels(self.dim, self.sc)
         state = sim.state
+        model.update_stimuli(self.t)  # eigenstrains (material.stimulus) at the solve's time
         solver._check_and_fit(state, 0.0)  # the reference grid block, its held nodes
         self.block = block_struct(model, solver.org, solver.shape)
         self.n_nodes = int(solver.n_active)

@@ -16,7 +16,7 @@ import numpy as np
 import warp as wp
 
 from magsoro.mpm.contact import make_contact
-from magsoro.mpm.materials import LAW_PARAM_COUNT
+from magsoro.mpm.materials import LAW_PARAM_COUNT, make_material_functions
 
 
 def host_bspline(X, lo, dx: float):
@@ -55,7 +55,9 @@ def make_types(dim: int, scalar) -> SimpleNamespace:
         """Per-particle constants of the model (:class:`magsoro.mpm.solver.Model`): reference volume (m^3),
         mass (kg), shear and bulk moduli (Pa), material law code and its LAW_PARAM_COUNT numbers
         (:mod:`magsoro.mpm.materials`), remanence Br (T, reference frame; in 2D the in-plane part plus Br_z),
-        clamp flag."""
+        clamp flag. Stimulus eigenstrain (:mod:`magsoro.mpm.eigenstrain`): each particle's stimulus (a row of the
+        two tables; -1: none), and per stimulus its current F_s^-1 and stress factor f det F_s, which the host
+        updates when the stimulus changes; ``n_stimuli`` 0: no particle has one (the tables are never read)."""
 
         vol0: wp.array(dtype=scalar)
         mass: wp.array(dtype=scalar)
@@ -65,6 +67,10 @@ def make_types(dim: int, scalar) -> SimpleNamespace:
         material_params: wp.array(dtype=vprm)
         Br: wp.array(dtype=v3)
         clamped: wp.array(dtype=wp.int32)
+        stimulus: wp.array(dtype=wp.int32)
+        stretch_inv: wp.array(dtype=mat)
+        stretch_scale: wp.array(dtype=scalar)
+        n_stimuli: int
 
     @wp.struct
     class Applied:
@@ -105,6 +111,53 @@ def make_types(dim: int, scalar) -> SimpleNamespace:
 
     return SimpleNamespace(vec=vec, mat=mat, ivec=ivec, v3=v3, m3=m3, vprm=vprm, Block=Block, Bodies=Bodies, Applied=Applied,
                            GridArrays=GridArrays, Particles=Particles, Checks=Checks)
+
+
+@functools.cache
+def make_body_elastic(dim: int, scalar) -> SimpleNamespace:
+    """The elastic stress and energy of a particle of the model, the one place where a particle's law, moduli and
+    stimulus eigenstrain (:mod:`magsoro.mpm.eigenstrain`) meet; every kernel that needs a particle's elastic
+    response calls these:
+
+    - ``body_elastic_stress(F, b, p)``: first Piola stress (Pa) of particle ``p`` of the Bodies ``b`` at ``F``,
+      P = c P_e(F F_s^-1) F_s^-T with c = f det F_s of its stimulus now, P_e its law; without a stimulus
+      (``b.n_stimuli`` = 0 or its row -1) exactly its law's stress at F, to the bit;
+    - ``body_elastic_energy(F, b, p)``: the matching energy c W_e(F F_s^-1), J/m^3 of reference volume."""
+    t = make_types(dim, scalar)
+    mat, Bodies = t.mat, t.Bodies
+    elastic = make_material_functions(dim, scalar)
+    elastic_stress, elastic_energy = elastic["elastic_stress"], elastic["elastic_energy"]
+
+    @wp.func
+    def stimulus_row(b: Bodies, p: int):
+        row = int(-1)
+        if b.n_stimuli > 0:
+            row = b.stimulus[p]
+        return row
+
+    @wp.func
+    def body_elastic_stress(F: mat, b: Bodies, p: int):
+        row = stimulus_row(b, p)
+        Fe = F
+        if row >= 0:
+            Fe = F * b.stretch_inv[row]
+        P = elastic_stress(Fe, b.material_model[p], b.shear[p], b.bulk[p], b.material_params[p])
+        if row >= 0:
+            P = b.stretch_scale[row] * (P * wp.transpose(b.stretch_inv[row]))
+        return P
+
+    @wp.func
+    def body_elastic_energy(F: mat, b: Bodies, p: int):
+        row = stimulus_row(b, p)
+        Fe = F
+        if row >= 0:
+            Fe = F * b.stretch_inv[row]
+        W = elastic_energy(Fe, b.material_model[p], b.shear[p], b.bulk[p], b.material_params[p])
+        if row >= 0:
+            W = b.stretch_scale[row] * W
+        return W
+
+    return SimpleNamespace(body_elastic_stress=body_elastic_stress, body_elastic_energy=body_elastic_energy)
 
 
 @functools.cache
@@ -211,7 +264,9 @@ def make_stencil(dim: int, scalar, two_fields: bool = False) -> SimpleNamespace:
             of[a] = scalar(o[a])
         return weight, of, first + flat_index(o, shape)
 
+    body = make_body_elastic(dim, scalar)
     return SimpleNamespace(types=t, NS=3**dim, ContactGrid=ContactGrid, slot_of=slot_of, inplane=inplane,
                            bspline_weights=bspline_weights, stencil_offset=stencil_offset, flat_index=flat_index,
                            node_of_flat=node_of_flat, local_coords=local_coords, outside_block=outside_block,
-                           stencil_node=stencil_node)
+                           stencil_node=stencil_node, body_elastic_stress=body.body_elastic_stress,
+                           body_elastic_energy=body.body_elastic_energy)

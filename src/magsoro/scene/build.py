@@ -40,6 +40,7 @@ from magsoro.geometry.primitives import (
 from magsoro.materials.library import MaterialLibraryError, get_material, load_library
 from magsoro.mpm.materials import DEFAULT_LAW, FIT_MODEL_LAWS, LAWS, PARAMETER_KEYS, law_of_file_model
 from magsoro.mpm.colliders import Collider
+from magsoro.mpm.eigenstrain import KeyframeStimulus, SineStimulus, Stimulus
 from magsoro.mpm.solver import Control, ContactSettings, Model, SolverSettings
 from magsoro.scene.schema import Scene
 
@@ -206,6 +207,23 @@ def resolve_material(spec, base_dir, key: str, library: dict | None = None) -> d
     return {"model": law.code, "shear_modulus": G, "bulk_modulus": K, "params": params, "density": float(values["density"]), "remanence": remanence}
 
 
+def make_stimulus(spec, key: str) -> Stimulus:
+    """The engine's :class:`~magsoro.mpm.eigenstrain.Stimulus` of a material's ``stimulus`` table."""
+    p = spec.profile
+    try:
+        if p.type == "ramp":
+            profile = KeyframeStimulus.ramp(p.duration, p.start, p.initial, p.final)
+        elif p.type == "keyframes":
+            profile = KeyframeStimulus(p.times, p.values)
+        elif p.type == "sine":
+            profile = SineStimulus(p.frequency, p.amplitude, p.offset, np.deg2rad(p.phase))
+        else:
+            profile = KeyframeStimulus.constant(p.value)
+        return Stimulus(profile, spec.stretch, spec.modulus_factor, spec.direction)
+    except ValueError as exc:
+        raise SceneError(f"{key}: {exc}") from None
+
+
 def make_magnetization(spec, remanence: float | None, base_dir, key: str):
     """Profile function X (N, 3) m -> Br (N, 3) T for a body's ``magnetization`` (vector or profile table).
 
@@ -248,7 +266,8 @@ class Particles:
 
     positions (N, dim) m; volumes (N,) m^3 (2D: area x depth); density, shear_modulus, bulk_modulus (N,);
     remanence (N, 3) T; body (N,) int; clamped (N,) bool; material_model (N,) int; material_params
-    (N, LAW_PARAM_COUNT) Pa (Ogden exponents dimensionless); velocity (N, dim) m/s.
+    (N, LAW_PARAM_COUNT) Pa (Ogden exponents dimensionless); velocity (N, dim) m/s; stimulus (N,) int, the row of
+    ``stimuli`` (:class:`magsoro.mpm.eigenstrain.Stimulus`, one per body whose material has one) or -1.
     """
 
     positions: np.ndarray
@@ -264,6 +283,8 @@ class Particles:
     velocity: np.ndarray
     body_names: list[str]
     report: list[dict]
+    stimulus: np.ndarray | None = None
+    stimuli: list = field(default_factory=list)
 
 
 def _lattice_index(pts, lo, h):
@@ -364,7 +385,10 @@ def fill_bodies(scene: Scene, source: str = "scene", magnetization=None) -> Part
             raise SceneError(f"{bsrc}: {key}: body '{b.name}': {exc}") from None
         if b.magnetic and not np.any(np.linalg.norm(Br, axis=1) > 0):
             raise SceneError(f"{bsrc}: {bkey}.magnetization: body '{b.name}' is marked magnetic but its magnetisation is zero everywhere; give a magnitude (T) or a magnetised library material")
-        per_body.append(dict(pts=pts, v_each=v_each, mat=mat, Br=Br, key=bkey, src=bsrc))
+        stim = b.material.stimulus if not isinstance(b.material, str) else None
+        if stim is not None:
+            stim = make_stimulus(stim, f"{bsrc}: {bkey}.material.stimulus")
+        per_body.append(dict(pts=pts, v_each=v_each, mat=mat, Br=Br, key=bkey, src=bsrc, stimulus=stim))
         report.append({"body": b.name, "particles": len(pts), "filled_volume": len(pts) * v_each * (depth if dim == 2 else 1.0),
                        "shape_volume": shape.volume() * (depth if dim == 2 else 1.0), "density": mat["density"],
                        "mass": len(pts) * v_each * depth * mat["density"]})
@@ -383,6 +407,11 @@ def fill_bodies(scene: Scene, source: str = "scene", magnetization=None) -> Part
         np.tile(np.asarray(b.velocity if b.velocity is not None else np.zeros(dim), dtype=np.float64), (len(pb["pts"]), 1))
         for b, pb in zip(scene.bodies, per_body)
     ])
+    stimuli = []
+    for pb in per_body:  # one row per body whose material has a stimulus
+        pb["stimulus_row"] = -1 if pb["stimulus"] is None else len(stimuli)
+        if pb["stimulus"] is not None:
+            stimuli.append(pb["stimulus"])
     return Particles(
         positions=X,
         volumes=per(lambda pb: pb["v_each"] * depth),
@@ -397,6 +426,8 @@ def fill_bodies(scene: Scene, source: str = "scene", magnetization=None) -> Part
         velocity=vel,
         body_names=names,
         report=report,
+        stimulus=per(lambda pb: pb["stimulus_row"], np.int32),
+        stimuli=stimuli,
     )
 
 
@@ -578,6 +609,7 @@ def build(scene: Scene, device: str | None = None, source: str = "scene", magnet
         X, p.volumes, p.density, p.shear_modulus, p.bulk_modulus, p.remanence, body_id, clamped,
         dx=dx, domain_lo=lo, domain_hi=hi, precision=sim.precision, device=device or sim.device,
         material_model=p.material_model, material_params=p.material_params, contact_group=body_group[body_id],
+        stimulus=p.stimulus, stimuli=p.stimuli,
     )
     report = p.report
     p_vel = p.velocity

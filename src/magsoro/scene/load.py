@@ -292,6 +292,9 @@ def check_scene(scene: Scene, source: str, base_dir: Path | None) -> None:
             raise SceneError(f"{bsrc}: {bkey}.name: duplicate body name '{b.name}'")
         _check_shape(b.shape, dim, f"{bkey}.shape", bsrc, b._base_dir)
         _vec_len(b.velocity, dim, f"{bkey}.velocity", bsrc)
+        stim = getattr(b.material, "stimulus", None)
+        if stim is not None:
+            _vec_len(stim.direction, dim, f"{bkey}.material.stimulus.direction", bsrc)
         mag = b.magnetization
         if b.magnetic and isinstance(mag, list) and all(c == 0 for c in mag):
             raise SceneError(f"{bsrc}: {bkey}.magnetization: body '{b.name}' is marked magnetic but its magnetisation is zero; give a non-zero vector (T) or a profile")

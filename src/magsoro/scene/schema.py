@@ -172,6 +172,79 @@ def _terms(v: list[float]) -> list[float]:
 OgdenTerms = Annotated[list[float], AfterValidator(_terms)]
 
 
+class StimulusRamp(Strict):
+    """Stimulus going linearly from ``initial`` to ``final`` over [start, start + duration], held before and after."""
+
+    type: Literal["ramp"]
+    duration: float = Field(gt=0, description="Ramp duration, s.")
+    start: float = Field(default=0.0, ge=0, description="Ramp start time, s.")
+    initial: float = Field(default=0.0, description="Stimulus before the ramp (in the stimulus' own unit, e.g. degC).")
+    final: float = Field(default=1.0, description="Stimulus after the ramp.")
+
+
+class StimulusKeyframes(Strict):
+    """Stimulus interpolated linearly between values at increasing times, held outside the table (e.g. a measured
+    temperature history)."""
+
+    type: Literal["keyframes"]
+    times: list[float] = Field(min_length=1, description="Strictly increasing times, s.")
+    values: list[float] = Field(min_length=1, description="Stimulus at those times (one per time).")
+
+    @model_validator(mode="after")
+    def _rows(self):
+        if len(self.times) != len(self.values):
+            raise ValueError(f"times and values must have the same length, got {len(self.times)} and {len(self.values)}")
+        if any(b <= a for a, b in zip(self.times, self.times[1:])):
+            raise ValueError("times must be strictly increasing")
+        return self
+
+
+class StimulusSine(Strict):
+    """s(t) = offset + amplitude sin(2 pi frequency t + phase): cyclic heating and cooling."""
+
+    type: Literal["sine"]
+    frequency: float = Field(gt=0, description="Frequency, Hz.")
+    amplitude: float = Field(default=1.0, description="Amplitude (stimulus unit).")
+    offset: float = Field(default=0.0, description="Mean value (stimulus unit).")
+    phase: float = Field(default=0.0, description="Phase, degrees.")
+
+
+class StimulusConstant(Strict):
+    """A stimulus that does not change (a pre-shrunk or pre-swollen material)."""
+
+    type: Literal["constant"]
+    value: float = Field(description="The stimulus (stimulus unit).")
+
+
+StimulusProfile = Annotated[Union[StimulusRamp, StimulusKeyframes, StimulusSine, StimulusConstant], Field(discriminator="type")]
+
+
+def _table(name: str):
+    def check(rows: list[list[float]]) -> list[list[float]]:
+        from magsoro.mpm.eigenstrain import table_problem
+
+        problem = table_problem(rows, name)
+        if problem is not None:
+            raise ValueError(problem)
+        return rows
+
+    return check
+
+
+class Stimulus(Strict):
+    """Stimulus-driven eigenstrain (docs/engine.md, "Stimulus-driven eigenstrain"): the material's stress-free
+    shape follows a scalar stimulus s(t) (temperature, swelling ratio, ...): F = F_e F_s with F_s = lambda(s) I, or
+    I + (lambda - 1) a a^T along the unit direction a, and energy f(s) det(F_s) W(F_e) with the material's own law
+    W, so a free body shrinks (lambda < 1) or swells (> 1) stress-free and its moduli scale by f. The tables are
+    interpolated linearly in s and held constant outside it. 2D (plane strain): the stretch acts in the plane only.
+    Bodies with different materials (a bilayer) each follow their own table."""
+
+    profile: StimulusProfile = Field(description="Time profile of the stimulus: a table [StimulusRamp](#stimulusramp), [StimulusKeyframes](#stimuluskeyframes), [StimulusSine](#stimulussine) or [StimulusConstant](#stimulusconstant).")
+    stretch: Annotated[list[list[float]], AfterValidator(_table("lambda"))] = Field(description="Eigenstretch table [[s, lambda], ...]: s strictly increasing, lambda > 0 (1: unchanged; 0.8: shrunk to 80 % of its length).")
+    modulus_factor: Optional[Annotated[list[list[float]], AfterValidator(_table("f"))]] = Field(default=None, description="Table [[s, f], ...] scaling every elastic modulus (G or the law's constants, and K) by f > 0. Default: f = 1.")
+    direction: Optional[Direction] = Field(default=None, description="Direction a of the stretch in the reference frame (3 components in 3D, 2 in 2D; any non-zero length). Default: isotropic.")
+
+
 class Material(Strict):
     """Material of a body: a compressible hyperelastic solid with volumetric energy K/2 (J - 1)^2.
 
@@ -202,6 +275,7 @@ class Material(Strict):
     C11: float | None = Field(default=None, description="Polynomial C11, Pa. Default 0.")
     C02: float | None = Field(default=None, description="Polynomial C02, Pa. Default 0.")
     bulk_modulus: float | None = Field(default=None, gt=0, description="Bulk modulus K, Pa. Default 20 x the initial shear modulus (seed 000).")
+    stimulus: Stimulus | None = Field(default=None, description="Optional [Stimulus](#stimulus): a stretch and modulus factor following a stimulus in time (thermo-responsive hydrogels, swelling, LCEs).")
 
     @model_validator(mode="after")
     def _complete(self):
