@@ -152,6 +152,10 @@ class Rollout:
             raise ValueError("the differentiable rollout cannot differentiate the Ogden law (its principal-stretch "
                              "stress has no reliable gradient at repeated stretches, the undeformed state included); "
                              "give the bodies another model (e.g. 'polynomial' or 'yeoh')")
+        if np.any(m.host["magnetization_follows"] != 0):
+            # the R law's stress goes through wp.svd3 (3D), whose adjoint is unreliable at repeated singular values
+            raise ValueError("the differentiable rollout has no magnetization_follows = 'R' yet; give the materials "
+                             "magnetization_follows = 'F' (or run the scene with magsoro run)")
         if getattr(m, "stimuli", ()):
             # the eigenstrain tables are set per step from the host; the rollout's tape has no per-step copy of them
             raise ValueError("the differentiable rollout has no stimulus-driven eigenstrain yet; remove material.stimulus "

@@ -32,6 +32,16 @@ MODES = ("none", "dipole")
 MARGIN = 2  # nodes kept between the magnetised particles' box and the grid's edge (the stencil's reach)
 
 
+def polar_rotation_np(F: np.ndarray) -> np.ndarray:
+    """The rotation R of the polar decomposition F = R U of each of ``F`` (..., dim, dim), float64, as the engine's
+    ``polar_rotation`` (:func:`magsoro.mpm.stencil.make_magnetization`) takes it: from the SVD F = W S V^T,
+    R = W V^T with the last column of W flipped where det(W V^T) < 0."""
+    W, _, Vt = np.linalg.svd(np.asarray(F, dtype=np.float64))
+    flip = np.linalg.det(W @ Vt) < 0.0
+    W[flip, :, -1] *= -1.0
+    return W @ Vt
+
+
 def sym_pairs(dim: int) -> list[tuple[int, int]]:
     """The (a, b), a <= b, components of a symmetric dim x dim tensor in the order the grids store them."""
     return [(a, b) for a in range(dim) for b in range(a, dim)]
@@ -81,6 +91,7 @@ def make_interaction_kernels(dim: int, scalar) -> dict:
     vec, mat, ivec, v3, m3 = t.vec, t.mat, t.ivec, t.v3, t.m3
     NS = s.NS
     inplane, bspline_weights, local_coords = s.inplane, s.bspline_weights, s.local_coords
+    moment_map = s.moment_map
     outside_block, flat_index, stencil_node = s.outside_block, s.flat_index, s.stencil_node
     n_sym = dim * (dim + 1) // 2
     vsym = wp.types.vector(length=n_sym, dtype=scalar)
@@ -90,6 +101,7 @@ def make_interaction_kernels(dim: int, scalar) -> dict:
         x: wp.array(dtype=vec),
         F: wp.array(dtype=mat),
         Br: wp.array(dtype=v3),
+        follows: wp.array(dtype=wp.int32),
         vol0: wp.array(dtype=scalar),
         lo: vec,
         inv_h: scalar,
@@ -100,12 +112,13 @@ def make_interaction_kernels(dim: int, scalar) -> dict:
         select: int,
         M: wp.array(dtype=scalar),
     ):
-        """Spread particle ``p``'s moment F Br V0 ``scale`` (A m^2; 2D: A m, in-plane) onto its stencil's nodes:
+        """Spread particle ``p``'s moment F Br V0 ``scale`` (A m^2; 2D: A m, in-plane; R Br V0 ``scale`` when it
+        follows R, :func:`magsoro.mpm.stencil.make_magnetization`) onto its stencil's nodes:
         M[a n_total + node] holds component a. ``select`` >= 0: only the particles of that body."""
         p = wp.tid()
         if select >= 0 and body[p] != select:
             return
-        Fbr = F[p] * inplane(Br[p])
+        Fbr = moment_map(F[p], follows[p]) * inplane(Br[p])
         if wp.length_sq(Fbr) == scalar(0.0):
             return
         base, fx = local_coords(x[p], lo, inv_h)
@@ -271,7 +284,7 @@ class MagneticInteraction:
         scale = 1.0 / (MU0 * self.depth)
         select = -1 if self._key == "all" else int(self._key)
         wp.launch(self.k["deposit_moments"], dim=m.n_particles, device=m.device,
-                  inputs=[x, F, m.Br, m.vol0, lo, inv_h, shape, total, m.scalar(scale), m.body, select, self._M])
+                  inputs=[x, F, m.Br, m.follows, m.vol0, lo, inv_h, shape, total, m.scalar(scale), m.body, select, self._M])
         dim, padded, n = self.dim, self._padded[self._key], tuple(int(v) for v in self._n)
         if not self._on_cpu:
             self.host_reads += 1
@@ -307,10 +320,16 @@ class MagneticInteraction:
     # -- the self-torque -------------------------------------------------------------------------------------
     def moments(self, F_np: np.ndarray) -> np.ndarray:
         """Each particle's current moment m = F Br V0 / mu0 (A m^2), (N, 3); 2D: the in-plane part carried by F
-        and the out-of-plane part Br_z V0 / mu0, as the engine's gradient force takes it."""
+        and the out-of-plane part Br_z V0 / mu0, as the engine's gradient force takes it. Particles whose moment
+        follows R (magnetization_follows 1) carry Br with the rotation R of F = R U instead."""
         h, dim = self.model.host, self.dim
         m = np.array(h["remanence"], dtype=np.float64)
-        m[:, :dim] = np.einsum("pij,pj->pi", F_np.astype(np.float64), m[:, :dim])
+        Fm = F_np.astype(np.float64)
+        rot = h["magnetization_follows"] != 0
+        if rot.any():
+            Fm = Fm.copy()
+            Fm[rot] = polar_rotation_np(Fm[rot])
+        m[:, :dim] = np.einsum("pij,pj->pi", Fm, m[:, :dim])
         return m * (h["volumes"][:, None] / MU0)
 
     def _remove_self_torque(self, x: wp.array, F: wp.array) -> None:

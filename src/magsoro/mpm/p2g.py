@@ -26,20 +26,25 @@ def make_p2g(dim: int, scalar, two_fields: bool = False) -> dict:
     # Constants are computed here in double precision: literal arithmetic inside a kernel runs in float32.
     inv_mu0 = 1.0 / MU0
     body_elastic_stress = s.body_elastic_stress
+    moment_map, rotation_stress = s.moment_map, s.rotation_stress
 
     @wp.func
     def particle_stress(Fp: mat, b: Bodies, p: int, B: v3):
         """First Piola stress of particle ``p``: its elastic law (with its stimulus eigenstrain, if any) plus the
-        magnetic stress of a hard-magnetic elastomer (seed 000 eq 13), P = -(1/mu0) B (x) Br."""
+        magnetic stress of a hard-magnetic elastomer: P = -(1/mu0) B (x) Br when its moment follows F (seed 000
+        eq 13), dW/dF of W = -(1/mu0) B . R Br when it follows R (:func:`magsoro.mpm.stencil.make_magnetization`)."""
         br = b.Br[p]
+        if b.follows[p] != 0:
+            return body_elastic_stress(Fp, b, p) + rotation_stress(Fp, B, br)
         return body_elastic_stress(Fp, b, p) - scalar(inv_mu0) * wp.outer(inplane(B), inplane(br))
 
     @wp.func
     def gradient_force(Fp: mat, b: Bodies, p: int, G: m3):
         """Gradient force (seed 000 eqs 15-16) on particle ``p``: f = (grad B)^T m with m = F Br V0 / mu0 its
-        current moment; summing w f over nodes gives the node form since the weights sum to one."""
+        current moment (R Br V0 / mu0 when it follows R); summing w f over nodes gives the node form since the
+        weights sum to one."""
         br = b.Br[p]
-        Fbr = Fp * inplane(br)
+        Fbr = moment_map(Fp, b.follows[p]) * inplane(br)
         m3d = v3()
         for a in range(dim):
             m3d[a] = Fbr[a]

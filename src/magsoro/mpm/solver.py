@@ -109,7 +109,7 @@ def bodies_array(model: "Model", cut=lambda arr: arr) -> wp.array:
     b = k["Bodies"]()
     b.vol0, b.mass, b.shear, b.bulk = cut(model.vol0), cut(model.mass), cut(model.shear), cut(model.bulk)
     b.material_model, b.material_params = cut(model.material_model), cut(model.material_params)
-    b.Br, b.clamped = cut(model.Br), cut(model.clamped)
+    b.Br, b.follows, b.clamped = cut(model.Br), cut(model.follows), cut(model.clamped)
     # the stimulus tables are indexed by each particle's stimulus row, not by particle: never cut
     b.stimulus, b.stretch_inv, b.stretch_scale = cut(model.stimulus), model.stretch_inv, model.stretch_scale
     b.n_stimuli = len(model.stimuli)
@@ -208,6 +208,8 @@ class Model:
     (C10, C01, ...), (C10, C20, C30, ...), (mu1, alpha1, mu2, alpha2, mu3, alpha3) or (C10, C01, C20, C11, C02, 0)
     (MaterialLaw.pack); shear_modulus is then the initial shear modulus (2 (C10 + C01), 2 C10 or sum mu_i), used
     for the time step. The laws and their codes: :mod:`magsoro.mpm.materials`.
+    magnetization_follows (N,) int: the map carrying each particle's remanence, 0 F (default, Zhao's law) or 1 the
+    rotation R of F = R U (:func:`magsoro.mpm.stencil.make_magnetization`).
     stimuli: :class:`magsoro.mpm.eigenstrain.Stimulus` laws (a material's stretch following a stimulus in time),
     with stimulus (N,) int the row of each particle's (-1: none); :meth:`update_stimuli` sets the tables the kernels
     read to a time (t = 0 at construction; the solver calls it every step).
@@ -236,6 +238,7 @@ class Model:
         contact_group=None,
         stimulus=None,
         stimuli=(),
+        magnetization_follows=None,
     ):
         if precision not in PRECISIONS:
             raise ValueError(f"precision must be one of {sorted(PRECISIONS)}, got {precision!r}")
@@ -263,6 +266,7 @@ class Model:
             body=np.broadcast_to(np.asarray(body, dtype=np.int32), (n,)).copy(),
             clamped=np.broadcast_to(np.asarray(clamped, dtype=bool), (n,)).copy(),
             material_model=np.broadcast_to(np.asarray(0 if material_model is None else material_model, dtype=np.int32), (n,)).copy(),
+            magnetization_follows=np.broadcast_to(np.asarray(0 if magnetization_follows is None else magnetization_follows, dtype=np.int32), (n,)).copy(),
             material_params=np.broadcast_to(np.asarray(0.0 if material_params is None else material_params, dtype=np.float64), (n, LAW_PARAM_COUNT)).copy(),
         )
         h = self.host
@@ -280,6 +284,9 @@ class Model:
         if not np.all(np.isin(h["material_model"], list(self.MATERIAL_MODELS.values()))):
             raise ValueError(f"material_model must be {describe_codes()}")
         self.material_model = wp.array(h["material_model"], dtype=wp.int32, device=dev)
+        if not np.all(np.isin(h["magnetization_follows"], (0, 1))):
+            raise ValueError("magnetization_follows must be 0 (F) or 1 (R)")
+        self.follows = wp.array(h["magnetization_follows"], dtype=wp.int32, device=dev)
         self.material_params = wp.array(h["material_params"].astype(s), dtype=k["vprm"], device=dev)
         self.body = wp.array(h["body"], dtype=wp.int32, device=dev)
         self.clamped = wp.array(h["clamped"].astype(np.int32), dtype=wp.int32, device=dev)

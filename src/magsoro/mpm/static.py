@@ -138,7 +138,7 @@ class StaticResult:
 
 def check_supported(sim) -> None:
     """Raise SimulationError naming what the static solver cannot take in ``sim`` (form, contact, colliders, the
-    bodies' own field)."""
+    bodies' own field, moments that follow R)."""
     solver = sim.solver
     if solver.settings.formulation != "total":
         raise SimulationError("the static solver works on the total-Lagrangian form (simulation.formulation = 'total' or 'auto')")
@@ -148,6 +148,10 @@ def check_supported(sim) -> None:
     if solver.interaction is not None:
         raise SimulationError("the static solver has no magnetic interaction between bodies yet "
                               "(simulation.magnetic_interaction = 'none', or use --equilibrium)")
+    if np.any(sim.model.host["magnetization_follows"] != 0):
+        # its tangent takes the magnetic stress and the moment as Zhao's law has them (F Br); the R law's dP/dF is not in it
+        raise SimulationError("the static solver has no magnetization_follows = 'R' yet (its tangent carries the moment "
+                              "with F); give the materials magnetization_follows = 'F', or use --equilibrium (relax)")
 
 
 class StaticSolver:

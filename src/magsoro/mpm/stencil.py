@@ -15,6 +15,7 @@ from types import SimpleNamespace
 import numpy as np
 import warp as wp
 
+from magsoro.constants import MU0
 from magsoro.mpm.contact import make_contact
 from magsoro.mpm.materials import LAW_PARAM_COUNT, make_material_functions
 
@@ -66,6 +67,7 @@ def make_types(dim: int, scalar) -> SimpleNamespace:
         material_model: wp.array(dtype=wp.int32)
         material_params: wp.array(dtype=vprm)
         Br: wp.array(dtype=v3)
+        follows: wp.array(dtype=wp.int32)
         clamped: wp.array(dtype=wp.int32)
         stimulus: wp.array(dtype=wp.int32)
         stretch_inv: wp.array(dtype=mat)
@@ -158,6 +160,120 @@ def make_body_elastic(dim: int, scalar) -> SimpleNamespace:
         return W
 
     return SimpleNamespace(body_elastic_stress=body_elastic_stress, body_elastic_energy=body_elastic_energy)
+
+
+#: codes of a material's magnetisation kinematics (scene key material.magnetization_follows)
+MAGNETIZATION_FOLLOWS = {"F": 0, "R": 1}
+
+
+@functools.cache
+def make_magnetization(dim: int, scalar) -> SimpleNamespace:
+    """How a particle's remanence Br (reference frame) is carried into the current one (docs/engine.md,
+    "Magnetisation kinematics"): by F (``follows`` 0, Zhao's law: m = F Br V0 / mu0, W = -(1/mu0) B . F Br,
+    P = -(1/mu0) B (x) Br) or by the rotation R of the polar decomposition F = R U (``follows`` 1: m = R Br V0 / mu0,
+    W = -(1/mu0) B . R Br, P = dW/dF below). The two coincide (energy, moment, torque) for rigid rotations.
+
+    - ``polar_rotation(F)``: R. 2D: R = rot(theta), theta = atan2(F21 - F12, F11 + F22) in closed form (the
+      rotation that makes R^T F symmetric with the largest trace; R = I where F11 + F22 = F21 - F12 = 0). 3D: from
+      wp.svd3 F = W S V^T, R = W V^T, the column of the smallest singular value flipped where det(W V^T) < 0
+      (an inverted F: R stays a rotation and that singular value turns negative).
+    - ``moment_map(F, follows)``: F or R, the map applied to the in-plane Br.
+    - ``rotation_stress(F, B, Br)``: P of the R law (Pa). 3D: dR = R [omega]x with (tr U I - U) omega =
+      axial(2 skew(R^T dF)), so dW = -(1/mu0) omega . (Br x R^T B) and P = -(1/mu0) R [d]x with
+      d = (tr U I - U)^-1 (Br x R^T B), inverted in U's eigenbasis V (eigenvalues s_j + s_k); a sum
+      s_j + s_k <= 0 (only an inverted F) drops that component. 2D (plane strain, Br_z B_z does not depend on F):
+      d theta = (R^T dF) : J / tr U, J = [[0, -1], [1, 0]], so P = -(1/mu0) (B . R J Br) / tr U  R J.
+    - ``magnetic_energy(F, follows, B, Br)``: -(1/mu0) B . (map Br), J/m^3 of reference volume (2D: with the
+      out-of-plane term -(1/mu0) B_z Br_z)."""
+    t = make_types(dim, scalar)
+    vec, mat, v3 = t.vec, t.mat, t.v3
+    inv_mu0 = 1.0 / MU0
+
+    @wp.func
+    def inplane_of(b: v3):
+        if wp.static(dim == 2):
+            return vec(b[0], b[1])
+        else:
+            return vec(b[0], b[1], b[2])
+
+    if dim == 2:
+
+        @wp.func
+        def polar_cos_sin(F: mat):
+            """cos theta, sin theta and tr U = |(F11 + F22, F21 - F12)| of F = R U."""
+            a = F[0, 0] + F[1, 1]
+            b = F[1, 0] - F[0, 1]
+            r = wp.sqrt(a * a + b * b)
+            c = scalar(1.0)
+            s = scalar(0.0)
+            if r > scalar(0.0):
+                c = a / r
+                s = b / r
+            return c, s, r
+
+        @wp.func
+        def polar_rotation(F: mat):
+            c, s, r = polar_cos_sin(F)
+            return mat(c, -s, s, c)
+
+        @wp.func
+        def rotation_stress(F: mat, B: v3, Br: v3):
+            c, s, r = polar_cos_sin(F)
+            P = mat()
+            if r > scalar(0.0):
+                RJ = mat(-s, -c, c, -s)
+                P = (-scalar(inv_mu0) * wp.dot(inplane_of(B), RJ * inplane_of(Br)) / r) * RJ
+            return P
+
+    else:
+
+        @wp.func
+        def polar_svd(F: mat):
+            W = mat()
+            S = vec()
+            V = mat()
+            wp.svd3(F, W, S, V)
+            if wp.determinant(W * wp.transpose(V)) < scalar(0.0):
+                for a in range(3):
+                    W[a, 2] = -W[a, 2]
+                S[2] = -S[2]
+            return W, S, V
+
+        @wp.func
+        def polar_rotation(F: mat):
+            W, S, V = polar_svd(F)
+            return W * wp.transpose(V)
+
+        @wp.func
+        def rotation_stress(F: mat, B: v3, Br: v3):
+            W, S, V = polar_svd(F)
+            R = W * wp.transpose(V)
+            c = wp.transpose(V) * wp.cross(Br, wp.transpose(R) * B)  # Br x R^T B in U's eigenbasis
+            d = vec()
+            for i in range(3):
+                den = S[(i + 1) % 3] + S[(i + 2) % 3]
+                if den > scalar(0.0):
+                    d[i] = c[i] / den
+            d = V * d
+            Dx = mat(scalar(0.0), -d[2], d[1], d[2], scalar(0.0), -d[0], -d[1], d[0], scalar(0.0))
+            return -scalar(inv_mu0) * (R * Dx)
+
+    @wp.func
+    def moment_map(F: mat, follows: int):
+        M = F
+        if follows != 0:
+            M = polar_rotation(F)
+        return M
+
+    @wp.func
+    def magnetic_energy(F: mat, follows: int, B: v3, Br: v3):
+        W = -wp.dot(inplane_of(B), moment_map(F, follows) * inplane_of(Br))
+        if wp.static(dim == 2):
+            W = W - B[2] * Br[2]
+        return scalar(inv_mu0) * W
+
+    return SimpleNamespace(polar_rotation=polar_rotation, moment_map=moment_map, rotation_stress=rotation_stress,
+                           magnetic_energy=magnetic_energy)
 
 
 @functools.cache
@@ -265,7 +381,8 @@ def make_stencil(dim: int, scalar, two_fields: bool = False) -> SimpleNamespace:
         return weight, of, first + flat_index(o, shape)
 
     body = make_body_elastic(dim, scalar)
-    return SimpleNamespace(types=t, NS=3**dim, ContactGrid=ContactGrid, slot_of=slot_of, inplane=inplane,
+    mag = make_magnetization(dim, scalar)
+    return SimpleNamespace(moment_map=mag.moment_map, rotation_stress=mag.rotation_stress, types=t, NS=3**dim, ContactGrid=ContactGrid, slot_of=slot_of, inplane=inplane,
                            bspline_weights=bspline_weights, stencil_offset=stencil_offset, flat_index=flat_index,
                            node_of_flat=node_of_flat, local_coords=local_coords, outside_block=outside_block,
                            stencil_node=stencil_node, body_elastic_stress=body.body_elastic_stress,

@@ -51,7 +51,8 @@ class BarSection:
 
 
 def bar_strain(sections: list[BarSection], magnet_at, remanence: float, shear_modulus: float, bulk_modulus: float,
-               density: float, gravity: float = 9.81, nodes_per_section: int = 40, samples: int = 3):
+               density: float, gravity: float = 9.81, nodes_per_section: int = 40, samples: int = 3,
+               follows: str = "F"):
     """Equilibrium of a bar hanging from z = 0 along -z, magnetised along +z with ``remanence`` (T), in the field
     of ``magnet_at`` (a magsoro.fields source), for the engine's magnetic energy -(F Br) . B / mu0 per reference
     volume (seed 000 eqs 13, 15-16) and its Neo-Hookean solid. Per reference length Z:
@@ -61,7 +62,14 @@ def bar_strain(sections: list[BarSection], magnet_at, remanence: float, shear_mo
     d the depth below the clamp, P the uniaxial nominal stress (:func:`uniaxial_stress`); Bz and its gradient
     are averaged over ``samples`` x ``samples`` points of each cross-section. Solved by damped fixed-point
     iteration on lambda(Z). Returns (tip depth (m), section stretches (mean lambda per section)), or None when
-    no equilibrium is found (the strip is pulled onto the magnet)."""
+    no equilibrium is found (the strip is pulled onto the magnet).
+
+    ``follows`` "R" (material.magnetization_follows): the moment follows the rotation of F = R U, here R = I, so
+    the energy is -Br Bz / mu0: the moment does not grow with lambda and there is no magnetic stress,
+    d/dZ [A P(lambda)] = -A (Br dBz/dd / mu0 + rho g)."""
+    if follows not in ("F", "R"):
+        raise ValueError(f"follows must be 'F' or 'R', got {follows!r}")
+    carried = 1.0 if follows == "F" else 0.0  # the power of lambda in the moment, and whether the stress is there
     lam_tab = np.linspace(0.5, 4.0, 701)
     P_tab = uniaxial_stress(shear_modulus, bulk_modulus, lam_tab)
     Z, dZ, A, sec_id, offs = [], [], [], [], []
@@ -86,9 +94,9 @@ def bar_strain(sections: list[BarSection], magnet_at, remanence: float, shear_mo
         flat = pts.reshape(-1, 3)
         Bz = magnet_at.B(flat)[:, 2].reshape(len(Z), npts).mean(axis=1)
         dBz_dd = -magnet_at.grad_B(flat)[:, 2, 2].reshape(len(Z), npts).mean(axis=1)
-        f = A * (lam * remanence * dBz_dd / MU0 + density * gravity)
+        f = A * (lam ** carried * remanence * dBz_dd / MU0 + density * gravity)
         T = np.cumsum((f * dZ)[::-1])[::-1] - f * dZ / 2
-        target = T / A + remanence * Bz / MU0
+        target = T / A + carried * remanence * Bz / MU0
         if target.max() >= P_tab[-1]:
             return None
         new = np.interp(target, P_tab, lam_tab)

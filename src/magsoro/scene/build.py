@@ -41,6 +41,7 @@ from magsoro.materials.library import MaterialLibraryError, get_material, load_l
 from magsoro.mpm.materials import DEFAULT_LAW, FIT_MODEL_LAWS, LAWS, PARAMETER_KEYS, law_of_file_model
 from magsoro.mpm.colliders import Collider
 from magsoro.mpm.eigenstrain import KeyframeStimulus, SineStimulus, Stimulus
+from magsoro.mpm.stencil import MAGNETIZATION_FOLLOWS
 from magsoro.mpm.solver import Control, ContactSettings, Model, SolverSettings
 from magsoro.scene.schema import Scene
 
@@ -204,7 +205,8 @@ def resolve_material(spec, base_dir, key: str, library: dict | None = None) -> d
     if not G > 0:
         raise SceneError(f"{key}: the initial shear modulus must be > 0 Pa, got {G}")
     K = float(values.get("bulk_modulus") or 20.0 * G)
-    return {"model": law.code, "shear_modulus": G, "bulk_modulus": K, "params": params, "density": float(values["density"]), "remanence": remanence}
+    follows = MAGNETIZATION_FOLLOWS[getattr(spec, "magnetization_follows", "F")]
+    return {"model": law.code, "follows": follows, "shear_modulus": G, "bulk_modulus": K, "params": params, "density": float(values["density"]), "remanence": remanence}
 
 
 def make_stimulus(spec, key: str) -> Stimulus:
@@ -285,6 +287,7 @@ class Particles:
     report: list[dict]
     stimulus: np.ndarray | None = None
     stimuli: list = field(default_factory=list)
+    magnetization_follows: np.ndarray | None = None
 
 
 def _lattice_index(pts, lo, h):
@@ -428,6 +431,7 @@ def fill_bodies(scene: Scene, source: str = "scene", magnetization=None) -> Part
         report=report,
         stimulus=per(lambda pb: pb["stimulus_row"], np.int32),
         stimuli=stimuli,
+        magnetization_follows=per(lambda pb: pb["mat"]["follows"], np.int32),
     )
 
 
@@ -609,7 +613,7 @@ def build(scene: Scene, device: str | None = None, source: str = "scene", magnet
         X, p.volumes, p.density, p.shear_modulus, p.bulk_modulus, p.remanence, body_id, clamped,
         dx=dx, domain_lo=lo, domain_hi=hi, precision=sim.precision, device=device or sim.device,
         material_model=p.material_model, material_params=p.material_params, contact_group=body_group[body_id],
-        stimulus=p.stimulus, stimuli=p.stimuli,
+        stimulus=p.stimulus, stimuli=p.stimuli, magnetization_follows=p.magnetization_follows,
     )
     report = p.report
     p_vel = p.velocity

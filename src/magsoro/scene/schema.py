@@ -276,6 +276,7 @@ class Material(Strict):
     C02: float | None = Field(default=None, description="Polynomial C02, Pa. Default 0.")
     bulk_modulus: float | None = Field(default=None, gt=0, description="Bulk modulus K, Pa. Default 20 x the initial shear modulus (seed 000).")
     stimulus: Stimulus | None = Field(default=None, description="Optional [Stimulus](#stimulus): a stretch and modulus factor following a stimulus in time (thermo-responsive hydrogels, swelling, LCEs).")
+    magnetization_follows: Literal["F", "R"] = Field(default="F", description="How the remanence is carried by the deformation: 'F' (Zhao's law, m = F Br V / mu0: a stretch along Br raises the moment) or 'R' (the rotation of F = R U, m = R Br V / mu0: only rotations turn it). The two coincide for rigid rotations; see docs/engine.md, Magnetisation kinematics.")
 
     @model_validator(mode="after")
     def _complete(self):
