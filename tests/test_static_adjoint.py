@@ -35,6 +35,7 @@ def test_adjoint_gradient_matches_central_differences():
         assert g[k] == pytest.approx(fd, rel=0.02)
 
 
+@pytest.mark.slow
 def test_optimize_static_cli(tmp_path):
     """`magsoro optimize --static`: the tip moves towards a target reached by the magnetisation turned 15 degrees
     (the error falls by more than half in 6 Adam steps), the design is written back and a fresh static solve of

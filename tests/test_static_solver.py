@@ -227,6 +227,7 @@ def test_field_probe_reads_the_level_of_the_static_solve():
         assert applied[0] == pytest.approx([0.0, level * 0.0059, 0.0], abs=1e-9)
 
 
+@pytest.mark.slow
 def test_3d_square_beam_against_the_rod():
     """Issue acceptance (3D): the validation beam with a square section (magsoro.validation.beam, t/dx = 2,
     float64), perpendicular field bn 0.001-0.004, tip dy/L within 2 % of the Kirchhoff rod (measured 1.1, 0.6,
