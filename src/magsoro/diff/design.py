@@ -32,6 +32,50 @@ class Variable:
         self.info = info
 
 
+def check_request(kinds, allowed, bodies, body_names, unknown_kind=None) -> None:
+    """MagsoroError for variable kinds not in ``allowed`` (``unknown_kind``: the message's template, with {kind}
+    and {allowed}), no kind at all, or a body name that is not in ``body_names``."""
+    unknown = [k for k in kinds if k not in allowed]
+    if unknown:
+        template = unknown_kind or "--vars: unknown variable kind '{kind}'; choose from {allowed}"
+        raise MagsoroError(template.format(kind=unknown[0], allowed=", ".join(allowed)))
+    if not kinds:
+        raise MagsoroError("--vars: give at least one variable kind")
+    if bodies is not None:
+        bad = [b for b in bodies if b not in body_names]
+        if bad:
+            raise MagsoroError(f"--bodies: no body named '{bad[0]}'; bodies: {', '.join(body_names)}")
+
+
+def body_variables(kind, host, body_index, chosen, bodies) -> list:
+    """The Variables of a body kind: ``magnetisation`` (a mean remanence vector, T, per magnetised body, or per
+    listed body when ``bodies`` is given), ``magnetisation_particles`` (every particle's) or ``material`` (the
+    shear modulus, Pa, of each Neo-Hookean body; a listed body that is not is an error)."""
+    out = []
+    Br = host["remanence"]
+    if kind in ("magnetisation", "magnetisation_particles"):
+        names = [b for b in chosen if bodies is not None or np.any(np.linalg.norm(Br[body_index[b]], axis=1) > 0)]
+        if not names:
+            raise MagsoroError("magnetisation: no magnetised body; name the bodies to design with --bodies")
+        scale = max(float(np.max(np.linalg.norm(Br, axis=1))), 1e-3)
+        for b in names:
+            idx = body_index[b]
+            if kind == "magnetisation":
+                out.append(Variable(f"{b}.magnetization", kind, Br[idx].mean(axis=0), scale, body=b))
+            else:
+                out.append(Variable(f"{b}.magnetization[particles]", kind, Br[idx], scale, body=b))
+    elif kind == "material":
+        for b in chosen:
+            idx = body_index[b]
+            if np.any(host["material_model"][idx] != 0):
+                if bodies is None:
+                    continue
+                raise MagsoroError(f"material: body '{b}' is not Neo-Hookean; only its shear modulus G can be designed")
+            G = float(host["shear_modulus"][idx].mean())
+            out.append(Variable(f"{b}.material.shear_modulus", kind, [G], G, body=b))
+    return out
+
+
 class Design:
     """The design variables of a scene for a :class:`~magsoro.diff.rollout.Rollout`.
 
@@ -44,15 +88,7 @@ class Design:
         self.scene, self.rollout = scene, rollout
         built = rollout.built
         self.dim = built.model.dim
-        unknown = [k for k in kinds if k not in KINDS]
-        if unknown:
-            raise MagsoroError(f"--vars: unknown variable kind '{unknown[0]}'; choose from {', '.join(KINDS)}")
-        if not kinds:
-            raise MagsoroError("--vars: give at least one variable kind")
-        if bodies is not None:
-            bad = [b for b in bodies if b not in built.body_names]
-            if bad:
-                raise MagsoroError(f"--bodies: no body named '{bad[0]}'; bodies: {', '.join(built.body_names)}")
+        check_request(kinds, KINDS, bodies, built.body_names)
         h = built.model.host
         self.body_index = {name: np.flatnonzero(h["body"] == i) for i, name in enumerate(built.body_names)}
         self.base = {key: h[key].copy() for key in ("remanence", "shear_modulus", "bulk_modulus")}
@@ -62,29 +98,9 @@ class Design:
             flat.extend(s.sources())
         self.vars: list[Variable] = []
         chosen = bodies if bodies is not None else built.body_names
-        Br = h["remanence"]
         for kind in kinds:
-            if kind in ("magnetisation", "magnetisation_particles"):
-                names = [b for b in chosen if bodies is not None or np.any(np.linalg.norm(Br[self.body_index[b]], axis=1) > 0)]
-                if not names:
-                    raise MagsoroError("magnetisation: no magnetised body; name the bodies to design with --bodies")
-                scale = max(float(np.max(np.linalg.norm(Br, axis=1))), 1e-3)
-                for b in names:
-                    idx = self.body_index[b]
-                    if kind == "magnetisation":
-                        self.vars.append(Variable(f"{b}.magnetization", kind, Br[idx].mean(axis=0), scale, body=b))
-                    else:
-                        self.vars.append(Variable(f"{b}.magnetization[particles]", kind, Br[idx], scale, body=b))
-            elif kind == "material":
-                names = chosen
-                for b in names:
-                    idx = self.body_index[b]
-                    if np.any(h["material_model"][idx] != 0):
-                        if bodies is None:
-                            continue
-                        raise MagsoroError(f"material: body '{b}' is not Neo-Hookean; only its shear modulus G can be designed")
-                    G = float(h["shear_modulus"][idx].mean())
-                    self.vars.append(Variable(f"{b}.material.shear_modulus", kind, [G], G, body=b))
+            if kind in ("magnetisation", "magnetisation_particles", "material"):
+                self.vars.extend(body_variables(kind, h, self.body_index, chosen, bodies))
             elif kind in ("field", "keyframes", "epm"):
                 found = False
                 for i, spec in enumerate(scene.fields):
@@ -245,4 +261,4 @@ class Design:
         return data
 
 
-__all__ = ["Design", "KINDS", "Variable"]
+__all__ = ["Design", "KINDS", "Variable", "body_variables", "check_request"]

@@ -25,7 +25,7 @@ from types import SimpleNamespace
 
 import numpy as np
 
-from magsoro.diff.design import Design, Variable
+from magsoro.diff.design import Design, body_variables, check_request
 from magsoro.errors import MagsoroError, SimulationError
 
 STATIC_KINDS = ("magnetisation", "material")
@@ -43,38 +43,13 @@ class StaticDesign(Design):
         self.sim, self.scene = sim, sim.scene
         self.rollout = SimpleNamespace(model=sim.model)  # what Design.write_back reads
         self.dim = sim.model.dim
-        unknown = [k for k in kinds if k not in STATIC_KINDS]
-        if unknown:
-            raise MagsoroError(f"--vars: '{unknown[0]}' is not a variable of a static design; choose from {', '.join(STATIC_KINDS)}")
-        if not kinds:
-            raise MagsoroError("--vars: give at least one variable kind")
-        if bodies is not None:
-            bad = [b for b in bodies if b not in built.body_names]
-            if bad:
-                raise MagsoroError(f"--bodies: no body named '{bad[0]}'; bodies: {', '.join(built.body_names)}")
+        check_request(kinds, STATIC_KINDS, bodies, built.body_names,
+                      "--vars: '{kind}' is not a variable of a static design; choose from {allowed}")
         h = sim.model.host
         self.body_index = {name: np.flatnonzero(h["body"] == i) for i, name in enumerate(built.body_names)}
         self.base = {key: h[key].copy() for key in ("remanence", "shear_modulus", "bulk_modulus")}
         chosen = bodies if bodies is not None else built.body_names
-        Br = h["remanence"]
-        self.vars = []
-        for kind in kinds:
-            if kind == "magnetisation":
-                names = [b for b in chosen if bodies is not None or np.any(np.linalg.norm(Br[self.body_index[b]], axis=1) > 0)]
-                if not names:
-                    raise MagsoroError("magnetisation: no magnetised body; name the bodies to design with --bodies")
-                scale = max(float(np.max(np.linalg.norm(Br, axis=1))), 1e-3)
-                for b in names:
-                    self.vars.append(Variable(f"{b}.magnetization", kind, Br[self.body_index[b]].mean(axis=0), scale, body=b))
-            else:
-                for b in chosen:
-                    idx = self.body_index[b]
-                    if np.any(h["material_model"][idx] != 0):
-                        if bodies is None:
-                            continue
-                        raise MagsoroError(f"material: body '{b}' is not Neo-Hookean; only its shear modulus G can be designed")
-                    G = float(h["shear_modulus"][idx].mean())
-                    self.vars.append(Variable(f"{b}.material.shear_modulus", kind, [G], G, body=b))
+        self.vars = [v for kind in kinds for v in body_variables(kind, h, self.body_index, chosen, bodies)]
         if not self.vars:
             raise MagsoroError("--vars: no body carries the variables asked for")
         self.sizes = [v.value.size for v in self.vars]
