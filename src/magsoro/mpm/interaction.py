@@ -332,7 +332,7 @@ class MagneticInteraction:
         m[:, :dim] = np.einsum("pij,pj->pi", Fm, m[:, :dim])
         return m * (h["volumes"][:, None] / MU0)
 
-    def _remove_self_torque(self, x: wp.array, F: wp.array) -> None:
+    def _remove_self_torque(self, x: wp.array, F: wp.array, x_np: np.ndarray) -> None:
         """Fold into ``G`` the force field that cancels, body by body, the net torque the body's own lattice
         field exerts on it (docs/engine.md, "Self-torque").
 
@@ -345,16 +345,17 @@ class MagneticInteraction:
         (I = sum_p w_p (|r_p|^2 1 - r_p r_p^T)), so magnetised material bears the correction and the net force
         stays zero. The engine's gradient force is (grad B)^T m at the particle's current moment, so the force
         enters ``G`` as the rank-one term m f^T / |m|^2, exact at the refresh. Torques between bodies are not
-        touched."""
+        touched. ``x_np``: the positions ``x`` on the host (the refresh read them already)."""
         dim = self.dim
-        x_np = x.numpy().astype(np.float64)
+        x_np = x_np.astype(np.float64)
         F_np = F.numpy()
         if not self._on_cpu:
-            self.host_reads += 2
+            self.host_reads += 1
         m = self.moments(F_np)
         w = np.linalg.norm(m, axis=1)
-        G_all = self.G.numpy()
-        own = len(self.bodies) > 1
+        G_all = self.G.numpy()  # on the CPU a view: the correction is written in place
+        B_all = None if len(self.bodies) > 1 else self.B.numpy()
+        own = B_all is None
         for b in self.bodies:
             sel = np.nonzero((self.body == b) & (w > 0.0))[0]
             if own:
@@ -363,7 +364,7 @@ class MagneticInteraction:
                 self._gather(x, self._B_own, self._G_own)
                 Bb, Gb = self._B_own.numpy()[sel], self._G_own.numpy()[sel]
             else:
-                Bb, Gb = self.B.numpy()[sel], G_all[sel]
+                Bb, Gb = B_all[sel], G_all[sel]
             Bb, Gb = Bb.astype(np.float64), Gb.astype(np.float64)
             ms, ws = m[sel], w[sel]
             c = (ws[:, None] * x_np[sel]).sum(axis=0) / ws.sum()
@@ -382,9 +383,7 @@ class MagneticInteraction:
                 self.self_torque[b] = tau
             fc = ws[:, None] * np.cross(alpha, r)
             G_all[sel] = G_all[sel] + (np.einsum("pi,pj->pij", ms, fc) / (ws * ws)[:, None, None]).astype(G_all.dtype)
-        if self._on_cpu:
-            self.G.numpy()[:] = G_all
-        else:
+        if not self._on_cpu:
             self.G.assign(G_all)
 
     # -- public ---------------------------------------------------------------------------------------------
@@ -396,11 +395,12 @@ class MagneticInteraction:
             return
         if not self._on_cpu:
             self.host_reads += 1
-        self._fit(x.numpy())
+        x_np = x.numpy()
+        self._fit(x_np)
         self._solve(x, F)
         self._gather(x, self.B, self.G)
         if self.correct_self_torque:
-            self._remove_self_torque(x, F)
+            self._remove_self_torque(x, F, x_np)
         self.refreshes += 1
 
     def add_to(self, B: wp.array, G: wp.array, keep: bool) -> None:
