@@ -440,7 +440,7 @@ class StaticSolver:
         data = np.bincount(inverse, weights=np.concatenate(values, axis=0).ravel()[keep], minlength=len(indices))
         J = sparse.csc_matrix((data, indices, indptr), shape=(n_dof, n_dof))
         if self.contact is not None:  # the colliders' springs at u (the scatter above evaluated them)
-            J = J + self.contact.tangent(self.free, self.dof_of_node)
+            J = J + self.contact.tangent(self.free)
         J = (self.E.T @ J @ self.E).tocsc()  # on the unknowns (_slaving)
         # what null modes the slaving leaves (a body thinner than its stencil): a shift of NULL_SHIFT of the
         # median diagonal keeps the factorisation regular; the residual has no part along them

@@ -77,7 +77,7 @@ class ColliderPenalty:
         self._touching = [np.zeros(0, np.int64) for _ in self.colliders]
         self._gaps = [None for _ in self.colliders]
         self.penetration = 0.0
-        self._last_u = np.zeros((n_nodes, self.dim))
+        self._last_x = self.X.copy()  # the nodes' contact positions at the last accepted increment
 
     # -- geometry ---------------------------------------------------------------------------------------------
     def positions(self, u_nodes: np.ndarray) -> np.ndarray:
@@ -140,7 +140,7 @@ class ColliderPenalty:
             inside = gap >= 0.0
             if mode != MODES["slip"]:
                 origin = self._origin(c)
-                last = self.positions(self._last_u)[act]
+                last = self._last_x[act]
                 stuck = np.zeros(len(act), bool)
                 for j, node in enumerate(act):
                     a = self.anchor[ci].get(int(node))
@@ -221,7 +221,7 @@ class ColliderPenalty:
         """Which nodes were in contact in the last :meth:`forces` evaluation (to tell a change of the set)."""
         return tuple(None if e is None else e[0].tobytes() for e in self._active)
 
-    def tangent(self, free: np.ndarray, dof_of_node: np.ndarray) -> sparse.csc_matrix:
+    def tangent(self, free: np.ndarray) -> sparse.csc_matrix:
         """d(W^T f)/du on the free DOFs (n_free dim square), from the last :meth:`forces` evaluation:
         -W^T K_c W with K_c the contact springs' block-diagonal stiffness."""
         dim = self.dim
@@ -256,7 +256,7 @@ class ColliderPenalty:
             origin = self._origin(c)
             phi, nrm = self._sdf(c, xt[self.touchable])
             touching = set(int(v) for v in self.touchable[phi <= self.level[ci]])
-            last = self.positions(self._last_u)
+            last = self._last_x
             new = {}
             for node in touching | set(self.anchor[ci]):
                 j = int(np.searchsorted(self.touchable, node))
@@ -278,5 +278,5 @@ class ColliderPenalty:
                             a = a + dt * (1.0 - self.slip / length)
                 new[node] = a
             self.anchor[ci] = new
-        self._last_u = u_nodes.copy()
+        self._last_x = xt
         self._held_accepted = [h.copy() for h in self.held]
