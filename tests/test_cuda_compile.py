@@ -4,10 +4,10 @@ readiness"): :mod:`magsoro.cuda_compile`.
 Cost and what the quick suite compiles
 --------------------------------------
 
-Everything (the 47 modules of ``warp_modules()``, forward and backward code as Warp builds them by default, O3)
+Everything (the 51 modules of ``warp_modules()``, forward and backward code as Warp builds them by default, O3)
 is about 330 CPU-seconds per arch on a cold kernel cache: 5.5 minutes of wall time for both archs on a 2-core
 machine. The 3D p2g and g2p modules are most of it: about 40 s each with contact and 13-19 s without, per arch.
-The quick suite compiles a covering subset instead (``quick_plan``: 54 compiles, 1.8 to 2.7 minutes cold on a
+The quick suite compiles a covering subset instead (``quick_plan``: 59 compiles, 1.8 to 2.7 minutes cold on a
 2-core machine depending on its load, under 10 s warm):
 
 - sm_90 (H100), the engine in a Latin square over (dimension, precision, contact): 3D float32 with contact,
@@ -16,11 +16,11 @@ The quick suite compiles a covering subset instead (``quick_plan``: 54 compiles,
   total / updated Lagrangian choice is a run-time argument) in each dimension and in each precision. Also every
   other module: ``contact_classify`` and ``stress_kernel`` for all four (dimension, precision), the field
   accumulate kernel with every field source's device function in all four, the magnetic interaction's deposit and
-  gather kernels and the static solver's kernels in all four, the bench reference (2D, 3D) and the differentiable rollout's kernels.
+  gather kernels, the static solver's kernels and the Prony update kernels in all four, the bench reference (2D, 3D) and the differentiable rollout's kernels.
 - sm_80 (A100): the other two 2D engine variants (2D float32 with contact, 2D float64 without), with which every
   engine kernel is compiled in both precisions and both contact forms, ``contact_classify`` and ``stress_kernel``
   in all four (dimension, precision), one field module (3D float32: the accumulate kernel with every field
-  source's device function), the 3D float32 magnetic interaction, the 3D float64 static solver, the 2D bench reference and the rollout's kernels: every kernel and every device
+  source's device function), the 3D float32 magnetic interaction, the 3D float64 static solver, the 2D float32 Prony kernels, the 2D bench reference and the rollout's kernels: every kernel and every device
   function the package defines, at least once. What changes between sm_80 and sm_90 is the arch-guarded code in
   Warp's CUDA headers, which depends on the builtins and types a kernel uses, not on the variant.
 
@@ -39,13 +39,13 @@ from magsoro import cuda_compile as cc
 
 ARCHS = (80, 90)
 #: warp_modules(): 8 engine variants x (p2g, g2p, grid) + (contact, kernels) x 4 + fields x 4 + magnetic
-#: interaction x 4 + static solver x 4 + reference x 2 + rollout
-EXPECTED_MODULES = 8 * 3 + 2 * 4 + 4 + 4 + 4 + 2 + 1
+#: interaction x 4 + static solver x 4 + viscous (Prony) x 4 + reference x 2 + rollout
+EXPECTED_MODULES = 8 * 3 + 2 * 4 + 4 + 4 + 4 + 4 + 2 + 1
 #: field sources with a device function (dipole, cuboid, cylinder exact and multipole, current loop, Magpylib
 #: lattice, regional uniform): each field module holds one accumulate kernel per function
 EXPECTED_FIELD_FUNCTIONS = 7
-#: the quick plan: sm_90 gets 4 engine variants x 3 + the 23 other modules, sm_80 2 x 3 + 13 (see the docstring)
-EXPECTED_QUICK_JOBS = (4 * 3 + 23) + (2 * 3 + 13)
+#: the quick plan: sm_90 gets 4 engine variants x 3 + the 27 other modules, sm_80 2 x 3 + 14 (see the docstring)
+EXPECTED_QUICK_JOBS = (4 * 3 + 27) + (2 * 3 + 14)
 
 _missing = [a for a in ARCHS if a not in cc.nvrtc_archs()]
 pytestmark = pytest.mark.skipif(
@@ -69,7 +69,8 @@ def _variant(label: str):
 
 #: on sm_80, of the field modules and the bench references (same kernels, other dimension / precision) only these
 SM80_ONE_OF = {"fields ": "fields 3D float32: device", "bench reference ": "bench reference 2D: reference",
-              "interaction ": "interaction 3D float32: interaction", "static ": "static 3D float64: static"}
+              "interaction ": "interaction 3D float32: interaction", "static ": "static 3D float64: static",
+              "viscous ": "viscous 2D float32: viscous"}
 
 
 def _quick_arch(label: str, arch: int) -> bool:

@@ -30,6 +30,7 @@ second of compile each.) Every variant the package can create is listed:
   (``stress_kernel``, ``body_stress_kernel``; one per dimension and precision);
 - ``fields {2,3}D {float32,float64}: device``: the field accumulate kernel (:mod:`magsoro.fields.device`) for the
   device function of every field source (found from the ``device_func`` methods of the package's sources);
+- ``viscous {2,3}D {float32,float64}: viscous``: the Prony update and overstress kernels (:mod:`magsoro.mpm.viscous`);
 - ``bench reference {2,3}D: reference``: the bare MLS-MPM step of ``magsoro bench``;
 - ``diff.rollout`` (and any other module with module-level kernels): those kernels as they are.
 
@@ -262,6 +263,7 @@ def _catalogue() -> tuple:
     from magsoro.mpm.kernels import _stress_kernel
     from magsoro.mpm.static import make_static_kernels
     from magsoro.mpm.p2g import make_p2g
+    from magsoro.mpm.viscous import make_viscous
 
     scalars = {"float32": wp.float32, "float64": wp.float64}
     seen: set = set()
@@ -288,6 +290,7 @@ def _catalogue() -> tuple:
         for sname in SCALAR_NAMES:
             groups += _groups_of(f"interaction {dim}D {sname}", _fresh(make_interaction_kernels, dim, scalars[sname]), seen)
             groups += _groups_of(f"static {dim}D {sname}", _fresh(make_static_kernels, dim, scalars[sname]), seen)
+            groups += _groups_of(f"viscous {dim}D {sname}", _fresh(make_viscous, dim, scalars[sname]), seen)
     for dim in DIMS:
         groups += _groups_of(f"bench reference {dim}D", _fresh(reference_kernels, dim), seen)
     # kernels defined at module level (the differentiable rollout's, and any new module's)

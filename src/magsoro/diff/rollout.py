@@ -31,6 +31,7 @@ from magsoro.mpm.colliders import COLLIDER_STRIDE, MODES, collider_table
 from magsoro.mpm.kernels import F_FROM_GRID, F_FROM_REMAP
 from magsoro.mpm.materials import LAWS
 from magsoro.mpm.solver import block_struct, bodies_array, contact_grid, grid_settings
+from magsoro.mpm.viscous import viscous_struct
 
 
 class DiffError(MagsoroError):
@@ -160,12 +161,17 @@ class Rollout:
             # the eigenstrain tables are set per step from the host; the rollout's tape has no per-step copy of them
             raise ValueError("the differentiable rollout has no stimulus-driven eigenstrain yet; remove material.stimulus "
                              "from the bodies (or run the scene with magsoro run)")
+        if getattr(m, "viscous", False):
+            # the internal stresses are updated in place of the state; the rollout's states do not carry them
+            raise ValueError("the differentiable rollout has no viscoelastic (prony) materials yet; remove material.prony "
+                             "from the bodies (or run the scene with magsoro run)")
         groups = int(m.host["contact_group"].max()) + 1
         if st.contact is not None and st.contact.active(groups):
             raise ValueError("the differentiable rollout has no contact between bodies or self-contact; give the scene "
                              "contact.friction = 'sticky' (one velocity field) or a single body")
         self.k = k = m.kernels
         self._no_contact = contact_grid(m)  # one velocity field per node
+        self._no_viscous = viscous_struct(m, None)
         self._no_shift = wp.zeros(1, dtype=k["vec"], device=m.device)  # grid_update's node displacements (total form only)
         self.dim, self.dev, self.sc = m.dim, m.device, m.scalar
         self.dt = float(dt)
@@ -299,8 +305,8 @@ class Rollout:
         structs = dst.structs(k, self)
         wp.launch(
             k["p2g"], dim=n,
-            inputs=[src.x, src.v, src.C, src.F, self._bodies, applied, self._block, dt, structs["grid"], self.error, 0,
-                    self._no_contact],
+            inputs=[src.structs(k, self)["out"], self._bodies, applied, self._block, dt, structs["grid"], self.error, 0,
+                    self._no_contact, self._no_viscous],
             device=dev,
         )
         wp.launch(

@@ -7,6 +7,7 @@ import warp as wp
 
 from magsoro.constants import MU0
 from magsoro.mpm.stencil import make_stencil
+from magsoro.mpm.viscous import make_viscous
 
 # Unroll the 3^dim-node stencil loops (27 in 3D): constant offsets let the compiler fold the weight selection.
 wp.set_module_options({"max_unroll": 32})
@@ -18,7 +19,7 @@ def make_p2g(dim: int, scalar, two_fields: bool = False) -> dict:
     s = make_stencil(dim, scalar, two_fields)
     t = s.types
     vec, mat, v3, m3 = t.vec, t.mat, t.v3, t.m3
-    Block, Bodies, Applied, GridArrays = t.Block, t.Bodies, t.Applied, t.GridArrays
+    Block, Bodies, Applied, GridArrays, Particles = t.Block, t.Bodies, t.Applied, t.GridArrays, t.Particles
     ContactGrid = s.ContactGrid
     NS = s.NS
     slot_of, inplane, bspline_weights = s.slot_of, s.inplane, s.bspline_weights
@@ -27,6 +28,8 @@ def make_p2g(dim: int, scalar, two_fields: bool = False) -> dict:
     inv_mu0 = 1.0 / MU0
     body_elastic_stress = s.body_elastic_stress
     moment_map, rotation_stress = s.moment_map, s.rotation_stress
+    visc = make_viscous(dim, scalar)
+    Viscous, overstress = visc["Viscous"], visc["overstress"]
 
     @wp.func
     def particle_stress(Fp: mat, b: Bodies, p: int, B: v3):
@@ -55,10 +58,7 @@ def make_p2g(dim: int, scalar, two_fields: bool = False) -> dict:
 
     @wp.kernel
     def p2g(
-        x: wp.array(dtype=vec),
-        v: wp.array(dtype=vec),
-        C: wp.array(dtype=mat),
-        F: wp.array(dtype=mat),
+        src: wp.array(dtype=Particles),
         bodies: wp.array(dtype=Bodies),
         applied: Applied,
         block: Block,
@@ -67,34 +67,39 @@ def make_p2g(dim: int, scalar, two_fields: bool = False) -> dict:
         error: wp.array(dtype=wp.int32),
         total: int,
         ct: wp.array(dtype=ContactGrid),
+        vs: Viscous,
     ):
-        """Particle-to-grid transfer of mass, momentum and the stress impulse. ``x`` are the positions the grid
-        weights are taken at: the current ones (updated Lagrangian, ``total`` = 0) or the reference ones (total
+        """Particle-to-grid transfer of mass, momentum and the stress impulse from the particles ``src`` (x, v, C,
+        F). Its ``x`` are the positions the grid weights are taken at: the current ones (updated Lagrangian, ``total`` = 0) or the reference ones (total
         Lagrangian, ``total`` = 1: the grid is the reference configuration's, and the node force takes the first
         Piola stress P instead of the Kirchhoff stress P F^T). In the contact variant each node has two
         velocity fields (:mod:`magsoro.mpm.contact`): the particle scatters into its own, and adds its share of
-        that field's mass gradient."""
+        that field's mass gradient. ``vs``: the Prony materials' internal stresses (:mod:`magsoro.mpm.viscous`),
+        whose overstress adds to P."""
         p = wp.tid()
         dx = block.dx
         inv_dx = scalar(1.0) / dx
-        base, fx = local_coords(x[p], block.lo, inv_dx)
+        sp = src[0]
+        base, fx = local_coords(sp.x[p], block.lo, inv_dx)
         if outside_block(base, block.shape):
             error[0] = 1  # particle outside the active grid block: the solver refits and reports
             return
         w0, w1, w2 = bspline_weights(fx)
         b = bodies[0]
-        Fp = F[p]
+        Fp = sp.F[p]
         B = applied.B_uniform
         if applied.has_gradient != 0:
             B = B + applied.B[p]
         P = particle_stress(Fp, b, p, B)
+        if vs.n_rows > 0:
+            P = P + overstress(Fp, vs, p)
         # MLS-MPM: grid force -V0 P F^T grad w, with grad w = (4/dx^2) w (x_i - x_p) for quadratic B-splines
         stress = (-dt * b.vol0[p] * scalar(4.0) * inv_dx * inv_dx) * P
         if total == 0:
             stress = stress * wp.transpose(Fp)
         mp = b.mass[p]
-        affine = stress + mp * C[p]
-        mv = mp * v[p]
+        affine = stress + mp * sp.C[p]
+        mv = mp * sp.v[p]
         if applied.has_gradient != 0:
             mv = mv + dt * gradient_force(Fp, b, p, applied.G[p])
         is_clamped = b.clamped[p]

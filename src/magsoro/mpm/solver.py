@@ -31,6 +31,8 @@ from magsoro.mpm.kernels import F_FROM_GRID, F_FROM_REMAP, F_TOTAL, make_kernels
 from magsoro.mpm.materials import LAW_PARAM_COUNT, LAWS, describe_codes
 from magsoro.mpm.stencil import host_bspline
 from magsoro.mpm.timestep import cfl_time_step
+from magsoro.mpm.prony import device_tables, prony_table
+from magsoro.mpm.viscous import make_viscous, viscous_struct
 
 PRECISIONS = {"float32": (wp.float32, np.float32), "float64": (wp.float64, np.float64)}
 
@@ -213,6 +215,8 @@ class Model:
     stimuli: :class:`magsoro.mpm.eigenstrain.Stimulus` laws (a material's stretch following a stimulus in time),
     with stimulus (N,) int the row of each particle's (-1: none); :meth:`update_stimuli` sets the tables the kernels
     read to a time (t = 0 at construction; the solver calls it every step).
+    pronies: Prony tables [[g, tau], ...] (viscoelastic materials, :mod:`magsoro.mpm.viscous`), with prony (N,) int
+    the row of each particle's (-1: elastic); a particle cannot have both a stimulus and a Prony row.
     """
 
     MATERIAL_MODELS = {name: law.code for name, law in LAWS.items()}
@@ -239,6 +243,8 @@ class Model:
         stimulus=None,
         stimuli=(),
         magnetization_follows=None,
+        prony=None,
+        pronies=(),
     ):
         if precision not in PRECISIONS:
             raise ValueError(f"precision must be one of {sorted(PRECISIONS)}, got {precision!r}")
@@ -297,6 +303,33 @@ class Model:
         h["contact_group"] = group
         self.contact_group = wp.array(group, dtype=wp.int32, device=dev)
         self._init_stimuli(stimulus, stimuli)
+        self._init_prony(prony, pronies)
+
+    def _init_prony(self, prony, pronies) -> None:
+        """Per-particle Prony rows and the device tables of g and tau per row (:mod:`magsoro.mpm.viscous`)."""
+        n, dev, h = self.n_particles, self.device, self.host
+        self.prony = tuple(prony_table(p) for p in pronies)
+        rows = np.broadcast_to(np.asarray(-1 if prony is None else prony, dtype=np.int32), (n,)).copy()
+        if np.any(rows < -1) or np.any(rows >= len(self.prony)):
+            raise ValueError(f"prony must be -1 (none) or a row of the {len(self.prony)} Prony tables")
+        if np.any((rows >= 0) & (h["stimulus"] >= 0)):
+            raise ValueError("a particle cannot have both a Prony series and a stimulus eigenstrain")
+        h["prony"] = rows
+        used = sorted(set(rows[rows >= 0].tolist()))
+        self.prony_terms = max((len(self.prony[r]) for r in used), default=0)
+        g, tau = device_tables(self.prony, self.prony_terms)
+        s, v3 = self.np_scalar, self.kernels["v3"]
+        self.prony_row = wp.array(rows, dtype=wp.int32, device=dev)
+        self.prony_g = wp.array(g.astype(s), dtype=v3, device=dev)
+        self.prony_tau = wp.array(tau.astype(s), dtype=v3, device=dev)
+        self.empty_H = wp.zeros((0, 1), dtype=self.kernels["mat"], device=dev)
+        if self.prony_terms == 0:
+            self.prony = ()  # tables no particle uses: the kernels skip the viscous part
+
+    @property
+    def viscous(self) -> bool:
+        """Whether some particle has a Prony series (its state carries the internal stresses H)."""
+        return self.prony_terms > 0
 
     def _init_stimuli(self, stimulus, stimuli) -> None:
         """Per-particle stimulus rows, the device tables of F_s^-1 and f det F_s per stimulus (at t = 0), and the
@@ -354,7 +387,8 @@ class Model:
 
 @dataclass
 class State:
-    """Particle state: x (positions, m), v (velocities, m/s), C (affine velocity, 1/s), F (deformation gradient)."""
+    """Particle state: x (positions, m), v (velocities, m/s), C (affine velocity, 1/s), F (deformation gradient);
+    with Prony materials also H (N, 1 + terms), their internal stresses (:mod:`magsoro.mpm.viscous`)."""
 
     x: wp.array
     v: wp.array
@@ -362,15 +396,21 @@ class State:
     F: wp.array
     time: float = 0.0
     step: int = 0
+    H: wp.array | None = None
 
     def numpy(self) -> dict:
-        return {"x": self.x.numpy(), "v": self.v.numpy(), "C": self.C.numpy(), "F": self.F.numpy()}
+        out = {"x": self.x.numpy(), "v": self.v.numpy(), "C": self.C.numpy(), "F": self.F.numpy()}
+        if self.H is not None:
+            out["H"] = self.H.numpy()
+        return out
 
     def assign(self, other: "State") -> None:
         wp.copy(self.x, other.x)
         wp.copy(self.v, other.v)
         wp.copy(self.C, other.C)
         wp.copy(self.F, other.F)
+        if self.H is not None:
+            wp.copy(self.H, other.H)
         self.time, self.step = other.time, other.step
 
 
@@ -565,6 +605,7 @@ class Solver:
             v=wp.array(np.ascontiguousarray(v, dtype=s), dtype=k["vec"], device=m.device),
             C=wp.zeros(n, dtype=k["mat"], device=m.device),
             F=wp.array(np.ascontiguousarray(eye, dtype=s), dtype=k["mat"], device=m.device),
+            H=wp.zeros((n, 1 + m.prony_terms), dtype=k["mat"], device=m.device) if m.viscous else None,
         )
 
     # -- grid block -----------------------------------------------------------------------------------------
@@ -727,12 +768,15 @@ class Solver:
             grid.p, grid.m, grid.clamp = grid_p[t], grid_m[t], self.grid_clamp
             out = k["Particles"]()
             out.x, out.v, out.C, out.F = cut(state_out.x), cut(state_out.v), cut(state_out.C), cut(state_out.F)
+            src = k["Particles"]()  # what p2g reads: positions where the weights are taken, v, C and F of state_in
+            src.x, src.v, src.C, src.F = cut(x_grid), cut(state_in.v), cut(state_in.C), cut(state_in.F)
             checks = k["Checks"]()
             checks.bounds, checks.max_speed, checks.error = self._thread_bounds[t], self._thread_speed[t], self.error
             threads.append(dict(
                 t=t, cut=cut, n=b - a, applied=applied, bodies=bodies_array(m, cut),
                 grid=wp.array([grid], dtype=k["GridArrays"], device=dev),
                 out=wp.array([out], dtype=k["Particles"], device=dev),
+                src=wp.array([src], dtype=k["Particles"], device=dev),
                 checks=wp.array([checks], dtype=k["Checks"], device=dev),
             ))
 
@@ -745,8 +789,8 @@ class Solver:
 
         L = {
             "p2g": particles(k["p2g"], lambda th, cut: [
-                cut(x_grid), cut(state_in.v), cut(state_in.C), cut(state_in.F), th["bodies"], th["applied"], block,
-                sc(0.0), th["grid"], self.error, 1 if self._total else 0, ct]),
+                th["src"], th["bodies"], th["applied"], block, sc(0.0), th["grid"], self.error, 1 if self._total else 0,
+                ct, viscous_struct(m, state_in.H, cut)]),
             "grid_update": nodes(k["grid_update"], [
                 self.grid_p, self.grid_m, self._held if self._total else self.grid_clamp, org, block.shape, gs,
                 self.grid_v, ct, self.grid_u]),
@@ -756,12 +800,16 @@ class Solver:
             "sum_mass": [nodes(k["add_grid"], [self.grid_p, grid_p[t], self.grid_m, grid_m[t], 1]) for t in range(1, self.threads)],
             "sum_momentum": [nodes(k["add_grid"], [self.grid_p, grid_p[t], self.grid_m, grid_m[t], 0]) for t in range(1, self.threads)],
             # keep the states' arrays and the argument structs alive: the set is found again by the arrays' ids
-            "_arrays": (state_in.x, state_in.v, state_in.C, state_in.F, state_out.x, state_out.v, state_out.C, state_out.F),
+            "_arrays": (state_in.x, state_in.v, state_in.C, state_in.F, state_out.x, state_out.v, state_out.C, state_out.F,
+                        state_in.H, state_out.H),
             "_threads": threads,
             "_scalars": None,
             "_grid_settings": gs,  # dt and damping factor change with the step
             "_contact_grid": ct,  # referenced by pointer from the recorded launches
         }
+        if m.viscous:  # the Prony internal stresses of state_out from its new F (magsoro.mpm.viscous)
+            L["viscous"] = [nodes(make_viscous(m.dim, m.scalar)["viscous_update"], [
+                state_out.F, bodies_array(m), viscous_struct(m, state_in.H), state_out.H, sc(0.0)], m.n_particles)]
         if self._total:
             L["node_displacement"] = nodes(k["node_displacement"], [self._X0, state_in.x, m.mass, block, self.grid_u, ct],
                                            m.n_particles)
@@ -779,7 +827,8 @@ class Solver:
         return L
 
     def _launch_set(self, state_in: State, state_out: State, control: Control, has_gradient: bool) -> dict:
-        arrays = (state_in.x, state_in.v, state_in.C, state_in.F, state_out.x, state_out.v, state_out.C, state_out.F)
+        arrays = (state_in.x, state_in.v, state_in.C, state_in.F, state_out.x, state_out.v, state_out.C, state_out.F,
+                  state_in.H, state_out.H)
         key = (len(control.colliders), has_gradient) + tuple(id(a) for a in arrays)
         L = self._launch_sets.get(key)
         if L is None:
@@ -1023,7 +1072,7 @@ class Solver:
                 one.set_param_by_name("applied", th["applied"])
         if L["_scalars"] is None or L["_scalars"][1:] != scalars[1:]:
             dt_s = sc(dt)
-            for one in L["p2g"] + L["g2p"] + L.get("remap_F", []):
+            for one in L["p2g"] + L["g2p"] + L.get("remap_F", []) + L.get("viscous", []):
                 one.set_param_by_name("dt", dt_s)
             gs = L["_grid_settings"]
             gs.dt = dt_s
@@ -1071,13 +1120,16 @@ class Solver:
 
     def _gather(self, L: dict) -> None:
         """g2p on every thread; with the remap (counted in the g2p phase) the node momenta rebuilt from the
-        particles' new affine velocities over the first transfer's node masses and held-node flags, then F."""
+        particles' new affine velocities over the first transfer's node masses and held-node flags, then F; then
+        the Prony materials' internal stresses at the new F."""
         self._parallel(L["g2p"])
         if self._remap:
             for one in L["sum_momentum"]:
                 one.launch()
             L["remap_nodes"].launch()
             self._parallel(L["remap_F"])
+        for one in L.get("viscous", []):
+            one.launch()
 
     def _contact_pass(self, state_in: State, state_out: State, dt: float) -> None:
         """Total Lagrangian with contact (between bodies, self-contact): the reference grid cannot see bodies meet,

@@ -41,6 +41,7 @@ from magsoro.errors import SimulationError
 from magsoro.constants import MU0
 from magsoro.mpm.solver import block_struct, bodies_array, contact_grid
 from magsoro.mpm.stencil import host_bspline, make_stencil
+from magsoro.mpm.viscous import viscous_struct
 
 #: central-difference step of the material tangent dP/dF (dimensionless) and of the field's gradient (cells)
 F_STEP = 1e-6
@@ -152,6 +153,11 @@ def check_supported(sim) -> None:
         # its tangent takes the magnetic stress and the moment as Zhao's law has them (F Br); the R law's dP/dF is not in it
         raise SimulationError("the static solver has no magnetization_follows = 'R' yet (its tangent carries the moment "
                               "with F); give the materials magnetization_follows = 'F', or use --equilibrium (relax)")
+    if sim.model.viscous:
+        # the equilibrium under held loads is the relaxed one: the law with its isochoric moduli scaled by g_inf
+        raise SimulationError("the static solver has no viscoelastic (prony) materials; the equilibrium under held loads "
+                              "is the relaxed one: give the material its long-term moduli (every isochoric modulus times "
+                              "1 - sum g) without prony, or use --equilibrium (relax)")
 
 
 class StaticSolver:
@@ -182,9 +188,13 @@ class StaticSolver:
         self.u = wp.zeros(self.n_nodes, dtype=k["vec"], device=self.dev)
         self.bodies = bodies_array(model)
         self.ct = contact_grid(model)
+        self.no_viscous = viscous_struct(model, None)
         grid = k["GridArrays"]()
         grid.p, grid.m, grid.clamp = solver.grid_p, solver.grid_m, solver.grid_clamp
         self.grid = wp.array([grid], dtype=k["GridArrays"], device=self.dev)
+        src = k["Particles"]()  # p2g reads the reference positions, no motion, and the trial F
+        src.x, src.v, src.C, src.F = model.X0, self.zero_v, self.zero_C, self.F
+        self.src = wp.array([src], dtype=k["Particles"], device=self.dev)
         g = np.zeros(self.dim)
         g[:] = np.asarray(st.gravity, dtype=np.float64).ravel()[: self.dim]
         self.gravity = g
@@ -246,8 +256,8 @@ class StaticSolver:
         solver.grid_m.zero_()
         solver.error.zero_()
         wp.launch(k["p2g"], dim=model.n_particles, device=self.dev,
-                  inputs=[model.X0, self.zero_v, self.zero_C, self.F, self.bodies, applied, self.block, sc(1.0),
-                          self.grid, solver.error, 1, self.ct])
+                  inputs=[self.src, self.bodies, applied, self.block, sc(1.0), self.grid, solver.error, 1, self.ct,
+                          self.no_viscous])
         self.residual_evaluations += 1
         f = solver.grid_p.numpy()[: self.n_nodes].astype(np.float64)
         m = solver.grid_m.numpy()[: self.n_nodes].astype(np.float64)

@@ -41,6 +41,7 @@ from magsoro.materials.library import MaterialLibraryError, get_material, load_l
 from magsoro.mpm.materials import DEFAULT_LAW, FIT_MODEL_LAWS, LAWS, PARAMETER_KEYS, law_of_file_model
 from magsoro.mpm.colliders import Collider
 from magsoro.mpm.eigenstrain import KeyframeStimulus, SineStimulus, Stimulus
+from magsoro.mpm.prony import prony_problem
 from magsoro.mpm.stencil import MAGNETIZATION_FOLLOWS
 from magsoro.mpm.solver import Control, ContactSettings, Model, SolverSettings
 from magsoro.scene.schema import Scene
@@ -182,11 +183,16 @@ def resolve_material(spec, base_dir, key: str, library: dict | None = None) -> d
         values["model"] = model
         if "density" in entry:
             values["density"] = entry["density"]
+        if "prony" in entry:
+            problem = prony_problem(entry["prony"])
+            if problem is not None:
+                raise SceneError(f"{key}.file: '{path}' prony {problem}")
+            values["prony"] = entry["prony"]
         try:
             values.update(LAWS[model].from_material_file(entry))
         except KeyError as exc:
             raise SceneError(f"{key}.file: '{path}' lacks parameter {exc} of model {entry.get('model')!r}") from None
-    for name in ("model", "density", *PARAMETER_KEYS, "bulk_modulus"):
+    for name in ("model", "density", *PARAMETER_KEYS, "bulk_modulus", "prony"):
         v = getattr(spec, name)
         if v is not None:
             values[name] = v
@@ -206,7 +212,12 @@ def resolve_material(spec, base_dir, key: str, library: dict | None = None) -> d
         raise SceneError(f"{key}: the initial shear modulus must be > 0 Pa, got {G}")
     K = float(values.get("bulk_modulus") or 20.0 * G)
     follows = MAGNETIZATION_FOLLOWS[getattr(spec, "magnetization_follows", "F")]
-    return {"model": law.code, "follows": follows, "shear_modulus": G, "bulk_modulus": K, "params": params, "density": float(values["density"]), "remanence": remanence}
+    prony = values.get("prony")
+    if prony is not None and getattr(spec, "stimulus", None) is not None:
+        raise SceneError(f"{key}: a material cannot have both prony and stimulus (not supported yet)")
+    return {"model": law.code, "follows": follows, "shear_modulus": G, "bulk_modulus": K, "params": params,
+            "density": float(values["density"]), "remanence": remanence,
+            "prony": None if prony is None else [[float(g), float(t)] for g, t in prony]}
 
 
 def make_stimulus(spec, key: str) -> Stimulus:
@@ -269,7 +280,8 @@ class Particles:
     positions (N, dim) m; volumes (N,) m^3 (2D: area x depth); density, shear_modulus, bulk_modulus (N,);
     remanence (N, 3) T; body (N,) int; clamped (N,) bool; material_model (N,) int; material_params
     (N, LAW_PARAM_COUNT) Pa (Ogden exponents dimensionless); velocity (N, dim) m/s; stimulus (N,) int, the row of
-    ``stimuli`` (:class:`magsoro.mpm.eigenstrain.Stimulus`, one per body whose material has one) or -1.
+    ``stimuli`` (:class:`magsoro.mpm.eigenstrain.Stimulus`, one per body whose material has one) or -1; prony
+    (N,) int, the row of ``pronies`` (Prony tables [[g, tau], ...], one per body whose material has one) or -1.
     """
 
     positions: np.ndarray
@@ -288,6 +300,8 @@ class Particles:
     stimulus: np.ndarray | None = None
     stimuli: list = field(default_factory=list)
     magnetization_follows: np.ndarray | None = None
+    prony: np.ndarray | None = None
+    pronies: list = field(default_factory=list)
 
 
 def _lattice_index(pts, lo, h):
@@ -410,11 +424,14 @@ def fill_bodies(scene: Scene, source: str = "scene", magnetization=None) -> Part
         np.tile(np.asarray(b.velocity if b.velocity is not None else np.zeros(dim), dtype=np.float64), (len(pb["pts"]), 1))
         for b, pb in zip(scene.bodies, per_body)
     ])
-    stimuli = []
-    for pb in per_body:  # one row per body whose material has a stimulus
+    stimuli, pronies = [], []
+    for pb in per_body:  # one row per body whose material has a stimulus, one per body with a Prony series
         pb["stimulus_row"] = -1 if pb["stimulus"] is None else len(stimuli)
         if pb["stimulus"] is not None:
             stimuli.append(pb["stimulus"])
+        pb["prony_row"] = -1 if pb["mat"].get("prony") is None else len(pronies)
+        if pb["mat"].get("prony") is not None:
+            pronies.append(pb["mat"]["prony"])
     return Particles(
         positions=X,
         volumes=per(lambda pb: pb["v_each"] * depth),
@@ -432,6 +449,8 @@ def fill_bodies(scene: Scene, source: str = "scene", magnetization=None) -> Part
         stimulus=per(lambda pb: pb["stimulus_row"], np.int32),
         stimuli=stimuli,
         magnetization_follows=per(lambda pb: pb["mat"]["follows"], np.int32),
+        prony=per(lambda pb: pb["prony_row"], np.int32),
+        pronies=pronies,
     )
 
 
@@ -614,6 +633,7 @@ def build(scene: Scene, device: str | None = None, source: str = "scene", magnet
         dx=dx, domain_lo=lo, domain_hi=hi, precision=sim.precision, device=device or sim.device,
         material_model=p.material_model, material_params=p.material_params, contact_group=body_group[body_id],
         stimulus=p.stimulus, stimuli=p.stimuli, magnetization_follows=p.magnetization_follows,
+        prony=p.prony, pronies=p.pronies,
     )
     report = p.report
     p_vel = p.velocity

@@ -14,6 +14,7 @@ from typing import Annotated, Literal, Optional, Union
 from pydantic import AfterValidator, BaseModel, ConfigDict, Discriminator, Field, PlainValidator, PrivateAttr, Tag, model_validator
 
 from magsoro.mpm.materials import DEFAULT_LAW, LAW_NAMES, LAWS, LIST_KEYS, PARAMETER_KEYS
+from magsoro.mpm.prony import prony_problem
 
 Vec = list[float]
 
@@ -172,6 +173,16 @@ def _terms(v: list[float]) -> list[float]:
 OgdenTerms = Annotated[list[float], AfterValidator(_terms)]
 
 
+def _prony(v: list[list[float]]) -> list[list[float]]:
+    problem = prony_problem(v)
+    if problem is not None:
+        raise ValueError(problem)
+    return v
+
+
+PronyTable = Annotated[list[list[float]], AfterValidator(_prony)]
+
+
 class StimulusRamp(Strict):
     """Stimulus going linearly from ``initial`` to ``final`` over [start, start + duration], held before and after."""
 
@@ -276,12 +287,15 @@ class Material(Strict):
     C02: float | None = Field(default=None, description="Polynomial C02, Pa. Default 0.")
     bulk_modulus: float | None = Field(default=None, gt=0, description="Bulk modulus K, Pa. Default 20 x the initial shear modulus (seed 000).")
     stimulus: Stimulus | None = Field(default=None, description="Optional [Stimulus](#stimulus): a stretch and modulus factor following a stimulus in time (thermo-responsive hydrogels, swelling, LCEs).")
+    prony: Optional[PronyTable] = Field(default=None, description="Optional viscoelasticity: a Prony series [[g1, tau1], ...] of 1 to 3 terms relaxing the isochoric stress (finite-strain generalised Maxwell): g_i > 0 the fraction of the instantaneous shear modulus relaxing with time constant tau_i > 0 s, sum g_i < 1. The law's moduli are the instantaneous ones; the long-term ones are (1 - sum g_i) times those. Not with a stimulus; see docs/engine.md, Viscoelasticity.")
     magnetization_follows: Literal["F", "R"] = Field(default="F", description="How the remanence is carried by the deformation: 'F' (Zhao's law, m = F Br V / mu0: a stretch along Br raises the moment) or 'R' (the rotation of F = R U, m = R Br V / mu0: only rotations turn it). The two coincide for rigid rotations; see docs/engine.md, Magnetisation kinematics.")
 
     @model_validator(mode="after")
     def _complete(self):
         if self.file is not None and self.library is not None:
             raise ValueError("give either library or file, not both")
+        if self.prony is not None and self.stimulus is not None:
+            raise ValueError("a material cannot have both prony and stimulus (not supported yet)")
         if self.file is not None or self.library is not None:
             return self  # completed against the file or library entry when the scene is built
         model = self.model or DEFAULT_LAW

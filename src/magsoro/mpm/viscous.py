@@ -1,0 +1,176 @@
+"""Finite-strain viscoelasticity: a generalised Maxwell (Prony series) relaxation of the isochoric stress.
+
+Model (the convolution form of Simo's finite-strain viscoelasticity, as the Prony option of hyperelastic laws
+in the FEM codes our users compare with). Write the second Piola stress of a particle's law as
+S_0 = S_vol + S_iso, with S_iso = F^-1 P_iso(F) the isochoric part (the law's stress with its bulk modulus set
+to 0, :mod:`magsoro.mpm.materials`). With the material key ``prony = [[g_1, tau_1], ..., [g_n, tau_n]]``
+(n <= 3, g_i > 0 dimensionless fractions of the instantaneous shear modulus with sum g_i < 1, tau_i > 0 s):
+
+    S = S_vol + g_inf S_iso + sum_i h_i,   g_inf = 1 - sum_i g_i,
+    dh_i/dt + h_i / tau_i = g_i dS_iso/dt,  h_i(0) = 0,
+
+so the response to a sudden strain is the law's own (instantaneous) stress, relaxing to the one with every
+isochoric modulus scaled by g_inf; the bulk response is elastic. At small strain the shear relaxation modulus is
+G(t) = G_0 (g_inf + sum g_i exp(-t/tau_i)), and under a sinusoidal strain of angular frequency w
+
+    G'(w) = G_0 (g_inf + sum g_i w^2 tau_i^2 / (1 + w^2 tau_i^2)),  G''(w) = G_0 sum g_i w tau_i / (1 + w^2 tau_i^2).
+
+Update over a step dt, exact when S_iso varies linearly in time across it (x_i = dt / tau_i):
+
+    h_i <- exp(-x_i) h_i + g_i (1 - exp(-x_i)) / x_i (S_iso(F_new) - S_iso(F_old)).
+
+Both coefficients lie in [0, 1] for every dt > 0, so the update is unconditionally stable: with dt << tau_i the
+internal stress follows the law (h_i += g_i dS), with dt >> tau_i it vanishes at once (the relaxed law). The
+decay is applied as h - (1 - exp(-x)) h with 1 - exp(-x) from its series for small x: at dt = 1e-6 s and
+tau = 1 s, exp(-x) in float32 carries a relative error of 6 % in 1 - exp(-x), the series none.
+
+State: per particle an array of 1 + n matrices (:class:`magsoro.mpm.solver.State` ``H``): S_iso at the state's F,
+then h_1 .. h_n. The solver updates it after each step's gather from the new F (:func:`make_viscous`
+``viscous_update``, reading the step's input state and writing its output, so a check window can go back), and
+p2g adds the overstress F (sum_i h_i - sum_i g_i S_iso) to the law's first Piola stress. The time step is set by
+the instantaneous modulus (the stiffest response), so a Prony term never shortens it. The reported strain
+energy is the law's (instantaneous) one; the dissipated work is not tracked.
+
+Restrictions (the builder refuses them with one line): a Prony material cannot carry a stimulus eigenstrain; the
+static solver (the relaxed equilibrium is the law with its isochoric moduli scaled by g_inf, which a user can
+write as such) and the differentiable rollout refuse Prony materials.
+"""
+
+import functools
+
+import warp as wp
+
+from magsoro.mpm.materials import make_material_functions
+from magsoro.mpm.prony import MAX_PRONY_TERMS, device_tables, dynamic_moduli, prony_problem, prony_table, relaxation_modulus
+from magsoro.mpm.stencil import make_types
+
+__all__ = ["MAX_PRONY_TERMS", "device_tables", "dynamic_moduli", "prony_problem", "prony_table", "relaxation_modulus",
+           "make_viscous", "viscous_struct"]
+
+@functools.cache
+def make_viscous(dim: int, scalar):
+    """The Warp side for ``dim``, ``scalar``: the ``Viscous`` argument struct (each particle's Prony row, -1 none;
+    per row g and tau; the state's ``H`` (N, 1 + terms); ``n_rows`` 0: no Prony material, nothing is read), the
+    functions ``overstress(F, b, vs, p)`` and ``iso_pk2(F, b, p)``, and the kernels ``viscous_update`` (after a
+    step's gather) and ``add_overstress`` (the reported stress)."""
+    t = make_types(dim, scalar)
+    mat, v3, Bodies = t.mat, t.v3, t.Bodies
+    elastic_stress = make_material_functions(dim, scalar)["elastic_stress"]
+    # series of 1 - exp(-x) below x = 1e-2 (relative error x^5 / 720 < 1.4e-13); constants in double
+    sixth, twenty_fourth = 1.0 / 6.0, 1.0 / 24.0
+
+    @wp.struct
+    class Viscous:
+        row: wp.array(dtype=wp.int32)
+        g: wp.array(dtype=v3)
+        tau: wp.array(dtype=v3)
+        H: wp.array2d(dtype=mat)
+        n_rows: int
+        terms: int
+
+    @wp.func
+    def iso_pk2(F: mat, b: Bodies, p: int):
+        """Isochoric second Piola stress S_iso = F^-1 P_iso of particle ``p``'s law at ``F`` (bulk modulus 0)."""
+        P_iso = elastic_stress(F, b.material_model[p], b.shear[p], scalar(0.0), b.material_params[p])
+        return wp.inverse(F) * P_iso
+
+    @wp.func
+    def overstress(F: mat, vs: Viscous, p: int):
+        """First Piola overstress F (sum_i h_i - sum_i g_i S_iso) of particle ``p`` from the state's H (zero
+        without a Prony material)."""
+        P = mat()
+        if vs.n_rows > 0:
+            row = vs.row[p]
+            if row >= 0:
+                g = vs.g[row]
+                Q = -(g[0] + g[1] + g[2]) * vs.H[p, 0]
+                for i in range(vs.terms):
+                    Q = Q + vs.H[p, i + 1]
+                P = F * Q
+        return P
+
+    @wp.func
+    def one_minus_exp(x: scalar):
+        r = scalar(1.0) - wp.exp(-x)
+        if x < scalar(1.0e-2):
+            r = x * (scalar(1.0) - x * (scalar(0.5) - x * (scalar(sixth) - x * scalar(twenty_fourth))))
+        return r
+
+    @wp.kernel
+    def viscous_update(F: wp.array(dtype=mat), bodies: wp.array(dtype=Bodies), vs: Viscous,
+                       H_out: wp.array2d(dtype=mat), dt: scalar):
+        """H_out of particle p from the step's input H (in ``vs``) and its new deformation gradient F (module
+        docstring)."""
+        p = wp.tid()
+        row = vs.row[p]
+        if row < 0:
+            return
+        S = iso_pk2(F[p], bodies[0], p)
+        dS = S - vs.H[p, 0]
+        H_out[p, 0] = S
+        g = vs.g[row]
+        tau = vs.tau[row]
+        for i in range(vs.terms):
+            x = dt / tau[i]
+            decay = one_minus_exp(x)
+            h = vs.H[p, i + 1]
+            H_out[p, i + 1] = h - decay * h + (g[i] * decay / x) * dS
+
+    @wp.kernel
+    def add_overstress(F: wp.array(dtype=mat), vs: Viscous, P: wp.array(dtype=mat)):
+        """Add each particle's overstress to its first Piola stress ``P`` (the reported stress)."""
+        p = wp.tid()
+        P[p] = P[p] + overstress(F[p], vs, p)
+
+    return dict(Viscous=Viscous, iso_pk2=iso_pk2, overstress=overstress, viscous_update=viscous_update,
+                add_overstress=add_overstress)
+
+
+def viscous_struct(model, H, cut=lambda arr: arr):
+    """The ``Viscous`` struct of ``model`` with the state array ``H`` (None: a model without Prony materials),
+    over the particle slice ``cut``."""
+    V = make_viscous(model.dim, model.scalar)["Viscous"]
+    vs = V()
+    vs.row, vs.g, vs.tau = cut(model.prony_row), model.prony_g, model.prony_tau
+    vs.n_rows = len(model.prony)
+    vs.terms = model.prony_terms
+    vs.H = cut(H) if H is not None else model.empty_H
+    return vs
+
+
+def prescribed_history(model, F_path, times):
+    """First Piola stress of every particle of ``model`` driven through the deformation gradients ``F_path``
+    (T, N, dim, dim) at ``times`` (T,) s, from the reference state (F = I, H = 0) at times[0] with F_path[0]: the
+    engine's own update and stress functions, without the transfers (a material point test). Returns (T, N, dim,
+    dim) float64: the law's stress (with its stimulus, if any) plus the Prony overstress."""
+    import numpy as np
+
+    from magsoro.mpm.solver import bodies_array
+
+    k, dev, s = model.kernels, model.device, model.np_scalar
+    kv = make_viscous(model.dim, model.scalar)
+    n, dim = model.n_particles, model.dim
+    F_path = np.asarray(F_path, dtype=np.float64)
+    times = np.asarray(times, dtype=np.float64)
+    cols = 1 + max(model.prony_terms, 0)
+    H = [wp.zeros((n, cols), dtype=k["mat"], device=dev) for _ in range(2)]
+    F = wp.zeros(n, dtype=k["mat"], device=dev)
+    P = wp.zeros(n, dtype=k["mat"], device=dev)
+    W = wp.zeros(n, dtype=model.scalar, device=dev)
+    bodies = bodies_array(model)
+    out = np.empty((len(times), n, dim, dim))
+    for i in range(len(times)):
+        F.assign(np.ascontiguousarray(F_path[i], dtype=s))
+        if model.viscous:
+            dt = times[i] - times[i - 1] if i > 0 else 0.0
+            if dt > 0:
+                wp.launch(kv["viscous_update"], dim=n, device=dev,
+                          inputs=[F, bodies, viscous_struct(model, H[0]), H[1], model.scalar(dt)])
+                H.reverse()
+            elif i > 0 or not np.allclose(F_path[0], np.eye(dim)):
+                raise ValueError("times must increase, and the path start at F = I")
+        wp.launch(k["body_stress_kernel"], dim=n, device=dev, inputs=[F, bodies, P, W])
+        if model.viscous:
+            wp.launch(kv["add_overstress"], dim=n, device=dev, inputs=[F, viscous_struct(model, H[0]), P])
+        out[i] = P.numpy()
+    return out
