@@ -24,15 +24,19 @@ def register(sub) -> None:
 def _register_fit_material(sub) -> None:
     p = sub.add_parser(
         "fit-material",
-        help="fit hyperelastic models to uniaxial tensile data",
+        help="fit hyperelastic models to tensile data and Prony terms to relaxation or frequency-sweep data",
         description=(
             "Fit the incompressible uniaxial forms of linear, Neo-Hookean, Mooney-Rivlin, Yeoh, Ogden (3 terms) and "
             "polynomial (5 coefficients) models to tensile data by nonlinear least squares, and report parameters, "
             "initial shear modulus and MAPE as in seed 001 Table II. Data: CSV with header columns 'strain' "
-            "(engineering, dimensionless) and 'stress' (nominal, Pa), optionally 'specimen'."
+            "(engineering, dimensionless) and 'stress' (nominal, Pa), optionally 'specimen'. With --relaxation or "
+            "--frequency-sweep, also (or only) fit a Prony series G(t) = G0 (g_inf + sum g_i exp(-t/tau_i))."
         ),
     )
-    p.add_argument("data", nargs="+", metavar="DATA.csv", help="tensile CSV file(s); several files = several specimens")
+    p.add_argument(
+        "data", nargs="*", metavar="DATA.csv",
+        help="tensile CSV file(s); several files = several specimens (optional with --relaxation/--frequency-sweep)",
+    )
     p.add_argument(
         "--models",
         default="linear,neo-hookean,mooney-rivlin,yeoh,ogden3,polynomial5",
@@ -45,9 +49,28 @@ def _register_fit_material(sub) -> None:
         default="relative",
         help="least-squares residual: stress error divided by measured stress (default) or plain stress error",
     )
-    p.add_argument("--json", action="store_true", help="print {\"models\": {...}} as JSON instead of a table")
-    p.add_argument("--out", metavar="DIR", help="write fit_material.png and fit_material.json here")
-    p.add_argument("--save-material", metavar="NAME", help="write DIR/NAME.toml with the chosen fit (DIR: --out or .)")
+    p.add_argument(
+        "--relaxation", metavar="FILE.csv",
+        help="stress-relaxation CSV: 'time' (s) and 'shear_modulus' (Pa), 'tensile_modulus' (Pa) or 'stress' (Pa) "
+        "with 'strain'; fits Prony terms",
+    )
+    p.add_argument(
+        "--frequency-sweep", metavar="FILE.csv",
+        help="frequency-sweep CSV: 'frequency' (Hz), 'storage_modulus' and 'loss_modulus' (Pa); fits Prony terms",
+    )
+    p.add_argument("--prony-terms", type=int, metavar="N", help="number of Prony terms, 1..3 (default 3)")
+    p.add_argument(
+        "--json", action="store_true",
+        help="print {\"models\": {...}} (tensile) and/or {\"prony\": {...}} as JSON instead of a table",
+    )
+    p.add_argument(
+        "--out", metavar="DIR", help="write fit_material.png, fit_prony.png and fit_material.json here (as fitted)"
+    )
+    p.add_argument(
+        "--save-material", metavar="NAME",
+        help="write DIR/NAME.toml with the chosen fit, and the Prony terms when fitted (DIR: --out or .); needs "
+        "tensile data",
+    )
     p.add_argument("--material-model", metavar="M", help="model saved by --save-material (default: lowest MAPE)")
     p.add_argument("--density", type=float, metavar="RHO", help="density in kg/m^3 stored in the material entry")
     p.set_defaults(func=run_fit_material)
@@ -72,48 +95,120 @@ def _format_params(model, params: dict) -> str:
     return "  ".join(f"{k}={v:.4g}" if k in dimless else f"{k}={v:.4g} Pa" for k, v in params.items())
 
 
-def run_fit_material(args) -> int:
-    import numpy as np
-
-    from magsoro.characterization.hyperelastic import (
-        best_model,
-        fit_model,
-        fit_models,
-        read_tensile_csv,
-        youngs_modulus_per_specimen,
-    )
-    from magsoro.characterization.material_file import write_material
-
-    models = _parse_models(args.models)
+def _check_fit_material_args(args) -> None:
+    viscous = args.relaxation is not None or args.frequency_sweep is not None
+    if not args.data and not viscous:
+        raise MagsoroError(
+            "no data: give tensile DATA.csv file(s), --relaxation FILE.csv or --frequency-sweep FILE.csv"
+        )
+    if args.relaxation is not None and args.frequency_sweep is not None:
+        raise MagsoroError("--relaxation and --frequency-sweep: give one of them, not both")
+    if args.prony_terms is not None:
+        if not viscous:
+            raise MagsoroError("--prony-terms: needs --relaxation or --frequency-sweep")
+        if not 1 <= args.prony_terms <= 3:
+            raise MagsoroError(f"--prony-terms: must be 1, 2 or 3, got {args.prony_terms}")
+    if args.save_material and not args.data:
+        raise MagsoroError(
+            "--save-material: a material entry needs a hyperelastic law (model, shear_modulus, [parameters]) from "
+            "tensile data; give the tensile DATA.csv file(s) in the same command, e.g. magsoro fit-material "
+            "tensile.csv --relaxation relax.csv --save-material NAME"
+        )
     if args.max_strain is not None and not args.max_strain > 0:
         raise MagsoroError(f"--max-strain: must be > 0, got {args.max_strain}")
-    if args.material_model is not None and args.material_model not in models:
-        raise MagsoroError(f"--material-model: {args.material_model!r} is not among --models ({', '.join(models)})")
     if args.density is not None and not args.density > 0:
         raise MagsoroError(f"--density: must be > 0 kg/m^3, got {args.density}")
-    data = read_tensile_csv(args.data)
-    fits = fit_models(data, models, max_strain=args.max_strain, weighting=args.weighting)
-    result = {"models": {name: fit.to_json() for name, fit in fits.items()}}
+
+
+def run_fit_material(args) -> int:
+    _check_fit_material_args(args)
+    models = _parse_models(args.models)
+    if args.material_model is not None and args.material_model not in models:
+        raise MagsoroError(f"--material-model: {args.material_model!r} is not among --models ({', '.join(models)})")
+
+    data = fits = None
+    result: dict = {}
+    if args.data:
+        from magsoro.characterization.hyperelastic import fit_models, read_tensile_csv
+
+        data = read_tensile_csv(args.data)
+        fits = fit_models(data, models, max_strain=args.max_strain, weighting=args.weighting)
+        result["models"] = {name: fit.to_json() for name, fit in fits.items()}
+    prony = None
+    if args.relaxation is not None or args.frequency_sweep is not None:
+        from magsoro.characterization.viscoelastic import fit_prony, read_frequency_sweep_csv, read_relaxation_csv
+
+        if args.relaxation is not None:
+            vdata = read_relaxation_csv(args.relaxation)
+        else:
+            vdata = read_frequency_sweep_csv(args.frequency_sweep)
+        prony = fit_prony(vdata, 3 if args.prony_terms is None else args.prony_terms)
+        result["prony"] = prony.to_json()
 
     out_dir = Path(args.out) if args.out else None
     written = []
     if out_dir is not None:
-        from magsoro.characterization.plotting import plot_tensile_fits
-
         out_dir.mkdir(parents=True, exist_ok=True)
-        sources = ", ".join(Path(s).name for s in data.sources)
-        fitted = data.select(args.max_strain)
-        written.append(plot_tensile_fits(fitted, fits, out_dir / "fit_material.png", title=sources))
+        if fits is not None:
+            from magsoro.characterization.plotting import plot_tensile_fits
+
+            sources = ", ".join(Path(s).name for s in data.sources)
+            fitted = data.select(args.max_strain)
+            written.append(plot_tensile_fits(fitted, fits, out_dir / "fit_material.png", title=sources))
+        if prony is not None:
+            from magsoro.characterization.viscoelastic import plot_prony_fit
+
+            title = f"{Path(prony.data.source).name}: {prony.kind}"
+            written.append(plot_prony_fit(prony, out_dir / "fit_prony.png", title=title))
+            result["prony"]["plot"] = "fit_prony.png"
         (out_dir / "fit_material.json").write_text(json.dumps(result, indent=2) + "\n")
         written.append(out_dir / "fit_material.json")
     if args.save_material:
+        from magsoro.characterization.hyperelastic import best_model
+        from magsoro.characterization.material_file import write_material
+
         chosen = args.material_model or best_model(fits)
         source = ", ".join(data.sources)
-        written.append(write_material(out_dir or Path("."), args.save_material, fits[chosen], source, args.density))
+        note = None
+        if prony is not None:
+            source += f", {prony.data.source}"
+            note = (
+                f"prony: {prony.kind} fit of {prony.data.source}, G0 {prony.shear_modulus:.6g} Pa, g_inf "
+                f"{prony.g_inf:.4g}, relative RMS error {prony.rms_error:.2f} %"
+            )
+        written.append(
+            write_material(
+                out_dir or Path("."), args.save_material, fits[chosen], source, args.density,
+                prony=prony.prony if prony is not None else None, prony_note=note,
+            )
+        )
 
     if args.json:
         print(json.dumps(result, indent=2))
         return 0
+    if fits is not None:
+        _print_tensile(args, data, fits)
+    if prony is not None:
+        _print_prony(prony)
+        if fits is not None:
+            from magsoro.characterization.hyperelastic import best_model
+
+            chosen = args.material_model or best_model(fits)
+            mu0 = fits[chosen].initial_shear_modulus
+            print(
+                f"note: in a material entry the g_i scale the hyperelastic law ({chosen}: mu0 = {mu0 / 1e3:.4g} kPa "
+                f"from the tensile data); the Prony fit's instantaneous G0 = {prony.shear_modulus / 1e3:.4g} kPa "
+                f"(mu0 {100 * (mu0 / prony.shear_modulus - 1):+.1f} %)"
+            )
+    for path in written:
+        print(f"wrote {path}")
+    return 0
+
+
+def _print_tensile(args, data, fits) -> None:
+    import numpy as np
+
+    from magsoro.characterization.hyperelastic import best_model, fit_model, youngs_modulus_per_specimen
 
     sub = data.select(args.max_strain)
     print(
@@ -133,9 +228,31 @@ def run_fit_material(args) -> int:
         if len(vals) > 1:
             spread = f", {vals.mean() / 1e3:.2f} +- {vals.std(ddof=1) / 1e3:.2f} kPa over {len(vals)} specimens"
         print(f"Young's modulus, linear fit up to 100% strain: E = {pooled / 1e3:.2f} kPa (all specimens){spread}")
-    for path in written:
-        print(f"wrote {path}")
-    return 0
+
+
+def _print_prony(fit) -> None:
+    d = fit.data
+    if fit.kind == "relaxation":
+        axis, unit = d.time, "s"
+        what = {"shear_modulus": "G(t)", "tensile_modulus": "E(t)/3", "stress": "stress/(lam - lam^-2)"}[d.column]
+    else:
+        axis, unit = d.frequency, "Hz"
+        what = "G', G''" if d.column == "storage_modulus" else "E'/3, E''/3"
+    print(
+        f"prony: {fit.kind} {d.source}, {axis.size} points, {axis[0]:g} .. {axis[-1]:g} {unit}, fitted {what}; "
+        f"{fit.n_terms} term(s)" + (f" of {fit.n_terms_requested} asked" if fit.n_terms < fit.n_terms_requested else "")
+    )
+    print(f"{'term':<6} {'g_i':>10} {'tau_i [s]':>12}")
+    for i, (g, tau) in enumerate(zip(fit.g, fit.tau), start=1):
+        print(f"{i:<6} {g:10.5f} {tau:12.5g}")
+    print(
+        f"G0 = {fit.shear_modulus / 1e3:.5g} kPa (instantaneous shear modulus), g_inf = {fit.g_inf:.5f} "
+        f"(G_inf = {fit.long_term_shear_modulus / 1e3:.5g} kPa)"
+    )
+    print(f"relative RMS error {fit.rms_error:.3f} %, MAPE {fit.mape:.3f} % ({fit.method})")
+    print("prony = [" + ", ".join(f"[{g:.6g}, {tau:.6g}]" for g, tau in zip(fit.g, fit.tau)) + "]")
+    for note in fit.notes:
+        print(f"note: {note}")
 
 
 # ----------------------------------------------------------------------------------------------------------------
