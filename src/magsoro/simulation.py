@@ -93,6 +93,17 @@ class Simulation:
         self.steps = 0
         self.last_good_time = 0.0
 
+    def set_sources(self, sources) -> None:
+        """Replace the field sources (call between steps) and bound the time step anew for the largest field they
+        give at the particles: the wave speed, and so the CFL step, counts the magnetic stiffening of that peak
+        (a fixed ``simulation.dt`` is kept as given)."""
+        self.control.sources = list(sources)
+        self._field_peak = self.solver.field_magnitude(self.control)
+        self._wave_speed = self.model.wave_speed(self._field_peak)
+        if self.fixed_dt is None:
+            self.dt = self._cfl_dt(self._checked_speed())
+            self.dt_min, self.dt_max = min(self.dt_min, self.dt), max(self.dt_max, self.dt)
+
     @classmethod
     def from_file(cls, path, device: str | None = None) -> "Simulation":
         return cls(load_scene(path), device=device, source=str(path))
