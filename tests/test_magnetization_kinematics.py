@@ -10,6 +10,7 @@ import warp as wp
 from magsoro.constants import MU0
 from magsoro.mpm.interaction import polar_rotation_np
 from magsoro.mpm.stencil import make_magnetization, make_types
+from magsoro.mpm.viscous import viscous_struct
 
 wp.config.quiet = True
 
@@ -232,9 +233,12 @@ def test_stretched_bar_gradient_force_in_a_dipole_field(follows):
     zv, zC = wp.zeros(8, dtype=k["vec"], device="cpu"), wp.zeros(8, dtype=k["mat"], device="cpu")
     Fw = wp.array(F, dtype=k["mat"], device="cpu")
     err = wp.zeros(2, dtype=wp.int32, device="cpu")
-    wp.launch(k["p2g"], dim=8, device="cpu", inputs=[model.X0, zv, zC, Fw, bodies_array(model), applied, block,
-                                                     wp.float64(1.0), wp.array([grid], dtype=k["GridArrays"], device="cpu"),
-                                                     err, 1, contact_grid(model)])
+    src = k["Particles"]()
+    src.x, src.v, src.C, src.F = model.X0, zv, zC, Fw
+    wp.launch(k["p2g"], dim=8, device="cpu", inputs=[wp.array([src], dtype=k["Particles"], device="cpu"), bodies_array(model),
+                                                     applied, block, wp.float64(1.0),
+                                                     wp.array([grid], dtype=k["GridArrays"], device="cpu"),
+                                                     err, 1, contact_grid(model), viscous_struct(model, None)])
     total = grid.p.numpy().sum(axis=0)
     stretch = lam if follows == "F" else 1.0
     m = np.array([stretch * Br * h**3 / MU0, 0.0, 0.0])
