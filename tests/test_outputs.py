@@ -165,3 +165,17 @@ def test_run_json_is_strict_json(tmp_path):
     text = (tmp_path / "x.json").read_text()
     assert "Infinity" not in text and "NaN" not in text
     assert json.loads(text) == {"a": None, "b": [1.0, None]}
+
+
+def test_atomic_writes_give_files_the_umask_mode(tmp_path):
+    """Outputs written through a temp file (mkstemp makes it 0600) end with the mode open() would give them."""
+    import os
+
+    from magsoro.io.files import atomic_save_npz, atomic_write_bytes
+
+    mask = os.umask(0o022)
+    os.umask(mask)
+    atomic_write_bytes(tmp_path / "a.bin", b"x")
+    atomic_save_npz(tmp_path / "b.npz", x=[1.0])
+    for name in ("a.bin", "b.npz"):
+        assert (tmp_path / name).stat().st_mode & 0o777 == 0o666 & ~mask

@@ -69,7 +69,8 @@ def run(args) -> int:
 
     if not args.quiet:
         where = (f"scheduler {args.scheduler}" if args.scheduler else "this process (--workers 0)" if args.workers == 0
-                 else f"a LocalCluster ({args.workers or 'one'} worker{'s' if args.workers != 1 else ''}{'' if args.workers else ' per core'})")
+                 else (f"a LocalCluster ({args.workers} worker{'s' if args.workers != 1 else ''})" if args.workers
+                  else "a LocalCluster (one worker per core)"))
         print(f"magsoro sweep: {len(plan.runs)} runs on {where}; results in {args.out}", file=sys.stderr, flush=True)
     try:
         result = run_sweep(

@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import functools
 import json
 import math
 import os
@@ -14,6 +15,22 @@ import numpy as np
 from magsoro.errors import output_error
 
 
+@functools.cache
+def _file_mode() -> int:
+    """The mode a file made by open() would get (0666 less the umask): mkstemp's temp files are 0600, and the
+    renamed result should be readable as every other output is. The umask is read once (Linux: from
+    /proc/self/status, without setting it; elsewhere set and restored)."""
+    try:
+        for line in Path("/proc/self/status").read_text().splitlines():
+            if line.startswith("Umask:"):
+                return 0o666 & ~int(line.split()[1], 8)
+    except (OSError, ValueError, IndexError):
+        pass
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return 0o666 & ~mask
+
+
 def atomic_write_bytes(path, data: bytes) -> None:
     path = Path(path)
     try:
@@ -23,6 +40,7 @@ def atomic_write_bytes(path, data: bytes) -> None:
     try:
         with os.fdopen(fd, "wb") as fh:
             fh.write(data)
+        os.chmod(tmp, _file_mode())
         os.replace(tmp, path)
     except OSError as exc:
         Path(tmp).unlink(missing_ok=True)
@@ -63,6 +81,7 @@ def atomic_save_npz(path, **arrays) -> None:
         raise output_error(path, exc) from None
     try:
         np.savez_compressed(tmp, **arrays)
+        os.chmod(tmp, _file_mode())
         os.replace(tmp, path)
     except OSError as exc:
         Path(tmp).unlink(missing_ok=True)

@@ -14,7 +14,7 @@ import os
 import tempfile
 from pathlib import Path
 
-from magsoro.io.files import atomic_write_text
+from magsoro.io.files import _file_mode, atomic_write_text
 from magsoro.sweep.params import format_value
 
 FIXED = ["status", "error", "wall_time_s", "cpu_time_s", "steps", "sim_time_s"]
@@ -87,6 +87,7 @@ def write_parquet(path, records: list[dict], param_keys: list[str]) -> bool:
     os.close(fd)
     try:
         pq.write_table(pa.table(arrays), tmp)
+        os.chmod(tmp, _file_mode())
         os.replace(tmp, path)
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
