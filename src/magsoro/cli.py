@@ -23,6 +23,7 @@ COMMANDS = [
     "magsoro.commands.show",
     "magsoro.commands.sweep",
     "magsoro.commands.report",
+    "magsoro.commands.render",
     "magsoro.commands.live",
     "magsoro.commands.validate",
     "magsoro.commands.optimize",
