@@ -29,12 +29,16 @@ COMMANDS = [
     "magsoro.commands.optimize",
     "magsoro.commands.reproduce",
     "magsoro.commands.doctor",
+    "magsoro.commands.import_magneticmpm",
 ]
 
 
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="magsoro", description="Simulator for magnetic soft robots.")
-    parser.add_argument("--version", action="version", version=f"magsoro {__version__}")
+    # own dest names: a sub-command's option of the same name cannot then shadow them
+    parser.add_argument("--version", dest="print_version", action="store_true", help="print the version and exit (with --verbose: also "
+                        "Python, every dependency and whether Warp sees CUDA)")
+    parser.add_argument("--verbose", dest="version_verbose", action="store_true", help="with --version: the versions of the dependencies")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     for name in COMMANDS:
         importlib.import_module(name).register(sub)
@@ -44,6 +48,11 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv=None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
+    if args.print_version:
+        from magsoro._version import verbose_version
+
+        print(verbose_version() if args.version_verbose else f"magsoro {__version__}")
+        return 0
     if not getattr(args, "func", None):
         parser.print_help()
         return 2
