@@ -24,3 +24,16 @@ def test_show_refuses_bad_input(tmp_path, capsys):
     assert main(["show", str(SCENES[0]), "--out", str(tmp_path / "x.jpg")]) == 2
     assert "--out" in capsys.readouterr().err
     assert not (tmp_path / "x.png").exists()
+
+
+def test_clamp_regions_are_the_particles_the_engine_holds():
+    """`magsoro show` marks what the engine holds: clamped bodies and the particles inside [[clamps]] regions
+    (scenes/cantilever_2d.toml has only a region)."""
+    from magsoro.scene import load_scene
+    from magsoro.scene.build import build, fill_bodies, held_particles
+
+    scene = load_scene(Path(__file__).resolve().parents[1] / "scenes" / "cantilever_2d.toml")
+    particles = fill_bodies(scene)
+    held = held_particles(scene, particles)
+    assert not particles.clamped.any() and held.sum() > 0
+    assert (held == build(scene).model.host["clamped"]).all()

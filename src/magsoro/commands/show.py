@@ -55,7 +55,10 @@ def render(scene, particles, out, width=7.0, dpi=120, arrows=200, max_points=600
     import matplotlib.pyplot as plt
 
     dim = scene.simulation.dim
-    X, Br, body, clamped = particles.positions, particles.remanence, particles.body, particles.clamped
+    from magsoro.scene.build import held_particles
+
+    X, Br, body = particles.positions, particles.remanence, particles.body
+    clamped = held_particles(scene, particles)  # clamped bodies and [[clamps]] regions, as the engine holds them
     names = particles.body_names
     cmap = plt.get_cmap("tab10")
     scale_mm = 1e3
@@ -63,7 +66,6 @@ def render(scene, particles, out, width=7.0, dpi=120, arrows=200, max_points=600
     br_norm = np.linalg.norm(Br, axis=1)
     magnetic = np.flatnonzero(br_norm > 0)
     arrow_idx = magnetic[_subsample(len(magnetic), arrows)] if arrows else np.zeros(0, dtype=int)
-    lo, hi = np.asarray(scene.simulation.domain_lo), np.asarray(scene.simulation.domain_hi)
     blo, bhi = X.min(axis=0), X.max(axis=0)
     extent = float(np.max(bhi - blo)) or scene.simulation.dx
     arrow_len = 0.08 * extent  # direction only: |Br| is listed in the legend

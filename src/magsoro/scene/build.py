@@ -598,6 +598,26 @@ def contact_settings(scene: Scene, groups: np.ndarray, names: list[str], source:
     return ContactSettings(table, self_contact=c.self_contact, fold_spread=c.fold_spread)
 
 
+def held_particles(scene: Scene, p: Particles, source: str = "scene") -> np.ndarray:
+    """(N,) bool: the particles of ``p`` (from :func:`fill_bodies`) that are held, those of clamped bodies and
+    those inside a ``[[clamps]]`` region (of its body, when it names one). SceneError for a region that holds no
+    particle."""
+    base_dir = getattr(scene, "_base_dir", None)
+    clamped = p.clamped.copy()
+    for i, c in enumerate(scene.clamps):
+        try:
+            region = make_shape(c.region, base_dir, scene.simulation.dim)
+        except ValueError as exc:  # MeshError included
+            raise SceneError(f"{source}: clamps[{i}].region: {exc}") from None
+        inside = region.contains(p.positions)
+        if c.body is not None:
+            inside &= p.body == p.body_names.index(c.body)
+        if not inside.any():
+            raise SceneError(f"{source}: clamps[{i}].region: holds no particle; check the region against the bodies")
+        clamped |= inside
+    return clamped
+
+
 def build(scene: Scene, device: str | None = None, source: str = "scene", magnetization=None) -> Built:
     """Fill bodies with particles and assemble Model, Control, SolverSettings and probes.
 
@@ -609,7 +629,7 @@ def build(scene: Scene, device: str | None = None, source: str = "scene", magnet
     dim, dx = sim.dim, sim.dx
     lo, hi = np.asarray(sim.domain_lo, dtype=np.float64), np.asarray(sim.domain_hi, dtype=np.float64)
     p = fill_bodies(scene, source, magnetization)
-    X, body_id, clamped = p.positions, p.body, p.clamped.copy()
+    X, body_id = p.positions, p.body
     names = p.body_names
     base_dir = getattr(scene, "_base_dir", None)
     def region_shape(spec, key):
@@ -618,14 +638,7 @@ def build(scene: Scene, device: str | None = None, source: str = "scene", magnet
         except ValueError as exc:  # MeshError included
             raise SceneError(f"{source}: {key}: {exc}") from None
 
-    for i, c in enumerate(scene.clamps):
-        region = region_shape(c.region, f"clamps[{i}].region")
-        inside = region.contains(X)
-        if c.body is not None:
-            inside &= body_id == names.index(c.body)
-        if not inside.any():
-            raise SceneError(f"{source}: clamps[{i}].region: holds no particle; check the region against the bodies")
-        clamped |= inside
+    clamped = held_particles(scene, p, source)
     body_group = contact_groups(scene, X, body_id)
     contact = contact_settings(scene, body_group, names, source)
     model = Model(
