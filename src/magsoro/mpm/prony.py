@@ -61,12 +61,12 @@ def dynamic_moduli(terms, omega, G0: float = 1.0):
     return G0 * storage, G0 * loss
 
 
-def device_tables(terms_per_row, n_terms: int):
-    """Host (g, tau) tables, one row per Prony material, padded to ``n_terms`` columns (g 0, tau 1 s: a term
-    that never grows)."""
+def device_tables(terms_per_row):
+    """Host (g, tau) tables, one row per Prony material (at least one row), padded to MAX_PRONY_TERMS columns
+    (g 0, tau 1 s: a term that never grows), the engine's fixed-length vectors."""
     rows = max(len(terms_per_row), 1)
-    g = np.zeros((rows, 3))
-    tau = np.ones((rows, 3))
+    g = np.zeros((rows, MAX_PRONY_TERMS))
+    tau = np.ones((rows, MAX_PRONY_TERMS))
     for r, terms in enumerate(terms_per_row):
         p = prony_table(terms)
         g[r, : len(p)], tau[r, : len(p)] = p[:, 0], p[:, 1]

@@ -317,7 +317,7 @@ class Model:
         h["prony"] = rows
         used = sorted(set(rows[rows >= 0].tolist()))
         self.prony_terms = max((len(self.prony[r]) for r in used), default=0)
-        g, tau = device_tables(self.prony, self.prony_terms)
+        g, tau = device_tables(self.prony)
         s, v3 = self.np_scalar, self.kernels["v3"]
         self.prony_row = wp.array(rows, dtype=wp.int32, device=dev)
         self.prony_g = wp.array(g.astype(s), dtype=v3, device=dev)

@@ -41,17 +41,13 @@ import functools
 import warp as wp
 
 from magsoro.mpm.materials import make_material_functions
-from magsoro.mpm.prony import MAX_PRONY_TERMS, device_tables, dynamic_moduli, prony_problem, prony_table, relaxation_modulus
 from magsoro.mpm.stencil import make_types
-
-__all__ = ["MAX_PRONY_TERMS", "device_tables", "dynamic_moduli", "prony_problem", "prony_table", "relaxation_modulus",
-           "make_viscous", "viscous_struct"]
 
 @functools.cache
 def make_viscous(dim: int, scalar):
     """The Warp side for ``dim``, ``scalar``: the ``Viscous`` argument struct (each particle's Prony row, -1 none;
     per row g and tau; the state's ``H`` (N, 1 + terms); ``n_rows`` 0: no Prony material, nothing is read), the
-    functions ``overstress(F, b, vs, p)`` and ``iso_pk2(F, b, p)``, and the kernels ``viscous_update`` (after a
+    functions ``overstress(F, vs, p)`` and ``iso_pk2(F, b, p)``, and the kernels ``viscous_update`` (after a
     step's gather) and ``add_overstress`` (the reported stress)."""
     t = make_types(dim, scalar)
     mat, v3, Bodies = t.mat, t.v3, t.Bodies
@@ -152,8 +148,7 @@ def prescribed_history(model, F_path, times):
     n, dim = model.n_particles, model.dim
     F_path = np.asarray(F_path, dtype=np.float64)
     times = np.asarray(times, dtype=np.float64)
-    cols = 1 + max(model.prony_terms, 0)
-    H = [wp.zeros((n, cols), dtype=k["mat"], device=dev) for _ in range(2)]
+    H = [wp.zeros((n, 1 + model.prony_terms), dtype=k["mat"], device=dev) for _ in range(2)]
     F = wp.zeros(n, dtype=k["mat"], device=dev)
     P = wp.zeros(n, dtype=k["mat"], device=dev)
     W = wp.zeros(n, dtype=model.scalar, device=dev)
