@@ -54,6 +54,9 @@ BRANCH_KICKS = (0.1, 1.0, 10.0)
 MAX_SWITCHES = 4
 #: a Newton step is taken while |R| stays below this many times the lowest residual of the solve
 GROWTH = 1.0e3
+#: Newton gives up (and the load increment is halved) after this many iterations without a new lowest residual:
+#: converging iterations lower it at least every second one, even where the full step first raises it
+STALL = 6
 #: the largest move of a node in one Newton step, cells
 MAX_STEP = 10.0
 #: per dimension: free nodes lighter than this fraction of the heaviest node are extrapolated from the nodes inward
@@ -106,7 +109,99 @@ def make_static_kernels(dim: int, scalar) -> dict:
         p = wp.tid()
         P[p] = body_elastic_stress(F[p], bodies[0], p)
 
-    return {"place_particles": place_particles, "particle_stress": particle_stress}
+    @wp.kernel
+    def material_tangent(F: wp.array(dtype=mat), bodies: wp.array(dtype=Bodies), h: scalar, A: wp.array(dtype=mat)):
+        """dP/dF of every particle's own law at its F by central differences of step ``h``: A[p dim^2 + b dim + d]
+        holds dP_ac/dF_bd over (a, c); zero for clamped particles (they keep F = I whatever the nodes do)."""
+        p = wp.tid()
+        F0 = F[p]
+        held = bodies[0].clamped[p] != 0
+        for b in range(dim):
+            for d in range(dim):
+                E = mat()
+                E[b, d] = h
+                dP = mat()
+                if not held:
+                    dP = (body_elastic_stress(F0 + E, bodies[0], p) - body_elastic_stress(F0 - E, bodies[0], p)) / (scalar(2.0) * h)
+                A[p * dim * dim + b * dim + d] = dP
+
+    @wp.struct
+    class FieldTerms:
+        """Per particle, what a non-uniform field adds to the tangent (StaticSolver.tangent): V0 / mu0, the field's
+        gradient G (T/m), the in-plane remanence Br (T), and H_ae = sum_b dG_ba/dx_e m_b (m the moment, A m^2);
+        ``active`` 0: no non-uniform field (the arrays are not read)."""
+
+        active: int
+        coef: wp.array(dtype=scalar)
+        G: wp.array(dtype=mat)
+        br: wp.array(dtype=vec)
+        H: wp.array(dtype=mat)
+
+    Yrows = wp.types.matrix(shape=(dim, dim * dim), dtype=scalar)
+
+    @wp.kernel
+    def assemble_tangent(X: wp.array(dtype=vec), block: Block, bodies: wp.array(dtype=Bodies), A: wp.array(dtype=mat),
+                         fterms: FieldTerms, dof: wp.array(dtype=wp.int32), indptr: wp.array(dtype=wp.int32),
+                         indices: wp.array(dtype=wp.int32), data: wp.array(dtype=scalar)):
+        """Adds the dim x dim blocks of one particle's stencil node s (thread p 3^dim + s) against every node t of
+        its stencil to the CSC values ``data`` (pattern ``indptr``, ``indices``: rows of free node dof[i]). Block
+        (s a, t b): -V0 A_acbd g_s^c g_t^d, and with a field G_ab (Br . g_s) w_t V0/mu0 + w_s G_ba (Br . g_t)
+        V0/mu0 + w_s w_t H_ab (g the reference weight gradients, w the weights)."""
+        tid = wp.tid()
+        p = tid // NS
+        s = tid - p * NS
+        inv_dx = scalar(1.0) / block.dx
+        base, fx = local_coords(X[p], block.lo, inv_dx)
+        w0, w1, w2 = bspline_weights(fx)
+        first = flat_index(base, block.shape)
+        ws, ofs, ids = stencil_node(s, w0, w1, w2, first, block.shape)
+        rs = dof[ids]
+        if rs < 0:
+            return
+        gs = (scalar(4.0) * inv_dx * ws) * (ofs - fx)
+        V0 = bodies[0].vol0[p]
+        Y = Yrows()  # Y[a, d dim + b] = sum_c A_acbd g_s^c
+        for b in range(dim):
+            for d in range(dim):
+                y = A[p * dim * dim + b * dim + d] * gs
+                for a in range(dim):
+                    Y[a, d * dim + b] = y[a]
+        brs = scalar(0.0)
+        if fterms.active != 0:
+            brs = wp.dot(fterms.br[p], gs)
+        for t in range(NS):
+            wt, oft, idt = stencil_node(t, w0, w1, w2, first, block.shape)
+            ct = dof[idt]
+            if ct < 0:
+                continue
+            gt = (scalar(4.0) * inv_dx * wt) * (oft - fx)
+            K = mat()
+            for a in range(dim):
+                for b in range(dim):
+                    acc = scalar(0.0)
+                    for d in range(dim):
+                        acc += Y[a, d * dim + b] * gt[d]
+                    K[a, b] = -V0 * acc
+            if fterms.active != 0:
+                G = fterms.G[p]
+                c = fterms.coef[p]
+                K = K + (c * brs * wt) * G + (c * ws * wp.dot(fterms.br[p], gt)) * wp.transpose(G) + (ws * wt) * fterms.H[p]
+            for b in range(dim):
+                col = ct * dim + b
+                lo = indptr[col]
+                hi = indptr[col + 1] - 1
+                row = rs * dim
+                while lo < hi:  # the first entry of the column's (sorted) rows that is >= row; rows row + a follow it
+                    mid = (lo + hi) // 2
+                    if indices[mid] < row:
+                        lo = mid + 1
+                    else:
+                        hi = mid
+                for a in range(dim):
+                    wp.atomic_add(data, lo + a, K[a, b])
+
+    return {"place_particles": place_particles, "particle_stress": particle_stress,
+            "material_tangent": material_tangent, "assemble_tangent": assemble_tangent, "FieldTerms": FieldTerms}
 
 
 @dataclass
@@ -362,26 +457,6 @@ class StaticSolver:
             self._stencil_cache = (nodes, w, grad)
         return self._stencil_cache
 
-    def _material_tangent(self) -> np.ndarray:
-        """dP/dF (N, dim, dim, dim, dim), A[p, a, c, b, d] = dP_ac / dF_bd, by central differences of each
-        particle's own law at the current F (a local, well-conditioned derivative)."""
-        k, dim, n = self.model.kernels, self.dim, self.model.n_particles
-        F0 = self.F.numpy().astype(np.float64)
-        Fw = wp.zeros(n, dtype=k["mat"], device=self.dev)
-        Pw = wp.zeros(n, dtype=k["mat"], device=self.dev)
-        A = np.zeros((n, dim, dim, dim, dim))
-        for b in range(dim):
-            for d in range(dim):
-                P = []
-                for sign in (1.0, -1.0):
-                    Fp = F0.copy()
-                    Fp[:, b, d] += sign * F_STEP
-                    Fw.assign(Fp.astype(self.model.np_scalar))
-                    wp.launch(self.kk["particle_stress"], dim=n, device=self.dev, inputs=[Fw, self.bodies, Pw])
-                    P.append(Pw.numpy().astype(np.float64))
-                A[:, :, :, b, d] = (P[0] - P[1]) / (2.0 * F_STEP)
-        return A
-
     def _field_terms(self, field_level: float):
         """B, grad B (T, T/m; the model's in-plane part) at the particles' current positions and the gradient's
         derivative along each axis (central differences of the sources), all scaled by ``field_level``; None
@@ -409,7 +484,8 @@ class StaticSolver:
         return G0, dG
 
     def tangent(self, u_nodes, field_level, gravity_level):
-        """dR/du on the free DOFs, assembled from the particles (sparse, CSC):
+        """dR/du on the free DOFs, assembled from the particles (sparse, CSC) by the kernels ``material_tangent``
+        and ``assemble_tangent``:
 
         - elastic: -V0 A_acbd g_i^c g_j^d with A = dP/dF of each particle's law (central differences) and g the
           reference weight gradients (F = I + sum_j u_j g_j^T);
@@ -420,35 +496,32 @@ class StaticSolver:
         from scipy import sparse
 
         self._scatter(u_nodes, field_level, gravity_level)  # x and F at u
-        dim = self.dim
-        nodes, w, g = self._stencil()
-        V0 = self.model.host["volumes"]
-        A = self._material_tangent()
-        A[self.model.host["clamped"]] = 0.0  # held particles keep F = I whatever the nodes do
-        S = nodes.shape[1]
-        n_dof = len(self.free) * dim
+        dim, n, k, dev = self.dim, self.model.n_particles, self.model.kernels, self.dev
+        indices, indptr, d_indices, d_indptr = self._pattern()
+        if getattr(self, "_tangent_arrays", None) is None:
+            self._tangent_arrays = (wp.zeros(n * dim * dim, dtype=k["mat"], device=dev),
+                                    wp.array(self.dof_of_node.astype(np.int32), dtype=wp.int32, device=dev),
+                                    wp.zeros(len(indices), dtype=self.sc, device=dev))
+        A, dof, data = self._tangent_arrays
+        wp.launch(self.kk["material_tangent"], dim=n, device=dev, inputs=[self.F, self.bodies, self.sc(F_STEP), A])
+        fterms = self.kk["FieldTerms"]()
         terms = self._field_terms(field_level)
-        Br = self.model.host["remanence"]
-        chunk = max(1, 2_000_000 // (S * S * dim * dim))
-        values = []
-        for lo in range(0, len(V0), chunk):
-            sl = slice(lo, lo + chunk)
-            blk = -np.einsum("p,pacbd,psc,ptd->psatb", V0[sl], A[sl], g[sl], g[sl], optimize=True)
-            if terms is not None:  # (a 2D scene's out-of-plane moment, Br_z, is left out of the tangent)
-                G0, dG = terms
-                br = Br[sl, :dim]
-                Fbr = np.einsum("pbc,pc->pb", self.F.numpy().astype(np.float64)[sl], br)
-                m = Fbr * (V0[sl] / MU0)[:, None]
-                coef = V0[sl] / MU0
-                # magnetic stress: -(1/mu0) B (x) Br moves with x: dP_ac/dx_e = -(1/mu0) G_ae Br_c
-                blk += np.einsum("p,pab,pc,psc,pt->psatb", coef, G0[sl], br, g[sl], w[sl], optimize=True)
-                # gradient force on node i: w_i G_ba m_b
-                blk += np.einsum("p,ps,pba,pc,ptc->psatb", coef, w[sl], G0[sl], br, g[sl], optimize=True)
-                blk += np.einsum("ps,pbae,pb,pt->psate", w[sl], dG[sl], m, w[sl], optimize=True)
-            values.append(blk.reshape(blk.shape[0], -1))
-        keep, inverse, indices, indptr = self._pattern(nodes, chunk)
-        data = np.bincount(inverse, weights=np.concatenate(values, axis=0).ravel()[keep], minlength=len(indices))
-        J = sparse.csc_matrix((data, indices, indptr), shape=(n_dof, n_dof))
+        if terms is not None:  # (a 2D scene's out-of-plane moment, Br_z, is left out of the tangent)
+            G0, dG = terms
+            V0 = self.model.host["volumes"]
+            br = self.model.host["remanence"][:, :dim]
+            m = np.einsum("pbc,pc->pb", self.F.numpy().astype(np.float64), br) * (V0 / MU0)[:, None]
+            npsc = self.model.np_scalar
+            fterms.active = 1
+            fterms.coef = wp.array((V0 / MU0).astype(npsc), dtype=self.sc, device=dev)
+            fterms.G = wp.array(G0.astype(npsc), dtype=k["mat"], device=dev)
+            fterms.br = wp.array(br.astype(npsc), dtype=k["vec"], device=dev)
+            fterms.H = wp.array(np.einsum("pbae,pb->pae", dG, m).astype(npsc), dtype=k["mat"], device=dev)
+        data.zero_()
+        wp.launch(self.kk["assemble_tangent"], dim=n * 3 ** dim, device=dev,
+                  inputs=[self.model.X0, self.block, self.bodies, A, fterms, dof, d_indptr, d_indices, data])
+        n_dof = len(self.free) * dim
+        J = sparse.csc_matrix((data.numpy().astype(np.float64), indices, indptr), shape=(n_dof, n_dof))
         if self.contact is not None:  # the colliders' springs at u (the scatter above evaluated them)
             J = J + self.contact.tangent(self.free)
         J = (self.E.T @ J @ self.E).tocsc()  # on the unknowns (_slaving)
@@ -458,23 +531,28 @@ class StaticSolver:
         shift = NULL_SHIFT * float(np.median(np.abs(J.diagonal()))) if n else 0.0
         return (J - shift * sparse.identity(n, format="csc")).tocsc()
 
-    def _pattern(self, nodes, chunk):
-        """The tangent's sparsity pattern, computed once (the stencils and free nodes do not change): which of the
-        particles' (S dim)^2 block entries fall on free rows and columns, where each goes in the CSC data, and
-        the CSC row indices and column pointers."""
+    def _pattern(self):
+        """The tangent's CSC pattern on the free DOFs, computed once (the stencils and free nodes do not change):
+        every pair of free nodes that share a particle's stencil couples all their components. Returns the row
+        indices (sorted within each column) and column pointers, on the host and on the device."""
         if getattr(self, "_pattern_cache", None) is None:
-            dim, S = self.dim, nodes.shape[1]
-            n_dof = len(self.free) * dim
-            rows = self.dof_of_node[nodes]  # (N, S)
-            ri = (rows[:, :, None, None, None] * dim + np.arange(dim)[None, None, :, None, None]) * np.ones((1, 1, 1, S, dim), dtype=np.int64)
-            ci = (rows[:, None, None, :, None] * dim + np.arange(dim)[None, None, None, None, :]) * np.ones((1, S, dim, 1, 1), dtype=np.int64)
-            ok = (rows[:, :, None, None, None] >= 0) & (rows[:, None, None, :, None] >= 0) & np.ones_like(ri, dtype=bool)
-            keep = np.flatnonzero(ok.reshape(-1))
-            key = ci.reshape(-1)[keep] * n_dof + ri.reshape(-1)[keep]  # column-major order
-            unique, inverse = np.unique(key, return_inverse=True)
-            indices = (unique % n_dof).astype(np.int32)
-            indptr = np.searchsorted(unique // n_dof, np.arange(n_dof + 1)).astype(np.int32)
-            self._pattern_cache = (keep, inverse, indices, indptr)
+            dim = self.dim
+            nodes, _, _ = self._stencil()
+            nf = len(self.free)
+            rows = self.dof_of_node[nodes]  # (N, S): the free node's index, -1 for a held or empty node
+            ok = (rows[:, :, None] >= 0) & (rows[:, None, :] >= 0)
+            key = np.unique((rows[:, None, :] * nf + rows[:, :, None])[ok])  # column node j, row node i: j nf + i
+            col_node, row_node = key // nf, key % nf
+            glen = np.bincount(col_node, minlength=nf) * dim  # entries of each column of node j
+            gstart = np.concatenate([[0], np.cumsum(glen)[:-1]])
+            expanded = (row_node[:, None] * dim + np.arange(dim)[None, :]).ravel()  # by j, then i, then a
+            lens, starts = np.repeat(glen, dim), np.repeat(gstart, dim)  # column j dim + b: node j's rows again
+            indptr = np.concatenate([[0], np.cumsum(lens)])
+            pick = np.arange(indptr[-1]) - np.repeat(indptr[:-1], lens) + np.repeat(starts, lens)
+            indices = expanded[pick].astype(np.int32)
+            indptr = indptr.astype(np.int32)
+            self._pattern_cache = (indices, indptr, wp.array(indices, dtype=wp.int32, device=self.dev),
+                                   wp.array(indptr, dtype=wp.int32, device=self.dev))
         return self._pattern_cache
 
     # -- Newton ---------------------------------------------------------------------------------------------
@@ -489,7 +567,7 @@ class StaticSolver:
             self.contact.commit()
         r = self._reduce(r_full)
         norm = float(np.abs(r).max()) if r.size else 0.0
-        best = norm
+        best, improved = norm, 0  # the lowest |R| of this solve and the iteration that reached it
         for it in range(self.max_iterations + 1):
             if norm <= self.tolerance * scale:
                 if self.contact is None or not self.contact.release():
@@ -498,9 +576,12 @@ class StaticSolver:
                 r_full = self._scatter(u_nodes, field_level, gravity_level)
                 r = self._reduce(r_full)
                 norm = best = float(np.abs(r).max())
+                improved = it + 1
                 continue
             if it == self.max_iterations:
                 break
+            if it - improved >= STALL:  # wandering, not converging: a smaller load increment is cheaper
+                return u_nodes, False, it, norm, f"no lower residual in {STALL} Newton iterations"
             J = self.tangent(u_nodes, field_level, gravity_level)
             self._last_tangent = J  # the stability check after convergence reuses it (one step from the solution)
             try:
@@ -531,7 +612,8 @@ class StaticSolver:
                     changed = contacts is not None and alpha == first and self.contact.signature() != contacts
                     if math.isfinite(n_try) and (n_try < GROWTH * best or changed):
                         u_nodes, r_full, r, norm = trial, r_try_full, r_try, n_try
-                        best = norm if changed else min(best, norm)  # new contacts: a new problem, a new reference
+                        if changed or norm < best:  # new contacts: a new problem, a new reference
+                            best, improved = norm, it + 1
                         if self.contact is not None:
                             self.contact.commit()
                         break
