@@ -54,9 +54,6 @@ BRANCH_KICKS = (0.1, 1.0, 10.0)
 MAX_SWITCHES = 4
 #: a Newton step is taken while |R| stays below this many times the lowest residual of the solve
 GROWTH = 1.0e3
-#: Newton gives up (and the load increment is halved) after this many iterations without a new lowest residual:
-#: converging iterations lower it at least every second one, even where the full step first raises it
-STALL = 6
 #: the largest move of a node in one Newton step, cells
 MAX_STEP = 10.0
 #: per dimension: free nodes lighter than this fraction of the heaviest node are extrapolated from the nodes inward
@@ -567,7 +564,7 @@ class StaticSolver:
             self.contact.commit()
         r = self._reduce(r_full)
         norm = float(np.abs(r).max()) if r.size else 0.0
-        best, improved = norm, 0  # the lowest |R| of this solve and the iteration that reached it
+        best = norm
         for it in range(self.max_iterations + 1):
             if norm <= self.tolerance * scale:
                 if self.contact is None or not self.contact.release():
@@ -576,12 +573,9 @@ class StaticSolver:
                 r_full = self._scatter(u_nodes, field_level, gravity_level)
                 r = self._reduce(r_full)
                 norm = best = float(np.abs(r).max())
-                improved = it + 1
                 continue
             if it == self.max_iterations:
                 break
-            if it - improved >= STALL:  # wandering, not converging: a smaller load increment is cheaper
-                return u_nodes, False, it, norm, f"no lower residual in {STALL} Newton iterations"
             J = self.tangent(u_nodes, field_level, gravity_level)
             self._last_tangent = J  # the stability check after convergence reuses it (one step from the solution)
             try:
@@ -612,8 +606,7 @@ class StaticSolver:
                     changed = contacts is not None and alpha == first and self.contact.signature() != contacts
                     if math.isfinite(n_try) and (n_try < GROWTH * best or changed):
                         u_nodes, r_full, r, norm = trial, r_try_full, r_try, n_try
-                        if changed or norm < best:  # new contacts: a new problem, a new reference
-                            best, improved = norm, it + 1
+                        best = norm if changed else min(best, norm)  # new contacts: a new problem, a new reference
                         if self.contact is not None:
                             self.contact.commit()
                         break
