@@ -23,7 +23,6 @@ import math
 
 import numpy as np
 import warp as wp
-from scipy import fft as sfft
 
 from magsoro.constants import MU0
 from magsoro.mpm.stencil import host_bspline, make_stencil
@@ -192,6 +191,7 @@ def _kernel_spectra(padded: tuple, h: float, dim: int, real: str = "float64") ->
     """The convolution's spectra as one (dim + len(sym_pairs), dim, ...) array: output c (H_a, then grad H in
     :func:`sym_pairs` order) from moment component b, the rFFT of T_ab or of dT_ae/dx_b sampled at every signed
     circular offset of a grid of ``padded`` nodes, in the precision ``real``."""
+    from scipy import fft as sfft  # imported here: scipy.fft costs 0.6 s of every run's start-up
     axes = [np.fft.fftfreq(n, 1.0 / n) * h for n in padded]  # 0, 1, ..., -2, -1 times h
     offsets = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1)
     T, S = dipole_tensors(offsets, h, dim)
@@ -248,6 +248,7 @@ class MagneticInteraction:
     def _fit(self, x_np: np.ndarray, key="all") -> None:
         """Place the grid over the magnetised particles (of body ``key``, or all), aligned with the model's
         grid; a new padded size (and kernel spectra) only when the box outgrows the current one."""
+        from scipy import fft as sfft
         m, h = self.model, self.h
         mask = self.magnetised if key == "all" else self.magnetised & (self.body == key)
         pts = x_np[mask].astype(np.float64)
@@ -278,6 +279,7 @@ class MagneticInteraction:
     def _solve(self, x: wp.array, F: wp.array) -> None:
         """Deposit the moments (of the box's body, or all) at positions ``x`` with deformation gradients ``F``
         and convolve."""
+        from scipy import fft as sfft
         m = self.model
         lo, inv_h, shape, total = self._grid_args()
         self._M.zero_()
