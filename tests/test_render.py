@@ -290,3 +290,24 @@ def test_render_a_real_tiny_run(tmp_path, capsys):
         assert main(["render", str(tmp_path / "r"), "--out", str(out), "--color", color, "--size", "320x240"]) == 0
         _check_picture(out, "speed")
     assert info["frames"] >= 2
+
+
+def test_held_particles_are_drawn_dark_grey(run2d, tmp_path):
+    """The frames' ``clamped`` flag: held particles are drawn in the held colour in any colour mode and a note
+    says so. Pixels of that colour: 323 with the flag, 50 without (text and scale bar edges)."""
+    held_rgb = np.array([0x3a, 0x3a, 0x3a])
+    out = tmp_path / "held.png"
+    res = R.render_run(run2d, out, color="speed", backend="matplotlib", size=SIZE)
+    assert any("held by a clamp" in n for n in res.notes)
+    n_held = _near(_image(out), held_rgb, tol=12)
+    bare = make_run(tmp_path / "bare", dim=2, drop=("clamped",))
+    out2 = tmp_path / "bare.png"
+    res2 = R.render_run(bare, out2, color="speed", backend="matplotlib", size=SIZE)
+    assert not any("held by a clamp" in n for n in res2.notes)
+    assert n_held > 3 * _near(_image(out2), held_rgb, tol=12)
+
+
+def test_field_label_drops_round_off():
+    """A field turned by 90 degrees has components of 1e-15 of its magnitude: shown as 0."""
+    label = R.field_label(np.array([0.02 * np.cos(np.pi / 2), 0.02, 0.0]), 3)
+    assert label == "B = 20 mT (0, 20, 0)"

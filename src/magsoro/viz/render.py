@@ -66,6 +66,7 @@ _VIEW_ANGLES = {"iso": (30.0, -60.0), "x": (0.0, 0.0), "y": (0.0, -90.0), "z": (
 _BODY_COLOURS = ["#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2", "#7f7f7f", "#bcbd22", "#17becf"]
 _COLLIDER_COLOUR = "#708090"
 _FIELD_COLOUR = "#c0142c"
+_HELD_COLOUR = "#3a3a3a"  # particles a clamp holds (the frames' ``clamped`` flag), whatever the colour mode
 
 
 # ------------------------------------------------------------------------------------------------ the run
@@ -392,6 +393,8 @@ def field_label(B: np.ndarray | None, dim: int) -> str:
     if B is None:
         return "no uniform applied field"
     mT = B * 1e3
+    # components below 1e-9 of |B| are round-off of a rotated or interpolated field (a cosine of 90 degrees)
+    mT = np.where(np.abs(mT) > 1e-9 * np.linalg.norm(mT), mT, 0.0)
     text = f"B = {np.linalg.norm(mT):.3g} mT ({mT[0]:.3g}, {mT[1]:.3g}, {mT[2]:.3g})"
     if dim == 2 and abs(mT[2]) > 1e-9 * max(np.linalg.norm(mT), 1e-30):
         text += ", Bz out of plane"
@@ -483,6 +486,7 @@ class FramePicture:
     colliders: list[dict]
     field: np.ndarray | None  # T
     label: str
+    held: np.ndarray | None = None  # per particle: held by a clamp (drawn in _HELD_COLOUR)
 
 
 def _arrows(x_mm, direction, k=MAX_ARROWS):
@@ -568,6 +572,14 @@ class MatplotlibBackend:
         rgba[~np.isfinite(values)] = to_rgba("lightgrey")
         return rgba
 
+    def _picture_colours(self, pic: FramePicture):
+        from matplotlib.colors import to_rgba
+
+        rgba = self._colours(pic.values)
+        if pic.held is not None and len(rgba):
+            rgba[pic.held] = to_rgba(_HELD_COLOUR)
+        return rgba
+
     def _legend(self, fig, ax):
         import matplotlib.pyplot as plt
         from matplotlib.cm import ScalarMappable
@@ -622,7 +634,7 @@ class MatplotlibBackend:
         ax.set_axis_off()
         size_pt = max(2 * L.radius * px_per_mm * 72 / self.dpi, 0.5)
         self._colliders_2d(ax, pic.colliders)
-        ax.scatter(pic.x[:, 0], pic.x[:, 1], s=size_pt**2, c=self._colours(pic.values), linewidths=0, zorder=2)
+        ax.scatter(pic.x[:, 0], pic.x[:, 1], s=size_pt**2, c=self._picture_colours(pic), linewidths=0, zorder=2)
         if pic.arrows is not None:
             p, d = pic.arrows
             ax.quiver(p[:, 0], p[:, 1], d[:, 0], d[:, 1], angles="xy", scale_units="xy", scale=1 / (3 * L.radius + 0.02 * L.extent),
@@ -686,7 +698,7 @@ class MatplotlibBackend:
             for poly in _collider_polys(col, c, half):
                 ax.add_collection3d(Poly3DCollection([poly], facecolor=_COLLIDER_COLOUR, edgecolor="none", alpha=0.22))
         x = pic.x
-        ax.scatter(x[:, 0], x[:, 1], x[:, 2], s=size_pt**2, c=self._colours(pic.values), depthshade=True, linewidths=0)
+        ax.scatter(x[:, 0], x[:, 1], x[:, 2], s=size_pt**2, c=self._picture_colours(pic), depthshade=True, linewidths=0)
         if pic.arrows is not None:
             p, d = pic.arrows
             q = d * (3 * L.radius + 0.03 * L.extent)
@@ -798,19 +810,23 @@ class PyVistaBackend:
         p.enable_lightkit()
         p.set_background("white")
         px_per_mm = self._camera()
-        cloud = pv.PolyData(np.ascontiguousarray(pic.x, dtype=np.float64))
+        free = np.ones(len(pic.x), bool) if pic.held is None else ~pic.held
+        cloud = pv.PolyData(np.ascontiguousarray(pic.x[free], dtype=np.float64))
         point_px = float(np.clip(2 * L.radius * px_per_mm, 2.0, 60.0))
         common = dict(render_points_as_spheres=True, point_size=point_px, reset_camera=False)
+        if not free.all():
+            p.add_mesh(pv.PolyData(np.ascontiguousarray(pic.x[~free], dtype=np.float64)), color=_HELD_COLOUR, **common)
+        values = np.asarray(pic.values)[free]
         if s.categorical:
             from matplotlib.colors import to_rgb
 
-            rgb = np.array([to_rgb(_BODY_COLOURS[int(v) % 10]) for v in pic.values]) if len(pic.values) else np.zeros((0, 3))
+            rgb = np.array([to_rgb(_BODY_COLOURS[int(v) % 10]) for v in values]) if len(values) else np.zeros((0, 3))
             cloud["rgb"] = (rgb * 255).astype(np.uint8)
             p.add_mesh(cloud, scalars="rgb", rgb=True, **common)
             p.add_legend(labels=[[n, _BODY_COLOURS[i % 10]] for i, n in enumerate(s.names)], bcolor="white",
                          loc="lower right", size=(0.14, min(0.035 * len(s.names) + 0.01, 0.5)))
         else:
-            cloud["value"] = np.asarray(pic.values, dtype=np.float64)
+            cloud["value"] = np.asarray(values, dtype=np.float64)
             p.add_mesh(cloud, scalars="value", cmap=s.cmap, clim=(s.vmin, s.vmax), nan_color="lightgrey",
                        scalar_bar_args=dict(title=s.short or s.label, vertical=True, position_x=0.88, position_y=0.2, height=0.6,
                                             width=0.05, color="black", title_font_size=self._fs(12),
@@ -1012,7 +1028,7 @@ def render_run(run_dir, out, color: str = "part", view: str | None = None, frame
         if COLOR_MODES[color] in d0:
             ref = np.asarray(d0[COLOR_MODES[color]], dtype=np.float64).reshape(-1, 3)
     keep = None
-    positions, values, dirs = [], [], []
+    positions, values, dirs, held = [], [], [], []
     for k in chosen:
         pts, data = read_vtp(series.files[k])
         if keep is None:
@@ -1029,6 +1045,7 @@ def render_run(run_dir, out, color: str = "part", view: str | None = None, frame
         finite = np.isfinite(x).all(axis=1)  # a failed run's last frame may hold non-finite particles
         positions.append(x[finite])
         values.append(v[keep][finite])
+        held.append(np.asarray(data["clamped"]).ravel()[keep][finite] != 0 if "clamped" in data else None)
         if color == "magnetisation":
             dirs.append(np.asarray(data[COLOR_MODES[color]], dtype=np.float64).reshape(-1, 3)[keep][finite])
     if series.dim == 2:
@@ -1039,7 +1056,9 @@ def render_run(run_dir, out, color: str = "part", view: str | None = None, frame
     title = f"{series.name}: {scale.label}" if not scale.categorical else f"{series.name}: parts"
     pictures = [FramePicture(positions[i], values[i], _arrows(positions[i], dirs[i]) if dirs else None,
                              overlays.collider_shapes(series.stamps[k]), overlays.field(series.stamps[k]),
-                             time_label(series, series.stamps[k], k)) for i, k in enumerate(chosen)]
+                             time_label(series, series.stamps[k], k), held[i]) for i, k in enumerate(chosen)]
+    if any(h is not None and h.any() for h in held):
+        notes.append("dark grey: particles held by a clamp")
     try:
         images, described = _draw_all(backend_name, layout, scale, (w, h), title, pictures, notes)
     except Exception as exc:
