@@ -10,9 +10,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from magsoro.constants import MU0
-from magsoro.robots.base import Context, FrameRecorder, ReproduceResult, Robot, RobotError, scene_data, simulation
-from magsoro.robots.continuum_soft import (Row, drive, level_keyframes, probe_by_name, settle_row, twin_mape_rows,
-                                           twin_outputs)
+from magsoro.robots.base import Context, FrameRecorder, ReproduceResult, Robot, RobotError
+from magsoro.robots.continuum_soft import (Row, probe_by_name, static_row, static_sweep, static_twin_simulation,
+                                           twin_mape_rows, twin_outputs)
 
 NAME = "continuum_discrete"
 
@@ -99,11 +99,9 @@ def planar_rod(sections: list[Section], fields, nodes: int = 201) -> list[np.nda
 
 # -- this robot ------------------------------------------------------------------------------------------
 #: field levels (T) along +x. Seed 001 does not list its fields; 1..16 mT takes the tip from ~8 to ~32 mm.
+#: Fig 9 is a static curve: each level is an equilibrium of the static solver (Simulation.solve_static).
 LEVELS = (0.001, 0.002, 0.004, 0.008, 0.016)
 PREVIEW_LEVELS = (0.004,)
-SETTLE, RAMP, HOLD = 0.05, 0.03, 0.27     # s: gravity settling, field ramp, hold per level (Fig 9: statics);
-#                                           the first mode (~22 rad/s at 2 mT) needs ~6 / omega to settle
-WINDOW = 0.04                             # s: settling check over the end of each hold
 SERIES = ("theoretical", "corrected")
 SECTIONS = ("plain1", "mag1", "plain2", "mag2")  # from the clamp to the tip
 
@@ -129,12 +127,8 @@ def rod_sections(sim, twin: str) -> list[Section]:
 
 def reproduce(ctx: Context) -> ReproduceResult:
     levels = PREVIEW_LEVELS if ctx.preview else LEVELS
-    sched = level_keyframes(levels, _field, SETTLE, RAMP, HOLD)
-    data = scene_data(NAME)
-    data["simulation"]["duration"] = sched.duration
-    data["fields"] = [{"name": "drive", "type": "keyframes", "times": sched.times, "values": sched.values}]
-    data.setdefault("output", {})["particles"] = False
-    sim = simulation(NAME, data, preview=ctx.preview, device=ctx.device)
+    top = levels[-1]
+    data, sim = static_twin_simulation(ctx, NAME, top)
 
     X = sim.model.host["positions"]
     tips = {s: probe_by_name(sim, f"tip_{s}") for s in SERIES}
@@ -144,10 +138,10 @@ def reproduce(ctx: Context) -> ReproduceResult:
         x = s.state.x.numpy()
         return {f"{k}_mm": float((tips[k].evaluate(x)[0] - ref[k][0]) * 1e3) for k in SERIES}
 
-    frames = FrameRecorder(axes=(0, 2), label=lambda s: f"t = {s.time:.2f} s, B = {sched.value_at(s.time)[0] * 1e3:.1f} mT along +x")
+    frames = FrameRecorder(axes=(0, 2), label=lambda s: f"B = {s.field_scale * top * 1e3:.1f} mT along +x (equilibrium)")
     ctx.log(f"{NAME}: {sim.model.n_particles} particles, dx = {sim.scene.simulation.dx * 1e3:.3g} mm, "
-            f"{len(levels)} field levels, {sched.duration:.2f} s simulated")
-    res = drive(sim, sched.reads, measure, WINDOW, frames, frame_every=0.025, log=ctx.log, label=f"{NAME}: ")
+            f"{len(levels)} field levels, static solver")
+    res = static_sweep(sim, [b / top for b in levels], measure, frames, log=ctx.log, label=f"{NAME}: ")
 
     # independent model: planar Kirchhoff rod with the sections the engine simulates
     rod = {}
@@ -168,21 +162,20 @@ def reproduce(ctx: Context) -> ReproduceResult:
     margin_rod = float(np.mean((rod["corrected"] - rod["theoretical"]) / rod["theoretical"]))
     rows.append(Row(case, "corrected bends more than theoretical: mean (d_corr - d_theo) / d_theo over the levels",
                     inp, margin_rod, margin_sim, abs(margin_sim - margin_rod) / abs(margin_rod), 0.5))
-    rows.append(settle_row(case, drift, WINDOW, inp))
+    rows.append(static_row(case, res, inp))
 
     top = -1
     summary = (f"At {B_mT[top]:.0f} mT the tip deflects {sim_d['theoretical'][top]:.1f} mm (theoretical) and "
                f"{sim_d['corrected'][top]:.1f} mm (corrected parameters) against {rod['theoretical'][top]:.1f} and "
                f"{rod['corrected'][top]:.1f} mm for the planar Kirchhoff rod (MAPE {err['theoretical'] * 100:.1f} % "
-               f"and {err['corrected'] * 100:.1f} %); seed 001 gives no deflection values, only the FEM-vs-experiment "
+               f"and {err['corrected'] * 100:.1f} %; MPM equilibria by the static solver); seed 001 gives no deflection values, only the FEM-vs-experiment "
                f"MAPE (theoretical 8.5 %, corrected 5.4 %), so no paper number is compared.")
     from magsoro.robots.continuum_soft import free_section
 
     sec = free_section(sim, "corrected_mag1")
     d = 2 * next(p["shape"]["radius"] for p in data["robot"]["parts"] if p["name"] == "corrected_mag1")
-    info = {"particles": res.particles, "steps": res.steps, "sim_wall_s": round(res.wall_s, 1),
-            "dx_m": sim.scene.simulation.dx, "dt_min_s": res.dt_min, "dt_max_s": res.dt_max,
-            "hold_s": HOLD, "damping": sim.scene.simulation.damping,
+    info = {"particles": res.particles, "solver": "static", "sim_wall_s": round(res.wall_s, 1),
+            "newton_iterations": res.iterations.tolist(), "dx_m": sim.scene.simulation.dx,
             "fill_area_ratio": round(sec["A"] / (np.pi * d**2 / 4), 4),
             "fill_second_moment_ratio": round(sec["I"] / (np.pi * d**4 / 64), 4)}
     return ReproduceResult(NAME, csv, png, gif, summary, rows, info)
