@@ -1,9 +1,9 @@
 """Pittiglio et al.'s multi-segment magnetic tentacle (seed 000 sec 4.5, Fig. 5(a)): tip position and shape vs
 the strength of a uniform field, MPM against the Kirchhoff rod model of the same tentacle (magsoro.rod).
 
-One MPM run steps the field (the scene's ``shape`` field direction) through the levels: a 0.05 s ramp, then a
-hold long enough for the near-critically damped tentacle to settle; the tip and the centreline are read at the
-end of each hold. The centreline is the mean current position of the particles in 0.5 mm slices of the
+Each field level is an equilibrium of the static solver (Simulation.solve_static: the scene's design field
+scaled by the level, gravity in full, each level from the previous equilibrium); the tip and the centreline are
+read at each. The centreline is the mean current position of the particles in 0.5 mm slices of the
 reference arc length. The rod model gets the same length, diameter, E = 9 K G / (3 K + G) from the engine's G
 and K, density (weight included) and block magnetisations, clamped at the collar face, and is swept through the
 same fields (each solve continues from the previous one, as a slowly raised field would).
@@ -25,13 +25,10 @@ from magsoro.robots.base import (FrameRecorder, ReproduceResult, Robot, RobotErr
 NAME = "tentacle"
 LEVELS = (0.25, 0.5, 0.75, 1.0)  # fractions of the scene's design field (full sweep)
 LEVELS_PREVIEW = (0.5, 1.0)
-RAMP_S = 0.05
-HOLD_S = 0.25
 SLICE_M = 0.5e-3
-SETTLED_S = 0.05  # the tip's drift over the last this-many seconds of a hold is reported (settling)
 # Tolerances, in tentacle lengths. The rod is inextensible and unshearable and its clamp is exact; the MPM
 # tentacle is a compressible continuum, 2-3 cells across, whose clamp holds the grid nodes one cell into the free
-# part, and slender magnetic beams settle a few % of their deflection too far at the default time step
+# part, and (run dynamically) slender magnetic beams settle a few % of their deflection too far at the default time step
 # (docs/validation.md). 5 % of the length for the tip and 3 % for the mean centreline distance allow for these.
 TIP_TOL_L = 0.05
 SHAPE_TOL_L = 0.03
@@ -108,7 +105,7 @@ def _at(sol, s):
 
 
 def reproduce(ctx) -> ReproduceResult:
-    from magsoro.errors import SimulationError
+    from magsoro.robots.continuum_soft import static_row, static_sweep
     from magsoro.validation.registry import Row
 
     wall0 = time.perf_counter()
@@ -116,50 +113,24 @@ def reproduce(ctx) -> ReproduceResult:
     design = _field(data)
     fractions = LEVELS_PREVIEW if ctx.preview else LEVELS
     levels = [f * design for f in fractions]
-    times, values, ends = [0.0], [[0.0, 0.0, 0.0]], []
-    t = 0.0
-    for b in levels:
-        times += [t + RAMP_S, t + RAMP_S + HOLD_S]
-        values += [b.tolist(), b.tolist()]
-        t += RAMP_S + HOLD_S
-        ends.append(t)
-    data["fields"] = [{"type": "keyframes", "name": "shape", "times": times, "values": values}]
-    data["simulation"]["duration"] = t
+    data["fields"] = [{"type": "uniform", "name": "shape", "B": design.tolist()}]
+    data["simulation"]["precision"] = "float64"
     sim = simulation(NAME, data, preview=ctx.preview, device=ctx.device)
     origin, axis, length, diameter = geometry(data)
-    ctx.log(f"tentacle: {sim.model.n_particles} particles, dt {sim.dt:.3g} s, {len(levels)} field levels")
+    ctx.log(f"tentacle: {sim.model.n_particles} particles, {len(levels)} field levels, static solver")
 
-    def b_at(tt):
-        return float(np.linalg.norm([np.interp(tt, times, [v[j] for v in values]) for j in range(3)]))
+    frames = FrameRecorder(axes=(0, 2), label=lambda s: f"|B| = {s.field_scale * np.linalg.norm(design) * 1e3:.1f} mT "
+                                                       f"along +x (equilibrium)")
+    shapes, tips = [], []
 
-    frames = FrameRecorder(axes=(0, 2), label=lambda s: f"|B| = {b_at(s.time) * 1e3:.1f} mT along +x, "
-                                                       f"t = {s.time * 1e3:.0f} ms")
-    every = 0.02 if ctx.preview else 0.01
-    shapes, tips, drift = [], [], []
-    t_next = 0.0
-    frames.record(sim)
+    def measure(s):
+        v = s.probe_values()
+        shapes.append(centreline(s, data)[1])
+        tips.append(np.array([v["tip_x"], v["tip_y"], v["tip_z"]]))
+        return {"tip_x_mm": v["tip_x"] * 1e3, "tip_z_mm": v["tip_z"] * 1e3}
 
-    def tip_now():
-        v = sim.probe_values()
-        return np.array([v["tip_x"], v["tip_y"], v["tip_z"]])
-
-    try:
-        for t_end in ends:
-            while t_next + every < t_end - SETTLED_S - 1e-9:
-                t_next += every
-                sim.advance_to(t_next)
-                frames.record(sim)
-            sim.advance_to(t_end - SETTLED_S)
-            before = tip_now()
-            sim.advance_to(t_end)
-            t_next = t_end
-            frames.record(sim)
-            s, pts = centreline(sim, data)
-            shapes.append(pts)
-            tips.append(tip_now())
-            drift.append(float(np.linalg.norm(tips[-1] - before)))
-    except SimulationError as exc:
-        raise RobotError(f"tentacle: run failed: {exc}") from exc
+    sweep = static_sweep(sim, fractions, measure, frames, log=ctx.log, label="tentacle: ")
+    s = centreline(sim, data)[0]
     tips = np.array(tips)
 
     rod = rod_model(sim, data, design)
@@ -206,18 +177,18 @@ def reproduce(ctx) -> ReproduceResult:
         Row(case=f"robot-{NAME}", quantity="mean centreline distance MPM vs Kirchhoff rod at the design field "
             "(tentacle lengths)", inputs=inputs, reference=0.0, value=float(shape_err[-1] / length),
             error=float(shape_err[-1] / length), tolerance=SHAPE_TOL_L),
+        static_row(f"robot-{NAME}", sweep, inputs),
     ]
     summary = (f"At the {b_mT[-1]:.0f} mT design field the MPM tip sits at x = {tips[-1, 0] * 1e3:.1f} mm, "
                f"z = {tips[-1, 2] * 1e3:.1f} mm against the rod model's {rod_tips[-1, 0] * 1e3:.1f}, "
                f"{rod_tips[-1, 2] * 1e3:.1f} mm (distance {tip_err[-1] / length * 100:.1f} % of the length; mean "
                f"centreline distance {shape_err[-1] / length * 100:.1f} %, {target_err / length * 100:.1f} % from "
                "the designed S); seed 000 (Fig. 5(a)) gives no numbers for this robot.")
-    info = {"particles": sim.model.n_particles, "steps": sim.steps, "dt_s": sim.dt, "dx_m": sim.model.dx,
-            "simulated_s": float(sim.time), "wall_s": round(time.perf_counter() - wall0, 1),
+    info = {"particles": sim.model.n_particles, "solver": "static", "newton_iterations": sweep.iterations.tolist(),
+            "dx_m": sim.model.dx, "wall_s": round(time.perf_counter() - wall0, 1),
             "tip_distance_over_L": (tip_err / length).tolist(), "shape_distance_over_L": (shape_err / length).tolist(),
             "design_target_distance_over_L": target_err / length,
-            "tip_mpm_m": tips.tolist(), "tip_rod_m": rod_tips.tolist(),
-            "tip_drift_last_50ms_over_L": (np.array(drift) / length).tolist()}
+            "tip_mpm_m": tips.tolist(), "tip_rod_m": rod_tips.tolist()}
     return ReproduceResult(name=NAME, csv=csv, png=png, animation=gif, summary=summary, rows=rows, info=info)
 
 
