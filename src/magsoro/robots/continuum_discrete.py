@@ -185,7 +185,7 @@ ROBOT = Robot(
     name=NAME,
     title="Discrete continuum robot (theoretical vs corrected material)",
     source="seed 001 sec V",
-    quantity="tip deflection vs uniform field, theoretical and corrected parameters",
+    quantity="tip deflection vs uniform field, theoretical and corrected parameters (MPM static solver)",
     sentence=("A 40 mm x 3 mm Ecoflex 00-30 rod with two axially magnetised 150 wt% NdFeB sections bends in a "
               "uniform field; with seed 001's measured ('corrected') moduli its soft plain sections let it bend "
               "more than the single datasheet modulus ('theoretical') predicts, as a planar rod with the same "

@@ -403,7 +403,7 @@ ROBOT = Robot(
     name=NAME,
     title="Fully soft continuum robot (theoretical vs corrected material)",
     source="seed 001 sec V",
-    quantity="tip deflection vs uniform field, theoretical and corrected parameters",
+    quantity="tip deflection vs uniform field, theoretical and corrected parameters (MPM static solver)",
     sentence=("A 37 mm x 5 mm Ecoflex 00-30 + 100 wt% NdFeB rod, magnetised along its axis, bends in a uniform "
               "field; seed 001's datasheet ('theoretical') parameters make it bend more than its measured "
               "('corrected') ones, and both follow the Kirchhoff rod."),

@@ -234,7 +234,7 @@ ROBOT = Robot(
     name=NAME,
     title="Shape-forming tentacle (Pittiglio et al.)",
     source="seed 000 sec 4.5",
-    quantity="tip position and centreline vs uniform-field strength, MPM vs Kirchhoff rod",
+    quantity="tip position and centreline vs uniform-field strength, MPM (static solver) vs Kirchhoff rod",
     sentence="A hanging 32 mm tentacle of eight blocks, each magnetised along its own designed direction, forms an "
              "S in a 20 mT field; MPM tip and centreline are compared with the Kirchhoff rod model.",
     reproduce=reproduce,
