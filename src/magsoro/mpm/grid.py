@@ -10,7 +10,7 @@ import functools
 import warp as wp
 
 from magsoro.mpm.colliders import COLLIDER_STRIDE, collider_sdf
-from magsoro.mpm.contact import make_contact
+from magsoro.mpm.contact import BODIES, make_contact
 from magsoro.mpm.stencil import make_stencil, make_types
 
 
@@ -160,7 +160,8 @@ def make_grid(dim: int, scalar, two_fields: bool = False) -> dict:
                     pos1 = pos + grid_u[slot] / m1
                 vel1 = node_velocity(grid_p[slot], m1, pos1, gs)
                 if m > scalar(0.0):
-                    vel, vel1 = resolve_contact(vel, vel1, m, m1, ct[0].grad_m[idx], ct[0].grad_m[slot], ct[0].mu[idx], ct[0].gap)
+                    vel, vel1 = resolve_contact(vel, vel1, m, m1, ct[0].grad_m[idx], ct[0].grad_m[slot], ct[0].mu[idx], ct[0].gap,
+                                                 int(ct[0].split[idx] == BODIES))
             grid_v[slot] = vel1
         grid_v[idx] = vel
 
@@ -192,7 +193,8 @@ def make_grid(dim: int, scalar, two_fields: bool = False) -> dict:
         if m0 > scalar(0.0) and m1 > scalar(0.0):
             v0 = grid_p[idx] / m0
             v1 = grid_p[slot] / m1
-            n0, n1 = resolve_contact(v0, v1, m0, m1, ct[0].grad_m[idx], ct[0].grad_m[slot], ct[0].mu[idx], ct[0].gap)
+            n0, n1 = resolve_contact(v0, v1, m0, m1, ct[0].grad_m[idx], ct[0].grad_m[slot], ct[0].mu[idx], ct[0].gap,
+                                      int(ct[0].split[idx] == BODIES))
             dv0 = n0 - v0
             dv1 = n1 - v1
         grid_dv[idx] = dv0
