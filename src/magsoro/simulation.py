@@ -60,6 +60,14 @@ def check_run_length(duration: float, every: float | None = None) -> float:
     return every
 
 
+def graph_off_note(device: str, reason: str) -> str:
+    """The note run.json gets (``notes``) when a run's check windows cannot run from drive tables, so not as CUDA
+    graphs, for ``reason`` (docs/engine.md, "CUDA graph windows")."""
+    if device.startswith("cuda"):
+        return f"CUDA graph capture off: {reason}"
+    return f"graph windows off (plain step loop): {reason}"
+
+
 class Simulation:
     """A scene made runnable: Model, Control, Solver and the current State.
 
@@ -89,6 +97,8 @@ class Simulation:
         self.dt_min = self.dt_max = self.dt
         self.check_every = int(sim.check_every)  # steps per check window (advance_to, run)
         self.windows = self.reruns = 0  # check windows run, and those run again step by step
+        # notes for run.json: why a window's steps run through the plain step loop, or are not captured as a graph
+        self.notes: list[str] = []
         self._checkpoint = None  # the first state of the current check window
         self.steps = 0
         self.last_good_time = 0.0
@@ -252,19 +262,56 @@ class Simulation:
         self.state, self._spare = self._spare, self.state
         self.steps += 1
 
-    def advance_to(self, t_end: float, callback: Callable | None = None) -> None:
+    def advance_to(self, t_end: float, callback: Callable | None = None, heartbeat: Callable | None = None) -> None:
         """Step until simulated time ``t_end`` (s), landing on it exactly, in check windows of up to
-        ``check_every`` steps (:meth:`_window`); ``callback(sim)`` after every step."""
+        ``check_every`` steps (:meth:`_window`); ``callback(sim)`` after every step, ``heartbeat(sim)`` after every
+        window (and every step outside windows). Without a callback a window's steps run from drive tables
+        (:meth:`magsoro.mpm.solver.Solver.run_window`; on CUDA a captured graph) where the scene allows it."""
         eps = 1e-12 * max(1.0, t_end)
         while self.state.time < t_end - eps:
             if self.check_every <= 1:
                 self._step(self._next_dt(t_end - self.state.time))
                 if callback is not None:
                     callback(self)
+                if heartbeat is not None:
+                    heartbeat(self)
             else:
-                self._window(t_end, eps, callback)
+                self._window(t_end, eps, callback, heartbeat)
+                if heartbeat is not None:
+                    heartbeat(self)
 
-    def _window(self, t_end: float, eps: float, callback: Callable | None) -> None:
+    def _note(self, text: str) -> None:
+        if text not in self.notes:
+            self.notes.append(text)
+
+    def _graph_window(self, callback: Callable | None) -> bool:
+        """Whether this window's steps run from drive tables (Solver.run_window); notes why not, once per reason."""
+        reason = self.solver.graph_refusal(self.control)
+        if reason is None and callback is not None:
+            reason = "a callback after every step (Simulation.run / advance_to callback) needs the host at every step"
+        if reason is not None:
+            self._note(graph_off_note(self.model.device, reason))
+            return False
+        self._note_capture()
+        return True
+
+    def _note_capture(self) -> None:
+        """On CUDA, note why a window's steps are launched one by one instead of replayed as graphs, once."""
+        if self.model.device.startswith("cuda"):
+            capture = self.solver.capture_refusal()
+            if capture is not None:
+                self._note(f"CUDA graph capture off: {capture}")
+
+    def _plan_window(self, t_end: float, eps: float, speed: float) -> list[float]:
+        """The time steps of a window, as the step-by-step loop of :meth:`_window` takes them."""
+        dts, t = [], self.state.time
+        while len(dts) < self.check_every and t < t_end - eps:
+            dt = self._next_dt(t_end - t, speed)
+            dts.append(dt)
+            t = t + dt
+        return dts
+
+    def _window(self, t_end: float, eps: float, callback: Callable | None, heartbeat: Callable | None = None) -> None:
         """Up to ``check_every`` steps towards ``t_end`` with one host read at the end (the solver accumulates its
         checks on the device; the time step is fixed from the top speed of the previous check). When the window
         fails a check (a particle left the grid block or the domain, an invalid state, more than a cell in a
@@ -280,8 +327,19 @@ class Simulation:
         reach = 2.0 * self.check_every * (self.fixed_dt or self._cfl_dt(speed)) * speed + self.model.dx
         dts = []
         self.windows += 1
+        graph = self._graph_window(callback)
         try:
-            while len(dts) < self.check_every and self.state.time < t_end - eps:
+            if graph:  # the same steps from drive tables: launched one by one, or replayed as graphs
+                plan = self._plan_window(t_end, eps, speed)
+                self.solver.start_window(self.state, reach)
+                tick = (lambda: heartbeat(self)) if heartbeat is not None else None
+                last = self.solver.run_window(self.state, self._spare, self.control, plan, tick)
+                if last is not self.state:
+                    self.state, self._spare = self._spare, self.state
+                self.steps += len(plan)
+                dts = plan
+                self._note_capture()  # a capture that failed in this window
+            while not graph and len(dts) < self.check_every and self.state.time < t_end - eps:
                 dt = self._next_dt(t_end - self.state.time, speed)
                 self.solver.step(self.state, self._spare, self.control, dt, check=False, reach=reach)
                 self.state, self._spare = self._spare, self.state
@@ -427,8 +485,10 @@ class Simulation:
         record: Callable | None = None,
         record_every: float | None = None,
         progress: Callable | None = None,
+        heartbeat: Callable | None = None,
     ) -> RunResult:
-        """Run for ``duration`` seconds (default: the scene's). ``callback(sim)`` is called after every step,
+        """Run for ``duration`` seconds (default: the scene's). ``callback(sim)`` is called after every step (which
+        keeps a window's steps in the plain step loop), ``heartbeat(sim)`` after every check window,
         ``record(sim)`` at t = 0 and every ``record_every`` seconds (default: output.every or duration / 50),
         ``progress(sim)`` after each record. SimulationError and KeyboardInterrupt end the run with status
         'failed' / 'interrupted'; the state kept is then the last good one. An OutputError raised by ``record``
@@ -447,7 +507,7 @@ class Simulation:
             if record is not None:
                 record(self)
             for target in targets:
-                self.advance_to(target, callback)
+                self.advance_to(target, callback, heartbeat)
                 self.last_good_time = self.state.time
                 if record is not None:
                     record(self)

@@ -62,6 +62,7 @@ def run_scene(name: str, device: str = "cpu", steps: int | None = None, threads:
         off_states = [off.new_state(), off.new_state()]
         _timed_steps(off, off_states, control, dt, 5, device)
     states = [a, b]
+    window_loop = "plain" if solver.graph_refusal(control) is not None else "drive tables"
     for _ in range(rounds):
         if off is not None:
             off_s.append(_timed_steps(off, off_states, control, dt, steps, device))
@@ -69,17 +70,24 @@ def run_scene(name: str, device: str = "cpu", steps: int | None = None, threads:
         engine_s.append(_timed_steps(solver, states, control, dt, steps, device))
         reads["checked"] = (solver.host_reads - reads0) / steps
         a, b = states
-        # the same steps in check windows (the loop Simulation.run uses): one host read per WINDOW steps
+        # the same steps in check windows (the loop Simulation.run uses): one host read per WINDOW steps, the steps
+        # from drive tables (Solver.run_window; captured as graphs on CUDA) where the scene allows it
         reads0 = solver.host_reads
         t0 = time.perf_counter()
-        for k in range(steps):
+        for k0 in range(0, steps, WINDOW):
+            n_win = min(WINDOW, steps - k0)
             reach = 2.0 * WINDOW * dt * solver.last_max_speed() + model.dx  # as Simulation._window
-            solver.step(a, b, control, dt, check=False, reach=reach)
-            a, b = b, a
-            if (k + 1) % WINDOW == 0 or k + 1 == steps:
-                problem = solver.close_window()
-                if problem is not None:  # a run would go back and redo the window step by step
-                    raise RuntimeError(f"bench {name}: a check window failed ({problem}); lower WINDOW")
+            if window_loop == "drive tables":
+                solver.start_window(a, reach)
+                if solver.run_window(a, b, control, [dt] * n_win) is not a:
+                    a, b = b, a
+            else:
+                for _ in range(n_win):
+                    solver.step(a, b, control, dt, check=False, reach=reach)
+                    a, b = b, a
+            problem = solver.close_window()
+            if problem is not None:  # a run would go back and redo the window step by step
+                raise RuntimeError(f"bench {name}: a check window failed ({problem}); lower WINDOW")
         wp.synchronize_device(device)
         window_s.append(time.perf_counter() - t0)
         states[:] = [a, b]
@@ -110,6 +118,8 @@ def run_scene(name: str, device: str = "cpu", steps: int | None = None, threads:
         "window_steps": WINDOW,
         "window_ms_per_step": 1e3 * float(np.median(window_s)) / steps,
         "window_ms_per_step_rounds": [1e3 * e / steps for e in window_s],
+        "window_loop": window_loop,
+        "graph_captures": solver.graph_captures,
         "host_reads_per_step": reads,
         "steps_per_s": steps / wall,
         "particle_steps_per_s": n * steps / wall,

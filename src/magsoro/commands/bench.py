@@ -45,7 +45,8 @@ def run(args) -> int:
                   f"{ph['p2g']:.2f}/{ph['grid']:.2f}/{ph['g2p']:.2f}/{ph['other']:.2f}")
         print(f"ms/step: every step checked (one host read per step); windowed: check windows of "
               f"{result['scenes'][0]['window_steps'] if result['scenes'] else '-'} steps (one read per window), "
-              f"timed in the same rounds")
+              f"timed in the same rounds; window loop: "
+              f"{', '.join(sorted({s['window_loop'] for s in result['scenes']})) if result['scenes'] else '-'}")
     if args.save:
         out_dir = Path("benchmarks") / "results"
         out_dir.mkdir(parents=True, exist_ok=True)

@@ -90,7 +90,7 @@ def run(args) -> int:
             bar.refresh()
 
     try:
-        result = sim.run(duration, callback=writer.beat, record=writer.record, record_every=scene.output.every,
+        result = sim.run(duration, heartbeat=writer.beat, record=writer.record, record_every=scene.output.every,
                          progress=progress)
     except Exception as exc:  # a fault of ours: run.json says 'failed' with it, then the traceback for the report
         from magsoro.simulation import RunResult

@@ -328,7 +328,7 @@ class Rollout:
             wp.launch(k["remap_node_velocity"], dim=self.n_nodes,
                       inputs=[dst.grid_q, dst.grid_m, dst.grid_clamp, dst.grid_w, self.n_nodes], device=dev)
             wp.launch(k["remap_F"], dim=n,
-                      inputs=[src.x, m.clamped, self._block, dt, dst.grid_w, src.F, dst.F, self.error, self._no_contact],
+                      inputs=[src.x, self._bodies, self._block, dt, dst.grid_w, src.F, dst.F, self.error, self._no_contact],
                       device=dev)
 
     def _run_segment(self, seg: int) -> int:

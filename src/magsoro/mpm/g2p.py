@@ -21,8 +21,8 @@ def make_g2p(dim: int, scalar, two_fields: bool = False) -> dict:
     """Gather kernels for ``dim``, ``scalar``; ``two_fields``: the contact variant (:mod:`magsoro.mpm.contact`)."""
     s = make_stencil(dim, scalar, two_fields)
     t = s.types
-    vec, mat = t.vec, t.mat
-    Block, Bodies, Particles, Checks = t.Block, t.Bodies, t.Particles, t.Checks
+    vec, mat, v3 = t.vec, t.mat, t.v3
+    Block, Bodies, Particles, Checks, Step = t.Block, t.Bodies, t.Particles, t.Checks, t.Step
     ContactGrid = s.ContactGrid
     NS = s.NS
     slot_of, bspline_weights = s.slot_of, s.bspline_weights
@@ -72,8 +72,12 @@ def make_g2p(dim: int, scalar, two_fields: bool = False) -> dict:
         which move by dt v: the same array in the updated-Lagrangian form. In the total-Lagrangian form
         (F_TOTAL) ``x_in`` holds the reference positions, C is the velocity gradient with respect to them and F
         grows by dt C; the bounds reduction then covers the reference positions, which the grid block is
-        fitted to."""
+        fitted to. With ``bodies[0].stepped`` dt comes from ``bodies[0].step[0]`` (:class:`magsoro.mpm.stencil`
+        Step) instead of ``dt``."""
         p = wp.tid()
+        dts = dt
+        if bodies[0].stepped != 0:
+            dts = bodies[0].step[0].dt
         xp = x_in[p]
         xc = x_cur[p]
         o = out[0]
@@ -107,7 +111,7 @@ def make_g2p(dim: int, scalar, two_fields: bool = False) -> dict:
                 S = S + wp.outer(wgv, of)
             # C = (4/dx^2) sum w v_i (x_i - x_p)^T = (4/dx) (S - v fx^T)
             new_C = (scalar(4.0) * inv_dx) * (S - wp.outer(new_v, fx))
-            xc = xc + dt * new_v
+            xc = xc + dts * new_v
             o.x[p] = xc
             if f_update != F_TOTAL:
                 xp = xc
@@ -115,11 +119,11 @@ def make_g2p(dim: int, scalar, two_fields: bool = False) -> dict:
             o.C[p] = new_C
             ok = True
             if f_update == F_TOTAL:
-                Fn = F_in[p] + dt * new_C
+                Fn = F_in[p] + dts * new_C
                 o.F[p] = Fn
                 ok = wp.determinant(Fn) > scalar(0.0)
             elif f_update == F_FROM_GRID:
-                ok = update_F(F_in, o.F, p, dt * new_C)
+                ok = update_F(F_in, o.F, p, dts * new_C)
             else:
                 mp = bodies[0].mass[p]
                 Cd = new_C * dx
@@ -139,6 +143,30 @@ def make_g2p(dim: int, scalar, two_fields: bool = False) -> dict:
             bounds[a] = big
             bounds[dim + a] = -big
         max_speed[0] = scalar(0.0)
+
+    @wp.kernel
+    def load_step(
+        table: wp.array(dtype=wp.float64),
+        width: int,
+        cursor: wp.array(dtype=wp.int32),
+        step: wp.array(dtype=Step),
+        colliders: wp.array(dtype=wp.float64),
+        n_collider_values: int,
+    ):
+        """A step of a check window takes its values from row ``cursor[0]`` of the window's drive table (``width``
+        float64 per row: dt, the damping factor, the uniform field's 3 components, then ``n_collider_values`` of
+        the collider table at the step's time) into ``step[0]`` and ``colliders``, and moves the cursor on: every
+        step of a window is the same launch sequence, which a CUDA graph can capture once (one thread)."""
+        row = cursor[0]
+        base = row * width
+        sv = Step()
+        sv.dt = scalar(table[base])
+        sv.damping_factor = scalar(table[base + 1])
+        sv.B_uniform = v3(scalar(table[base + 2]), scalar(table[base + 3]), scalar(table[base + 4]))
+        step[0] = sv
+        for i in range(n_collider_values):
+            colliders[i] = table[base + 5 + i]
+        cursor[0] = row + 1
 
     @wp.kernel
     def remap_node_velocity(
@@ -164,7 +192,7 @@ def make_g2p(dim: int, scalar, two_fields: bool = False) -> dict:
     @wp.kernel
     def remap_F(
         x: wp.array(dtype=vec),
-        clamped: wp.array(dtype=wp.int32),
+        bodies: wp.array(dtype=Bodies),
         block: Block,
         dt: scalar,
         grid_w: wp.array(dtype=vec),
@@ -174,11 +202,16 @@ def make_g2p(dim: int, scalar, two_fields: bool = False) -> dict:
         ct: wp.array(dtype=ContactGrid),
     ):
         """F update from the remapped node velocities ``grid_w`` (:func:`remap_node_velocity`): F + dt (grad v) F
-        at the particle's position at the start of the step, the same stencil as the first gather."""
+        at the particle's position at the start of the step, the same stencil as the first gather (held particles:
+        ``bodies[0].clamped``; dt from ``bodies[0].step[0]`` when ``bodies[0].stepped``, as in :func:`g2p`)."""
         p = wp.tid()
-        if clamped[p] != 0:
+        b = bodies[0]
+        if b.clamped[p] != 0:
             F_out[p] = F_in[p]
             return
+        dts = dt
+        if b.stepped != 0:
+            dts = b.step[0].dt
         inv_dx = scalar(1.0) / block.dx
         base, fx = local_coords(x[p], block.lo, inv_dx)
         if outside_block(base, block.shape):
@@ -193,7 +226,7 @@ def make_g2p(dim: int, scalar, two_fields: bool = False) -> dict:
             sv = sv + wv
             S = S + wp.outer(wv, of)
         # as in g2p: (4/dx^2) sum w v_i (x_i - x_p)^T = (4/dx) (S - (sum w v_i) fx^T)
-        if not update_F(F_in, F_out, p, (dt * scalar(4.0) * inv_dx) * (S - wp.outer(sv, fx))):
+        if not update_F(F_in, F_out, p, (dts * scalar(4.0) * inv_dx) * (S - wp.outer(sv, fx))):
             wp.atomic_max(error, 1, 1)
 
     @wp.kernel
@@ -226,4 +259,4 @@ def make_g2p(dim: int, scalar, two_fields: bool = False) -> dict:
         o.x[p] = o.x[p] + dt * dv
 
     return dict(g2p=g2p, reset_reductions=reset_reductions, remap_node_velocity=remap_node_velocity, remap_F=remap_F,
-                contact_gather=contact_gather)
+                contact_gather=contact_gather, load_step=load_step)

@@ -17,7 +17,7 @@ from magsoro.mpm.stencil import make_stencil, make_types
 @functools.cache
 def grid_settings_struct(dim: int, scalar):
     """The grid update's settings struct for ``dim`` and ``scalar`` (one class for both kernel variants)."""
-    vec = make_types(dim, scalar).vec
+    vec, Step = make_types(dim, scalar).vec, make_types(dim, scalar).Step
 
     @wp.struct
     class GridSettings:
@@ -43,6 +43,8 @@ def grid_settings_struct(dim: int, scalar):
         plane_z: wp.float64
         node_shift: int
         collider_skin: wp.float64
+        step: wp.array(dtype=Step)  # with stepped = 1, dt and the damping factor come from step[0] (stencil Step)
+        stepped: int
 
     return GridSettings
 
@@ -108,7 +110,13 @@ def make_grid(dim: int, scalar, two_fields: bool = False) -> dict:
     def node_velocity(momentum: vec, m: scalar, pos: vec, gs: GridSettings):
         """Velocity of one field of a node after damping, gravity, the domain walls and the rigid colliders."""
         # damping f = -c p (seed 000 eq 17), integrated exactly over the step so any c is stable
-        vel = momentum / m * gs.damping_factor + gs.dt * gs.gravity
+        dt = gs.dt
+        damping_factor = gs.damping_factor
+        if gs.stepped != 0:
+            sv = gs.step[0]
+            dt = sv.dt
+            damping_factor = sv.damping_factor
+        vel = momentum / m * damping_factor + dt * gs.gravity
         # colliders before the walls: a friction floor within two cells of the domain's edge takes its friction
         # from the approaching normal velocity, which a slip wall applied first would have removed (a block on
         # such a floor slid as if frictionless)

@@ -79,6 +79,6 @@ def make_kernels(dim: int, scalar, contact: bool = False) -> dict:
         ContactGrid=ct_ns["ContactGrid"],
         contact_classify=ct_ns["contact_classify"],
         Block=t.Block, Bodies=t.Bodies, Applied=t.Applied, GridArrays=t.GridArrays, Particles=t.Particles,
-        Checks=t.Checks,
+        Checks=t.Checks, Step=t.Step,
         vec=t.vec, mat=t.mat, ivec=t.ivec, v3=t.v3, m3=t.m3, vprm=t.vprm,
     )

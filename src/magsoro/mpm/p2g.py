@@ -75,7 +75,8 @@ def make_p2g(dim: int, scalar, two_fields: bool = False) -> dict:
         Piola stress P instead of the Kirchhoff stress P F^T). In the contact variant each node has two
         velocity fields (:mod:`magsoro.mpm.contact`): the particle scatters into its own, and adds its share of
         that field's mass gradient. ``vs``: the Prony materials' internal stresses (:mod:`magsoro.mpm.viscous`),
-        whose overstress adds to P."""
+        whose overstress adds to P. With ``bodies[0].stepped`` dt and the uniform field come from
+        ``bodies[0].step[0]`` instead of ``dt`` and ``applied.B_uniform`` (:class:`magsoro.mpm.stencil` Step)."""
         p = wp.tid()
         dx = block.dx
         inv_dx = scalar(1.0) / dx
@@ -88,20 +89,25 @@ def make_p2g(dim: int, scalar, two_fields: bool = False) -> dict:
         b = bodies[0]
         Fp = sp.F[p]
         B = applied.B_uniform
+        dts = dt
+        if b.stepped != 0:
+            sv = b.step[0]
+            B = sv.B_uniform
+            dts = sv.dt
         if applied.has_gradient != 0:
             B = B + applied.B[p]
         P = particle_stress(Fp, b, p, B)
         if vs.n_rows > 0:
             P = P + overstress(Fp, vs, p)
         # MLS-MPM: grid force -V0 P F^T grad w, with grad w = (4/dx^2) w (x_i - x_p) for quadratic B-splines
-        stress = (-dt * b.vol0[p] * scalar(4.0) * inv_dx * inv_dx) * P
+        stress = (-dts * b.vol0[p] * scalar(4.0) * inv_dx * inv_dx) * P
         if total == 0:
             stress = stress * wp.transpose(Fp)
         mp = b.mass[p]
         affine = stress + mp * sp.C[p]
         mv = mp * sp.v[p]
         if applied.has_gradient != 0:
-            mv = mv + dt * gradient_force(Fp, b, p, applied.G[p])
+            mv = mv + dts * gradient_force(Fp, b, p, applied.G[p])
         is_clamped = b.clamped[p]
         g = grid[0]
         # node value mv + affine (x_i - x_p) = mv + ((affine dx) o - affine fx dx). mv is added per node, not

@@ -10,6 +10,7 @@ The grid is a dense block of nodes over the particles' bounding box plus a margi
 move near its edge, so memory and per-step grid work follow the occupied region, not the domain.
 """
 
+import itertools
 import math
 import os
 import queue
@@ -74,12 +75,19 @@ def resolve_threads(requested: int | None, device: str, n_particles: int) -> int
     return int(min(requested, n_particles))
 
 
+#: Capture check windows as graphs on CPU too (Warp's CPU graphs replay the recorded launches in C++). Off: on CPU
+#: the window's steps are launched one by one (see Solver.capture_refusal and docs/engine.md, "CUDA graph windows").
+CPU_GRAPHS = False
+
 COLLIDER_SKIN = 0.1  # cells: total-Lagrangian nodes touch a collider from this signed distance down
 
 
-def grid_settings(model: "Model", settings: "SolverSettings", gravity, colliders, n_colliders: int, dt: float):
+def grid_settings(model: "Model", settings: "SolverSettings", gravity, colliders, n_colliders: int, dt: float,
+                  step: wp.array | None = None):
     """The grid update's :class:`GridSettings` struct (kernels.py): step, damping factor exp(-c dt), gravity (the
-    kernels' vector), domain walls, grid spacing and the collider table ``colliders`` with ``n_colliders`` rows."""
+    kernels' vector), domain walls, grid spacing and the collider table ``colliders`` with ``n_colliders`` rows.
+    ``step``: the solver's one-element Step array (:mod:`magsoro.mpm.stencil`); the kernel then takes dt and the
+    damping factor from it instead of from ``dt``."""
     sc = model.scalar
     vec = model.kernels["vec"]
     gs = model.kernels["GridSettings"]()
@@ -101,12 +109,20 @@ def grid_settings(model: "Model", settings: "SolverSettings", gravity, colliders
     # for a step, free of friction, and a block on a 30 degree slope at friction 0.7 crept away (1.8 cells in
     # 40 ms); a skin of a tenth of a cell keeps it in contact (0.15 cells, as the updated form).
     gs.collider_skin = wp.float64(COLLIDER_SKIN * model.dx if total else 0.0)
+    if step is None:  # an array all the same: Warp's tape looks at every array of a struct argument
+        step = getattr(model, "_unused_step", None)
+        if step is None:
+            step = model._unused_step = wp.zeros(1, dtype=model.kernels["Step"], device=model.device)
+    else:
+        gs.stepped = 1
+    gs.step = step
     return gs
 
 
-def bodies_array(model: "Model", cut=lambda arr: arr) -> wp.array:
+def bodies_array(model: "Model", cut=lambda arr: arr, step: wp.array | None = None) -> wp.array:
     """The kernels' per-particle constants (:mod:`magsoro.mpm.stencil` Bodies) of ``model`` as a one-element
-    array, over the slice ``cut`` of its particles (a CPU thread's share; default all)."""
+    array, over the slice ``cut`` of its particles (a CPU thread's share; default all). ``step``: the solver's
+    one-element Step array, from which the kernels then take dt and the uniform field (else their arguments)."""
     k = model.kernels
     b = k["Bodies"]()
     b.vol0, b.mass, b.shear, b.bulk = cut(model.vol0), cut(model.mass), cut(model.shear), cut(model.bulk)
@@ -115,6 +131,8 @@ def bodies_array(model: "Model", cut=lambda arr: arr) -> wp.array:
     # the stimulus tables are indexed by each particle's stimulus row, not by particle: never cut
     b.stimulus, b.stretch_inv, b.stretch_scale = cut(model.stimulus), model.stretch_inv, model.stretch_scale
     b.n_stimuli = len(model.stimuli)
+    if step is not None:
+        b.step, b.stepped = step, 1
     return wp.array([b], dtype=k["Bodies"], device=model.device)
 
 
@@ -583,8 +601,27 @@ class Solver:
             self.interaction = inter if inter.active else None
         self._interaction_step = None  # the step the bodies' field was last refreshed at
         self._collider_array = None
+        self._collider_host = None
         self._launch_sets = {}
         self._grid_version = 0
+        # what a step takes from the host (stencil Step: dt, damping factor, uniform field), one element on the
+        # device that every recorded launch reads; written before a plain step when it changes (CPU: through a
+        # numpy view) and by the load_step kernel inside a check window (run_window)
+        self._step_values = wp.zeros(1, dtype=self.k["Step"], device=dev)
+        self._step_np = self._step_values.numpy() if self._on_cpu else None
+        self._step_written = None  # (uniform field, dt, damping) last written by a plain step
+        # CPU: the small per-step host work (grid zeroing) goes through numpy views, except while a graph captures
+        self._host_ops = self._on_cpu
+        # check windows run from drive tables (run_window): the table, its cursor, the recorded load_step launch,
+        # the captured graphs (cleared with the launch sets they replay) and counters
+        self._drive = None
+        self._graphs = {}
+        self._launch_serials = itertools.count()
+        self.graph_capture = None  # None: automatic (capture on CUDA; on CPU when CPU_GRAPHS); True / False: force
+        self.graph_windows = 0  # windows run from drive tables
+        self.graph_captures = 0  # graphs captured
+        self.graph_replays = 0  # graph launches
+        self.capture_failure = None  # why a capture failed (then graph_capture is False)
         self._grid_views = []
         self.phase_times = None
         # total Lagrangian: the reference positions the kernels take the grid weights at, and the held-node mask
@@ -649,7 +686,7 @@ class Solver:
         self.n_active = need
         self.refits += 1
         self._grid_version += 1
-        self._launch_sets.clear()
+        self._drop_launches()
         slots = self._fields_per_node * need
         self._grid_views = [self.grid_p[:slots], self.grid_m[:slots], self.grid_clamp[:need]]
         if self._total:
@@ -753,7 +790,7 @@ class Solver:
         grid_p = [self.grid_p] + [gp for gp, _ in self._thread_grids]
         grid_m = [self.grid_m] + [gm for _, gm in self._thread_grids]
         x_grid = self._X0 if self._total else state_in.x  # the positions the grid weights are taken at
-        gs = grid_settings(m, st, self.gravity, self._collider_array, len(control.colliders), 0.0)
+        gs = grid_settings(m, st, self.gravity, self._collider_array, len(control.colliders), 0.0, step=self._step_values)
         ct = contact_grid(m)
         if self._contact:  # the total form's reference grid keeps the fields apart but never resolves (gap 0)
             ct = self._contact_grid(self._ct, n_act, 0.0 if self._total else st.contact.gap)
@@ -773,7 +810,7 @@ class Solver:
             checks = k["Checks"]()
             checks.bounds, checks.max_speed, checks.error = self._thread_bounds[t], self._thread_speed[t], self.error
             threads.append(dict(
-                t=t, cut=cut, n=b - a, applied=applied, bodies=bodies_array(m, cut),
+                t=t, cut=cut, n=b - a, applied=applied, bodies=bodies_array(m, cut, step=self._step_values),
                 grid=wp.array([grid], dtype=k["GridArrays"], device=dev),
                 out=wp.array([out], dtype=k["Particles"], device=dev),
                 src=wp.array([src], dtype=k["Particles"], device=dev),
@@ -803,13 +840,14 @@ class Solver:
             "_arrays": (state_in.x, state_in.v, state_in.C, state_in.F, state_out.x, state_out.v, state_out.C, state_out.F,
                         state_in.H, state_out.H),
             "_threads": threads,
-            "_scalars": None,
-            "_grid_settings": gs,  # dt and damping factor change with the step
+            "_grid_settings": gs,  # keeps the collider table it points to alive
+            "_serial": next(self._launch_serials),  # names the set in the graph cache (ids can be reused)
             "_contact_grid": ct,  # referenced by pointer from the recorded launches
         }
         if m.viscous:  # the Prony internal stresses of state_out from its new F (magsoro.mpm.viscous)
             L["viscous"] = [nodes(make_viscous(m.dim, m.scalar)["viscous_update"], [
-                state_out.F, bodies_array(m), viscous_struct(m, state_in.H), state_out.H, sc(0.0)], m.n_particles)]
+                state_out.F, bodies_array(m, step=self._step_values), viscous_struct(m, state_in.H), state_out.H, sc(0.0)],
+                m.n_particles)]
         if self._total:
             L["node_displacement"] = nodes(k["node_displacement"], [self._X0, state_in.x, m.mass, block, self.grid_u, ct],
                                            m.n_particles)
@@ -822,7 +860,7 @@ class Solver:
             L["remap_nodes"] = nodes(k["remap_node_velocity"], [self.grid_p, self.grid_m, self.grid_clamp, self.grid_v, n_act],
                                      self._fields_per_node * n_act)
             L["remap_F"] = particles(k["remap_F"], lambda th, cut: [
-                cut(state_in.x), cut(m.clamped), block, sc(0.0), self.grid_v, cut(state_in.F), cut(state_out.F),
+                cut(state_in.x), th["bodies"], block, sc(0.0), self.grid_v, cut(state_in.F), cut(state_out.F),
                 self.error, ct])
         return L
 
@@ -833,7 +871,7 @@ class Solver:
         L = self._launch_sets.get(key)
         if L is None:
             if len(self._launch_sets) >= 8:  # states made afresh each call: do not keep their launches forever
-                self._launch_sets.clear()
+                self._drop_launches()
             L = self._record_launches(state_in, state_out, control, has_gradient)
             self._launch_sets[key] = L
         return L
@@ -919,7 +957,7 @@ class Solver:
         if self.model.stimuli:
             self.model.update_stimuli(t)
         L = self._launch_set(state_in, state_out, control, has_gradient)
-        self._set_step_values(L, b0, dt)
+        self._set_step_values(b0, dt)
         self._clear_grid()
         tick = self._phase("other", tick)
         self._scatter(L)
@@ -981,9 +1019,184 @@ class Solver:
             return "a particle moved more than a cell in one step"
         return None
 
+    # -- check windows from drive tables (CUDA graphs) ----------------------------------------------------------
+    def _drop_launches(self) -> None:
+        """Forget the recorded launches (grid block refitted, collider table reallocated, too many state pairs) and
+        the graphs that replay them."""
+        self._launch_sets.clear()
+        self._graphs.clear()
+
+    def start_window(self, state: State, reach: float = 0.0) -> None:
+        """Start a check window at ``state`` for :meth:`run_window`: the checks and the refit a window's first step
+        makes (:meth:`step`; ``reach`` as there), then :meth:`open_window`."""
+        self._check_and_fit(state, 0.0 if self._total else reach)
+        self.open_window()
+
+    def graph_refusal(self, control: Control) -> str | None:
+        """Why the steps of this run cannot go through :meth:`run_window` (a window's values prepared on the host
+        once, the steps launched, or replayed as a graph, without the host), so not into a CUDA graph either;
+        None when they can. Each reason is a part of a step that needs the host at every step."""
+        if self.interaction is not None:
+            return "the magnetic interaction refreshes the bodies' field on the host (an FFT) every interaction_every steps"
+        if self.model.stimuli:
+            return "stimulus eigenstrain: the stimulus tables are set on the host at every step"
+        if self._fields(control).has_gradient:
+            return ("non-uniform field sources: their parameters at the step's time are copied from the host and their "
+                    "kernels launched with the step's positions at every step")
+        if self._tcontact:
+            return "the total form with contact fits its contact grid to the positions on the host at every step"
+        if self.phase_times is not None:
+            return "phase timing synchronises the device between the phases of every step"
+        return None
+
+    def capture_refusal(self) -> str | None:
+        """Why :meth:`run_window` launches the steps one by one instead of capturing them as a graph (None: it
+        captures). Automatic (``graph_capture`` None): capture on CUDA; on CPU the launches run one by one (a CPU
+        graph replays them no faster here, see CPU_GRAPHS)."""
+        if self.capture_failure is not None:
+            return self.capture_failure
+        if self.graph_capture is False:
+            return "turned off (Solver.graph_capture = False)"
+        if self.threads > 1:
+            return f"{self.threads} CPU threads: a step hands work to helper threads, which a graph does not record"
+        if self._on_cpu and self.graph_capture is None and not CPU_GRAPHS:
+            return "on CPU the window's steps are launched one by one"
+        return None
+
+    def run_window(self, state_a: State, state_b: State, control: Control, dts, tick=None) -> State:
+        """Run steps of ``dts`` (s each) from ``state_a`` inside a window opened by :meth:`start_window`, alternating
+        between the two states, and return the one holding the last step's result (``state_b`` for an odd count;
+        the other holds the step before, as after plain steps). Needs :meth:`graph_refusal` None.
+
+        The host fills the window's drive table once (per step k: dt_k, exp(-c dt_k), the uniform field at t_k and,
+        when a collider moves, the collider table at t_k) and copies it to the device in one copy; every step then
+        runs the same launches: ``load_step`` takes the next row into the Step and collider table the kernels read,
+        then the step's phases. Captured (:meth:`capture_refusal` None), the steps become graphs of 2^j steps,
+        captured once per size, pair of states, grid block and drive table, and replayed; else they are launched
+        one by one. Same kernels, same values: the trajectory of :meth:`step` to the bit. ``tick()`` (optional) after
+        each step launched one by one and each graph replayed: a heartbeat (the states are not readable then)."""
+        n = len(dts)
+        if n == 0:
+            return state_a
+        times = [state_a.time]
+        for dt in dts:
+            times.append(times[-1] + dt)
+        step0 = state_a.step
+        self._update_colliders(control, times[0])
+        L = (self._launch_set(state_a, state_b, control, False), self._launch_set(state_b, state_a, control, False))
+        moving = self._fill_drive(control, dts, times)
+        # from here the device's Step and collider table hold window rows: a plain step writes its own again
+        self._step_written = None
+        if moving:
+            self._collider_host = None
+        load = self._drive["launch"]
+        if self.capture_refusal() is None:
+            self._replay(L, load, n, tick)
+        else:
+            for k in range(n):
+                self._window_step(L[k % 2], load)
+                if tick is not None:
+                    tick()
+        self.graph_windows += 1
+        if moving:  # the collider table now holds the last step's
+            self._collider_host = collider_table(control.colliders, times[n - 1])
+        self._window_dt = max(self._window_dt, max(dts))
+        states = (state_a, state_b)
+        for k in (n - 1, n):
+            states[k % 2].time, states[k % 2].step = times[k], step0 + k
+        return states[n % 2]
+
+    def _fill_drive(self, control: Control, dts, times) -> bool:
+        """Write the window's drive table (:meth:`run_window`) and copy it to the device; reset its cursor. Returns
+        whether the collider table is in it (a collider moves)."""
+        n, dev, st = len(dts), self.device, self.settings
+        moving = any(c.path is not None for c in control.colliders)
+        n_values = COLLIDER_STRIDE * len(control.colliders) if moving else 0
+        width = 5 + n_values
+        d = self._drive
+        if d is None or d["width"] != width or d["rows"] < n or d["colliders"] is not self._collider_array:
+            old = d["rows"] if d is not None else 0
+            rows = old if old >= n else max(n, 2 * old, 64)  # grows by doubling: few reallocations, few re-captures
+            table = wp.zeros(rows * width, dtype=wp.float64, device=dev)
+            host = table if self._on_cpu else wp.zeros(rows * width, dtype=wp.float64, device="cpu", pinned=True)
+            cursor = wp.zeros(1, dtype=wp.int32, device=dev)
+            launch = wp.launch(self.k["load_step"], dim=1, device=dev, record_cmd=True,
+                               inputs=[table, width, cursor, self._step_values, self._collider_array, n_values])
+            d = self._drive = {"width": width, "rows": rows, "table": table, "host": host, "host_np": host.numpy(),
+                               "cursor": cursor, "cursor_np": cursor.numpy() if self._on_cpu else None, "launch": launch,
+                               "colliders": self._collider_array}
+            self._graphs.clear()  # they read the table and the collider array through this launch
+        if not self._on_cpu:  # the pinned buffer is rewritten: its last copy must be done (the device is idle here)
+            wp.synchronize_device(dev)
+        rows = d["host_np"][: n * width].reshape(n, width)
+        fields = self._fields(control)
+        for k in range(n):
+            row = rows[k]
+            row[0] = dts[k]
+            row[1] = math.exp(-st.damping * dts[k])
+            row[2:5] = fields.uniform_value(times[k])
+            if n_values:
+                row[5:] = collider_table(control.colliders, times[k])
+        if self._on_cpu:
+            d["cursor_np"][0] = 0
+        else:
+            wp.copy(d["table"], d["host"], count=n * width)
+            d["cursor"].zero_()
+        return moving
+
+    def _window_step(self, L: dict, load) -> None:
+        """One step of a window: its values from the next row of the drive table, then the phases of :meth:`step`."""
+        load.launch()
+        self._clear_grid()
+        self._scatter(L)
+        self._update_grid(L)
+        self._gather(L)
+
+    def _replay(self, L: tuple, load, n: int, tick=None) -> None:
+        """``n`` steps as graphs of 2^j steps (binary digits of n, largest first), each captured at its first use
+        per (size, first state); ``L`` the launch sets from state a to b and back."""
+        start, size = 0, 1 << max(n.bit_length() - 1, 0)
+        while size:
+            if n & size:
+                key = (size, L[start]["_serial"], L[1 - start]["_serial"])
+                graph = self._graphs.get(key)
+                if graph is None and self.graph_capture is not False:
+                    if len(self._graphs) >= 64:  # launch sets dropped without a refit (many state pairs)
+                        self._graphs.clear()
+                    try:
+                        graph = self._graphs[key] = self._capture(L, load, size, start)
+                    except Exception as exc:  # nothing of the piece ran: launch it, and capture no more
+                        self.graph_capture = False
+                        self.capture_failure = f"the capture failed ({type(exc).__name__}: {exc})"
+                if graph is None:
+                    for j in range(size):
+                        self._window_step(L[(start + j) % 2], load)
+                else:
+                    wp.capture_launch(graph)
+                    self.graph_replays += 1
+                if tick is not None:
+                    tick()
+                start = (start + size) % 2
+            size >>= 1
+
+    def _capture(self, L: tuple, load, size: int, start: int):
+        """Capture ``size`` window steps from launch set ``L[start]`` on (nothing runs while capturing)."""
+        self._host_ops = False  # zero the grids with device operations, which the graph records
+        try:
+            with wp.ScopedCapture(device=self.device, force_module_load=False) as capture:
+                for j in range(size):
+                    self._window_step(L[(start + j) % 2], load)
+        finally:
+            self._host_ops = self._on_cpu
+        self.graph_captures += 1
+        return capture.graph
+
     def _read_checks(self) -> np.ndarray:
-        """The one host read of a check: error flags, particle bounds and top speed (counted in host_reads)."""
+        """The one host read of a check: error flags, particle bounds and top speed (counted in host_reads). It
+        closes the window it checks (a checked step is a window of one): the next unchecked step opens a new one,
+        with its fit of the grid block."""
         self.host_reads += 1
+        self._window_open = False
         if self._on_cpu:
             err = self._error_np.copy()
             bounds = np.array(self._bounds_np, dtype=np.float64)
@@ -1052,38 +1265,34 @@ class Solver:
             if self._collider_array is None or self._collider_array.shape[0] != len(table):
                 self._collider_array = wp.array(table, dtype=wp.float64, device=self.device)
                 self._collider_host = table
-                self._launch_sets.clear()
+                self._drop_launches()
             elif not np.array_equal(table, self._collider_host):
                 self._collider_array.assign(table)
                 self._collider_host = table
         elif self._collider_array is None:
             self._collider_array = wp.zeros(COLLIDER_STRIDE, dtype=wp.float64, device=self.device)
 
-    def _set_step_values(self, L: dict, b0, dt: float) -> None:
-        """Uniform field, time step and damping factor of the recorded launches, set only when they change."""
-        st, sc, k = self.settings, self.scalar, self.k
-        scalars = (tuple(float(b) for b in b0), float(dt), float(st.damping))
-        if L["_scalars"] == scalars:
+    def _set_step_values(self, b0, dt: float) -> None:
+        """Uniform field, time step and damping factor of a plain step into the device's Step, written only when they
+        change (CPU: through a numpy view of the same memory)."""
+        values = (tuple(float(b) for b in b0), float(dt), float(self.settings.damping))
+        if values == self._step_written:
             return
-        if L["_scalars"] is None or L["_scalars"][0] != scalars[0]:
-            b_uniform = k["v3"](*[sc(b) for b in b0])
-            for one, th in zip(L["p2g"], L["_threads"]):
-                th["applied"].B_uniform = b_uniform
-                one.set_param_by_name("applied", th["applied"])
-        if L["_scalars"] is None or L["_scalars"][1:] != scalars[1:]:
-            dt_s = sc(dt)
-            for one in L["p2g"] + L["g2p"] + L.get("remap_F", []) + L.get("viscous", []):
-                one.set_param_by_name("dt", dt_s)
-            gs = L["_grid_settings"]
-            gs.dt = dt_s
-            gs.damping_factor = sc(math.exp(-st.damping * dt))
-            L["grid_update"].set_param_by_name("gs", gs)
-        L["_scalars"] = scalars
+        damping = math.exp(-self.settings.damping * dt)
+        if self._step_np is not None:
+            v = self._step_np
+            v["dt"][0], v["damping_factor"][0], v["B_uniform"][0] = dt, damping, values[0]
+        else:
+            sc, k = self.scalar, self.k
+            one = k["Step"]()
+            one.dt, one.damping_factor, one.B_uniform = sc(dt), sc(damping), k["v3"](*[sc(b) for b in values[0]])
+            wp.copy(self._step_values, wp.array([one], dtype=k["Step"], device="cpu"))
+        self._step_written = values
 
     def _clear_grid(self) -> None:
         """Zero the grid arrays a step scatters into (CPU: through numpy views, a Warp call costs more than the
-        work here). The error flags are zeroed when a check window opens."""
-        if self._on_cpu:
+        work here; not while a graph captures the step). The error flags are zeroed when a check window opens."""
+        if self._host_ops:
             for view in self._grid_np:
                 view.fill(0)
         else:
@@ -1109,7 +1318,7 @@ class Solver:
         L["grid_update"].launch()
         if self._remap:
             # grid_p (and the threads' copies) receive the remap's momenta in g2p
-            if self._on_cpu:
+            if self._host_ops:
                 self._grid_np[0].fill(0)
                 for i in range(len(self._thread_grid_views)):
                     self._grid_np[len(self._grid_views) + 2 * i].fill(0)

@@ -52,13 +52,27 @@ def make_types(dim: int, scalar) -> SimpleNamespace:
         dx: scalar
 
     @wp.struct
+    class Step:
+        """What a step takes from the host: the time step dt (s), the damping factor exp(-c dt) and the uniform
+        field B_uniform (T). The solver's kernels read it from a one-element device array (``Bodies.step``,
+        ``GridSettings.step``), which the host writes before a plain step and a device kernel fills from a per-window
+        table inside a check window (:meth:`magsoro.mpm.solver.Solver.run_window`), so that a window's launches
+        do not change from one step to the next (CUDA graph capture)."""
+
+        dt: scalar
+        damping_factor: scalar
+        B_uniform: v3
+
+    @wp.struct
     class Bodies:
         """Per-particle constants of the model (:class:`magsoro.mpm.solver.Model`): reference volume (m^3),
         mass (kg), shear and bulk moduli (Pa), material law code and its LAW_PARAM_COUNT numbers
         (:mod:`magsoro.mpm.materials`), remanence Br (T, reference frame; in 2D the in-plane part plus Br_z),
         clamp flag. Stimulus eigenstrain (:mod:`magsoro.mpm.eigenstrain`): each particle's stimulus (a row of the
         two tables; -1: none), and per stimulus its current F_s^-1 and stress factor f det F_s, which the host
-        updates when the stimulus changes; ``n_stimuli`` 0: no particle has one (the tables are never read)."""
+        updates when the stimulus changes; ``n_stimuli`` 0: no particle has one (the tables are never read).
+        ``stepped`` 1: the kernels take dt and the uniform field from ``step[0]`` (:class:`Step`) instead of their
+        ``dt`` argument and ``Applied.B_uniform`` (the solver's launches); 0: from the arguments (other callers)."""
 
         vol0: wp.array(dtype=scalar)
         mass: wp.array(dtype=scalar)
@@ -73,6 +87,8 @@ def make_types(dim: int, scalar) -> SimpleNamespace:
         stretch_inv: wp.array(dtype=mat)
         stretch_scale: wp.array(dtype=scalar)
         n_stimuli: int
+        step: wp.array(dtype=Step)
+        stepped: int
 
     @wp.struct
     class Applied:
@@ -112,7 +128,7 @@ def make_types(dim: int, scalar) -> SimpleNamespace:
         error: wp.array(dtype=wp.int32)
 
     return SimpleNamespace(vec=vec, mat=mat, ivec=ivec, v3=v3, m3=m3, vprm=vprm, Block=Block, Bodies=Bodies, Applied=Applied,
-                           GridArrays=GridArrays, Particles=Particles, Checks=Checks)
+                           GridArrays=GridArrays, Particles=Particles, Checks=Checks, Step=Step)
 
 
 @functools.cache

@@ -96,18 +96,21 @@ def make_viscous(dim: int, scalar):
     def viscous_update(F: wp.array(dtype=mat), bodies: wp.array(dtype=Bodies), vs: Viscous,
                        H_out: wp.array2d(dtype=mat), dt: scalar):
         """H_out of particle p from the step's input H (in ``vs``) and its new deformation gradient F (module
-        docstring)."""
+        docstring); dt from ``bodies[0].step[0]`` when ``bodies[0].stepped`` (:class:`magsoro.mpm.stencil` Step)."""
         p = wp.tid()
         row = vs.row[p]
         if row < 0:
             return
+        dts = dt
+        if bodies[0].stepped != 0:
+            dts = bodies[0].step[0].dt
         S = iso_pk2(F[p], bodies[0], p)
         dS = S - vs.H[p, 0]
         H_out[p, 0] = S
         g = vs.g[row]
         tau = vs.tau[row]
         for i in range(vs.terms):
-            x = dt / tau[i]
+            x = dts / tau[i]
             decay = one_minus_exp(x)
             h = vs.H[p, i + 1]
             H_out[p, i + 1] = h - decay * h + (g[i] * decay / x) * dS
