@@ -1,11 +1,122 @@
 """Write docs/robots.md (the robot gallery) from the robot registry and docs/robots/NAME/result.json.
 
     python scripts/make_robot_gallery.py            # after: magsoro reproduce NAME --out docs/robots/NAME
+
+On top of ``magsoro.robots.gallery.gallery_markdown`` this script
+
+- states which engine produced the committed results (the "Engine of the results" paragraph, ``ENGINE`` below:
+  edit it when results are re-run);
+- shows a robot's 3D picture drawn by ``magsoro render`` when docs/robots/NAME/NAME_3d.png is present (and
+  NAME_3d.gif beside it), with a one-line caption written from docs/robots/NAME/NAME_3d.json: which run it was
+  drawn from (``magsoro run scenes/NAME.toml``, full resolution or ``--preview``), the colour mode, the view and
+  the frame. ``magsoro reproduce`` keeps no particle frames (it runs the scene in memory), so these pictures come
+  from a separate run of the robot's scene.
 """
 
+import json
+import re
+import sys
 from pathlib import Path
 
-from magsoro.robots.gallery import write_gallery
+from magsoro.robots.gallery import gallery_markdown
+
+ENGINE = """Engine of the results: every result except hexahedron's was computed with the engine of issue "Engine 2.0"
+or a later one (scene default `formulation = "auto"`: total Lagrangian for one body, updated with contact;
+frictional contact between bodies with free separation; self-contact where a scene asks for it). gripper,
+pentagram and walker were re-run with it and magnetic_chain was made on 2026-11-24; bistable_arch, curling_strip,
+c_shape, l_shape and s_shape were made on 2026-11-26. On 2026-11-26 (the repository between commits 8547b65 and
+9d708e2) arch, cross, obstacle_beam, pentahedron, strip_magnet and triangle were re-run in full, and
+continuum_discrete, continuum_soft and tentacle were redone once their reproductions solved the field levels with
+the static solver. hexahedron's result still predates "Engine 2.0" (2026-11-22: updated form; bodies touching each
+other shared one velocity field, i.e. stuck): its full reproduction did not finish within 16 minutes on the 2-core
+CPU (the old run took 1374 s). Engine changes committed after a result was made are not in it.
+
+The 3D robots' entries also show a picture and an animation drawn by `magsoro render` from one run of the robot's
+scene (`magsoro run scenes/NAME.toml`): `magsoro reproduce` keeps no particle frames, so that run is separate from
+the reproduction, and its caption says whether it was a full-resolution or a `--preview` run."""
+
+_ENGINE_RE = re.compile(r"^Engine of the results:.*?(?=\n\n|\n\| robot)", flags=re.MULTILINE | re.DOTALL)
+
+
+def _seconds(t: float) -> str:
+    return f"{t:g} s" if t >= 1 else f"{t * 1e3:.0f} ms"
+
+
+def _frames(spec: str, meta: dict) -> str:
+    """Words for a ``magsoro render --frames`` spec as the pictures were drawn (``last``, ``t=...``, ``all``,
+    ``::k``)."""
+    total, end = meta.get("frames_in_run"), meta.get("simulated_s")
+    if spec in ("last", "-1") and end is not None:
+        return f"last frame (t = {_seconds(end)})"
+    if spec.startswith("t="):
+        return f"frame nearest t = {_seconds(float(spec[2:]))}"
+    count = meta.get("gif_frame_count")
+    if spec == "all" and total:
+        return f"all {total} frames"
+    if spec.startswith("::") and total and count:
+        return f"{count} of {total} frames (every {spec[2:]})"
+    return f"frames `{spec}`"
+
+
+def render_block(docs_dir: Path, name: str) -> list[str]:
+    """Markdown lines showing robots/NAME/NAME_3d.gif and NAME_3d.png with a one-line caption from
+    NAME_3d.json, or [] when there is no NAME_3d.png."""
+    folder = Path(docs_dir) / "robots" / name
+    png, gif, meta_path = (folder / f"{name}_3d{ext}" for ext in (".png", ".gif", ".json"))
+    if not png.is_file():
+        return []
+    meta = json.loads(meta_path.read_text()) if meta_path.is_file() else {}
+    lines = []
+    if gif.is_file():
+        lines += [f"![{name} in 3D (animation)](robots/{name}/{gif.name})", ""]
+    lines += [f"![{name} in 3D](robots/{name}/{png.name})", ""]
+    run = meta.get("run")
+    which = {"full": "a full-resolution run", "preview": "a `--preview` run (the scene's coarse [preview] settings)"}
+    src = f"{which.get(run, 'a run')} of `scenes/{name}.toml`"
+    facts = [f"`{meta['run_command']}`"] if meta.get("run_command") else []
+    if meta.get("particles"):
+        facts.append(f"{meta['particles']} particles")
+    if meta.get("simulated_s") is not None:
+        facts.append(f"{_seconds(meta['simulated_s'])} simulated")
+    if meta.get("run_wall_s") is not None:
+        facts.append(f"{meta['run_wall_s']:.0f} s wall on the 2-core CPU")
+    how = f"colour `{meta.get('color', 'part')}`, view `{meta.get('view', 'iso')}`"
+    if meta.get("png_frames"):
+        how += f"; picture: {_frames(meta['png_frames'], meta)}"
+    if gif.is_file() and meta.get("gif_frames"):
+        how += f"; animation: {_frames(meta['gif_frames'], meta)}"
+    note = f" {meta['note']}" if meta.get("note") else ""
+    caption = (f"*3D view drawn by `magsoro render` (PyVista) from {src} ({', '.join(facts)}), not from the "
+               f"reproduction. {how[0].upper() + how[1:]}.{note}*")
+    lines += [caption, ""]
+    return lines
+
+
+def robot_gallery_markdown(docs_dir: Path) -> str:
+    text = gallery_markdown(docs_dir)
+    if _ENGINE_RE.search(text):
+        text = _ENGINE_RE.sub(lambda m: ENGINE, text, count=1)
+    else:
+        print("note: no 'Engine of the results' paragraph found in gallery_markdown's output; left as it is",
+              file=sys.stderr)
+    out, name = [], None
+    for line in text.split("\n"):
+        m = re.match(r"^## (\w+)$", line)
+        if m:
+            name = m.group(1)
+        if name is not None and line.startswith(f"Reproduce: `magsoro reproduce {name}`"):
+            out += render_block(docs_dir, name)
+        out.append(line)
+    return "\n".join(out)
+
+
+def write_robot_gallery(docs_dir: Path) -> Path:
+    from magsoro.io.files import atomic_write_text
+
+    path = Path(docs_dir) / "robots.md"
+    atomic_write_text(path, robot_gallery_markdown(docs_dir))
+    return path
+
 
 if __name__ == "__main__":
-    print(write_gallery(Path(__file__).resolve().parents[1] / "docs"))
+    print(write_robot_gallery(Path(__file__).resolve().parents[1] / "docs"))
