@@ -4,7 +4,9 @@ import json
 import math
 
 
-def _value(v) -> str:
+def toml_value(v) -> str:
+    """TOML text of one value (bool, int, float, str, list, dict as an inline table, numpy scalar); -0.0 is
+    written 0.0."""
     if isinstance(v, bool):
         return "true" if v else "false"
     if isinstance(v, int):
@@ -12,15 +14,15 @@ def _value(v) -> str:
     if isinstance(v, float):
         if not math.isfinite(v):
             raise ValueError(f"cannot write the non-finite number {v} to TOML")
-        return repr(v)
+        return repr(v + 0.0)  # -0.0 -> 0.0
     if isinstance(v, str):
         return json.dumps(v)
     if isinstance(v, dict):
-        return "{ " + ", ".join(f"{_key(k)} = {_value(x)}" for k, x in v.items()) + " }"
+        return "{ " + ", ".join(f"{_key(k)} = {toml_value(x)}" for k, x in v.items()) + " }"
     if isinstance(v, (list, tuple)):
-        return "[" + ", ".join(_value(x) for x in v) + "]"
+        return "[" + ", ".join(toml_value(x) for x in v) + "]"
     if hasattr(v, "item"):  # numpy scalar
-        return _value(v.item())
+        return toml_value(v.item())
     raise TypeError(f"cannot write {type(v).__name__} to TOML")
 
 
@@ -35,7 +37,7 @@ def _is_table_array(v) -> bool:
 def _emit(lines, path, table):
     plain = [(k, v) for k, v in table.items() if not isinstance(v, dict) and not _is_table_array(v)]
     for k, v in plain:
-        lines.append(f"{_key(k)} = {_value(v)}")
+        lines.append(f"{_key(k)} = {toml_value(v)}")
     for k, v in table.items():
         if isinstance(v, dict):
             name = ".".join(_key(p) for p in [*path, k])
@@ -50,7 +52,7 @@ def _emit(lines, path, table):
                 lines.append(f"[[{name}]]")
                 # nested tables of an array item are written inline, which keeps them attached to the item
                 for kk, vv in item.items():
-                    lines.append(f"{_key(kk)} = {_value(vv)}")
+                    lines.append(f"{_key(kk)} = {toml_value(vv)}")
 
 
 def dumps(data: dict) -> str:

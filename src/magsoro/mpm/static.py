@@ -658,9 +658,8 @@ class StaticSolver:
                 lo, g_lo = alpha, g
             else:
                 hi, g_hi = alpha, g
-            if hi is None:  # downhill below the trust limit (after a failed trial): go further, at most to it
-                alpha = min(first, 4.0 * alpha)
-            elif g_hi is None:  # the top of the bracket had no valid F: bisect
+            # here g < 0 at alpha = first, or alpha lies inside a bracket: hi is set
+            if g_hi is None:  # the top of the bracket had no valid F: bisect
                 alpha = 0.5 * (lo + hi)
             else:  # the secant's zero inside the bracket, kept off its ends
                 x = lo + (hi - lo) * g_lo / (g_lo - g_hi)

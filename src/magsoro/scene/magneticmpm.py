@@ -15,7 +15,6 @@ the particle volume with the meshes'.
 from __future__ import annotations
 
 import difflib
-import json
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -402,30 +401,16 @@ def _relpath(path: Path, start: Path) -> str:
 
 
 # ---------------------------------------------------------------- writing
-def _value(v) -> str:
-    if isinstance(v, bool):
-        return "true" if v else "false"
-    if isinstance(v, int):
-        return str(v)
-    if isinstance(v, float):
-        return repr(v + 0.0)  # -0.0 -> 0.0
-    if isinstance(v, str):
-        return json.dumps(v)  # a JSON string is a valid TOML basic string
-    if isinstance(v, list):
-        return "[" + ", ".join(_value(x) for x in v) + "]"
-    if isinstance(v, dict):
-        return "{ " + ", ".join(f"{k} = {_value(x)}" for k, x in v.items()) + " }"
-    raise TypeError(f"cannot write {type(v).__name__} to TOML")
-
-
 def _scene_text(scene: dict, header: list[str], part_comments: list[str]) -> str:
+    from magsoro.diff.tomlwrite import toml_value  # here: magsoro.diff imports the differentiable rollout
+
     lines = [f"# {h}" for h in header]
-    lines.append(f"name = {_value(scene['name'])}")
-    lines += ["", "[simulation]"] + [f"{k} = {_value(v)}" for k, v in scene["simulation"].items()]
+    lines.append(f"name = {toml_value(scene['name'])}")
+    lines += ["", "[simulation]"] + [f"{k} = {toml_value(v)}" for k, v in scene["simulation"].items()]
     for part, comment in zip(scene["robot"]["parts"], part_comments):
-        lines += ["", f"# {comment}", "[[robot.parts]]"] + [f"{k} = {_value(v)}" for k, v in part.items()]
+        lines += ["", f"# {comment}", "[[robot.parts]]"] + [f"{k} = {toml_value(v)}" for k, v in part.items()]
     for collider in scene.get("colliders", []):
-        lines += ["", "[[colliders]]"] + [f"{k} = {_value(v)}" for k, v in collider.items()]
+        lines += ["", "[[colliders]]"] + [f"{k} = {toml_value(v)}" for k, v in collider.items()]
     return "\n".join(lines) + "\n"
 
 
