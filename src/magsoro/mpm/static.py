@@ -261,7 +261,7 @@ class StaticSolver:
     """Newton solver for the equilibria of a :class:`magsoro.simulation.Simulation` built in the total-Lagrangian
     form without contact or colliders. Loads: the fields at time ``t`` scaled by a level, gravity in full."""
 
-    def __init__(self, sim, t: float, tolerance: float = 1e-8, max_iterations: int = 25):
+    def __init__(self, sim, t: float, tolerance: float = 1e-8, max_iterations: int = 40):
         self.sim, self.t = sim, float(t)
         self.tolerance, self.max_iterations = float(tolerance), int(max_iterations)
         solver, model = sim.solver, sim.model

@@ -834,7 +834,7 @@ class Static(Strict):
 
     levels: list[Annotated[float, Field(allow_inf_nan=False)]] = Field(default_factory=lambda: [1.0], min_length=1, max_length=10000, description="Field scale factors, solved in this order, each from the previous equilibrium. Default [1.0].")
     tolerance: float = Field(default=1e-8, gt=0, lt=1, description="Newton tolerance: largest node force over the out-of-balance force of the undeformed body under the level's load.")
-    max_iterations: int = Field(default=25, ge=1, le=1000, description="Newton iterations per load increment before the increment is halved.")
+    max_iterations: int = Field(default=40, ge=1, le=1000, description="Newton iterations per load increment before the increment is halved.")
 
 
 class Output(Strict):
