@@ -199,7 +199,7 @@ class Simulation:
         t = self.scene.simulation.duration if t is None else float(t)
         levels = cfg.levels if levels is None else list(levels)
         t0 = _time.perf_counter()
-        solver = StaticSolver(self, t, tolerance=cfg.tolerance, max_iterations=cfg.max_iterations)
+        solver = StaticSolver(self, t, tolerance=cfg.tolerance, max_iterations=cfg.max_iterations, arc_length=cfg.arc_length)
         self.state.time = t
         out = StaticResult(True)
         for level in levels:

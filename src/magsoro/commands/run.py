@@ -181,6 +181,10 @@ def _static(args, sim, writer, wall0: float) -> int:
         return 1
     if not args.quiet:
         print(f"{message} in {wall:.1f} s; results in {args.out}")
+        turns = [f"{t:.4g}" for r in res.levels for t in r.limit_levels]
+        if turns:
+            print(f"the equilibrium path turned back (limit points, a snap-through at the first) at field level(s) "
+                  f"{', '.join(turns)}: run.json static.levels[].limit_levels")
     return 0
 
 

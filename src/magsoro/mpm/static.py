@@ -25,8 +25,13 @@ leaves the body on the stable branch, and reports the level as buckled.
 
 Rigid colliders act at the nodes as the engine's total-Lagrangian form has them, by a penalty with stick and
 Coulomb slip (:mod:`magsoro.mpm.static_contact`; each level reports the penetration left). Not handled yet: domain
-walls, contact between bodies (refused), limit points (arc length: a snap-through is passed only if a load
-increment lands beyond it).
+walls, contact between bodies (refused).
+
+Limit points: with ``[static] arc_length = true`` (scenes without colliders), and wherever load increments fail,
+the path from one level to the next is followed by arc length (:meth:`StaticSolver._arc_length`): a snap-through
+is passed and the field levels where the path turned back are reported. The stability check above sees a
+bifurcation only where the eigenvalue that turned negative is still the one nearest zero at the end of the
+increment.
 """
 
 import functools
@@ -61,11 +66,33 @@ SLOPE_RATIO = 0.5
 SLOPE_TRIALS = 8
 #: the largest move of a node in one Newton step, cells
 MAX_STEP = 10.0
+#: arc-length continuation (StaticSolver._arc_length), taken where load increments fail (a limit point): at most
+#: ARC_STEPS steps along the equilibrium path; the first step's load change is ARC_FIRST of the way left; a step
+#: grows by ARC_GROW (up to ARC_LONGEST times the first) after a corrector that converged within 4 iterations
+#: and is halved after one that failed, down to ARC_MIN of the first. A limit point's load is the vertex of the
+#: parabola through the three steps around it.
+ARC_STEPS = 400
+ARC_FIRST = 0.05
+ARC_GROW = 1.5
+ARC_LONGEST = 4.0
+ARC_MIN = 1e-4
 #: per dimension: free nodes lighter than this fraction of the heaviest node are extrapolated from the nodes inward
 #: of them, not solved for (StaticSolver._slaving); 2D tangents have no null modes to remove, so none is
 LIGHT = {2: 0.0, 3: 1.0e-2}
 #: the tangent's diagonal shift (relative to its median diagonal) that regularises any null mode left
 NULL_SHIFT = 1.0e-12
+
+
+def _vertex(points) -> float:
+    """The extreme value of the parabola through three (path length, load fraction) points: a limit point's load
+    between arc-length steps (the middle point's load where the parabola is degenerate)."""
+    (s0, a0), (s1, a1), (s2, a2) = points
+    d01, d12 = (a1 - a0) / (s1 - s0), (a2 - a1) / (s2 - s1)
+    curv = (d12 - d01) / (s2 - s0)  # half the second derivative
+    if curv == 0.0:
+        return a1
+    slope1 = d01 + curv * (s1 - s0)  # the parabola's slope at s1
+    return a1 - slope1 * slope1 / (4.0 * curv)
 
 
 @functools.cache
@@ -221,6 +248,10 @@ class LevelResult:
     lowest_eigenvalue: float | None = None  # of the symmetric stiffness -(J + J^T)/2 at the equilibrium, N/m
     buckled: bool = False  # the equilibrium reached first was unstable; the branch was switched (docstring)
     penetration: float | None = None  # m: the largest overlap of a node with a collider at the end (static_contact)
+    # arc-length continuation (taken where load increments failed): the field levels where the path turned back
+    # (limit points, a snap-through starting at the first one) and its steps
+    limit_levels: list = field(default_factory=list)
+    arc_length_steps: int = 0
 
 
 @dataclass
@@ -261,9 +292,13 @@ class StaticSolver:
     """Newton solver for the equilibria of a :class:`magsoro.simulation.Simulation` built in the total-Lagrangian
     form without contact or colliders. Loads: the fields at time ``t`` scaled by a level, gravity in full."""
 
-    def __init__(self, sim, t: float, tolerance: float = 1e-8, max_iterations: int = 40):
+    def __init__(self, sim, t: float, tolerance: float = 1e-8, max_iterations: int = 40, arc_length: bool = False):
         self.sim, self.t = sim, float(t)
         self.tolerance, self.max_iterations = float(tolerance), int(max_iterations)
+        self.arc_length = bool(arc_length)
+        if self.arc_length and sim.control.colliders:
+            raise SimulationError("static.arc_length = true follows the equilibrium path of scenes without colliders; "
+                                  "remove the colliders or set static.arc_length = false")
         solver, model = sim.solver, sim.model
         st = solver.settings
         check_supported(sim)
@@ -717,6 +752,96 @@ class StaticSolver:
                     return "failed", iterations, increments, norm, s, message, None, None, None
         return "done", iterations, increments, norm, 1.0, "", None, None, None
 
+    def _arc_length(self, start, target, scale):
+        """Follow the equilibrium path from the current state (at load ``start``) towards ``target`` with the load
+        factor a as an unknown, load = start + a (target - start): Crisfield's cylindrical arc length, |D| = dl for
+        the unknowns' change D within a step. Predictor along the path's tangent dU/da = -J^-1 dR/da (its sign
+        keeps the direction of the last step, so the path turns back at a limit point); corrector: Newton on R = 0
+        with the constraint, the root of its quadratic in the load change nearer the last step's direction. dR/da
+        by central differences over half the load change (exact, the loads enter R linearly). Stops where a reaches
+        1 again: the level is then solved at a = 1 from the state interpolated between the two steps around it
+        (a stable equilibrium is required, else the path goes on). Returns (ok, iterations, steps, |R|, the load
+        fractions where a turned back, message)."""
+        from scipy.sparse.linalg import splu
+
+        def load(a):
+            return tuple(x + a * (y - x) for x, y in zip(start, target))
+
+        def residual(u, a):
+            return self._reduce(self._scatter(u, *load(a)))
+
+        def slope(u, a):  # dR/da
+            return residual(u, a + 0.5) - residual(u, a - 0.5)
+
+        def solve(u, a, rhs_list):
+            lu = splu(self.tangent(u, *load(a)))
+            return [lu.solve(rhs) for rhs in rhs_list]
+
+        u, a = self.u_nodes.copy(), 0.0
+        limit_cells = MAX_STEP * self.model.dx
+        (tan,) = solve(u, a, [-slope(u, a)])
+        dl0 = ARC_FIRST * float(np.linalg.norm(tan))
+        if not (dl0 > 0.0 and math.isfinite(dl0)):
+            return False, 0, 0, 0.0, [], "no path tangent (the load does not move the unknowns)"
+        dl, last, history = dl0, None, [(0.0, 0.0)]  # (path length, load fraction) of the accepted steps
+        iterations = steps = 0
+        norm, turns = 0.0, []
+        while steps < ARC_STEPS:
+            (tan,) = solve(u, a, [-slope(u, a)])
+            size = float(np.linalg.norm(tan))
+            sign = 1.0 if last is None or float(tan @ last) >= 0.0 else -1.0
+            D = sign * dl / size * tan
+            biggest = float(np.abs(self._expand(D)).max())
+            if biggest > limit_cells:  # the trust region of Newton's steps
+                dl *= limit_cells / biggest
+                D *= limit_cells / biggest
+            A = a + sign * dl / size
+            converged = False
+            for it in range(self.max_iterations):
+                U = u + self._expand(D)
+                r = residual(U, A)
+                if not self._valid() or not np.all(np.isfinite(r)):
+                    break
+                norm = float(np.abs(r).max()) if r.size else 0.0
+                if norm <= self.tolerance * scale:
+                    converged = True
+                    break
+                da, db = solve(U, A, [-r, -slope(U, A)])
+                base = D + da
+                qa, qb, qc = float(db @ db), 2.0 * float(db @ base), float(base @ base) - dl * dl
+                disc = qb * qb - 4.0 * qa * qc
+                if qa <= 0.0 or disc < 0.0:
+                    break
+                roots = [(-qb + sq) / (2.0 * qa) for sq in (math.sqrt(disc), -math.sqrt(disc))]
+                x = max(roots, key=lambda x: float((base + x * db) @ D))
+                D, A = base + x * db, A + x
+            iterations += it
+            if not converged:
+                dl *= 0.5
+                if dl < ARC_MIN * dl0:
+                    return False, iterations, steps, norm, turns, f"the arc-length step fell below {ARC_MIN:g} of the first at load fraction {a:.4g}"
+                continue
+            steps += 1
+            history.append((history[-1][0] + dl, A))
+            if len(history) >= 3 and (history[-2][1] - history[-3][1]) * (history[-1][1] - history[-2][1]) < 0.0:
+                turns.append(_vertex(history[-3:]))  # the load factor turned back: a limit point
+            if a < 1.0 <= A or (A < 1.0 <= a):  # the path reaches the level: solve it there
+                f = (1.0 - a) / (A - a)
+                guess = u + f * self._expand(D)
+                u_new, ok, its, norm_new, _ = self._newton(guess, *load(1.0), scale)
+                iterations += its
+                if ok:
+                    keep = (self.u_nodes, self.field_level, self.gravity_level)
+                    self.u_nodes, (self.field_level, self.gravity_level) = u_new, load(1.0)
+                    lam, _ = self.lowest_mode(self._last_tangent if its > 0 else None)
+                    if lam is None or lam >= 0.0:
+                        return True, iterations, steps, norm_new, turns, ""
+                    self.u_nodes, self.field_level, self.gravity_level = keep
+            u, a, last = U, A, D
+            if it <= 4:
+                dl = min(dl * ARC_GROW, ARC_LONGEST * dl0)
+        return False, iterations, steps, norm, turns, f"{ARC_STEPS} arc-length steps did not reach the level (load fraction {a:.4g})"
+
     def _switch_branch(self, load, lam, mode, scale):
         """From the current stable state, reach ``load`` where the path's equilibrium is unstable (lowest
         stiffness ``lam`` along ``mode``) on the stable branch: an imperfection force along the mode, sized by
@@ -763,18 +888,38 @@ class StaticSolver:
         # the force scale of the tolerance: the out-of-balance force of the undeformed body under the target load
         r_ref = self._reduce(self._scatter(np.zeros_like(self.u_nodes), *target))
         scale = max(float(np.abs(r_ref).max()), 1e-30)
-        iterations = increments = 0
-        buckled, lam = False, None
-        for _ in range(MAX_SWITCHES + 1):
+        iterations = increments = arc_steps = 0
+        buckled, lam, limits = False, None, []
+        if self.arc_length:  # the whole way along the path, limit points reported
+            here = (self.field_level, self.gravity_level)
+            ok, its, arc_steps, norm, turns, message = self._arc_length(here, target, scale)
+            limits = [here[0] + f * (target[0] - here[0]) for f in turns]
+            if not ok:
+                self._scatter(self.u_nodes, self.field_level, self.gravity_level)
+                return LevelResult(level, False, its, 0, norm, norm / scale, time.perf_counter() - t0,
+                                   f"arc length: {message}", None, False, limit_levels=limits, arc_length_steps=arc_steps)
+            iterations = its
+        for _ in range(0 if self.arc_length else MAX_SWITCHES + 1):
             here = (self.field_level, self.gravity_level)
             status, its, inc, norm, reached, message, load, lam, mode = self._increments(here, target, scale, watch=True)
             iterations, increments = iterations + its, increments + inc
             if status == "done":
                 break
+            if status == "failed" and self.contact is None:
+                # a limit point: no equilibrium near the path past it under load control; follow the path by arc
+                # length until it reaches the level again (beyond a snap-through)
+                here = (self.field_level, self.gravity_level)
+                ok, its, steps, norm, turns, arc_message = self._arc_length(here, target, scale)
+                iterations, arc_steps = iterations + its, arc_steps + steps
+                limits += [here[0] + f * (target[0] - here[0]) for f in turns]
+                if ok:
+                    break
+                message = f"{message}; arc length: {arc_message}"
             if status == "failed":
                 self._scatter(self.u_nodes, self.field_level, self.gravity_level)
                 return LevelResult(level, False, iterations, increments, norm, norm / scale, time.perf_counter() - t0,
-                                   f"load increment below 1e-4 of the level at {reached:.4g} of the way: {message}", lam, buckled)
+                                   f"load increment below 1e-4 of the level at {reached:.4g} of the way: {message}", lam, buckled,
+                                   limit_levels=limits, arc_length_steps=arc_steps)
             buckled = True
             ok, its, inc, norm, message = self._switch_branch(load, lam, mode, scale)
             iterations, increments = iterations + its, increments + inc
@@ -787,7 +932,8 @@ class StaticSolver:
         r = self._reduce(self._scatter(self.u_nodes, *target))
         norm = float(np.abs(r).max()) if r.size else 0.0
         return LevelResult(level, True, iterations, increments, norm, norm / scale, time.perf_counter() - t0,
-                           "", lam, buckled, None if self.contact is None else self.contact.penetration)
+                           "", lam, buckled, None if self.contact is None else self.contact.penetration,
+                           limit_levels=limits, arc_length_steps=arc_steps)
 
     def lowest_mode(self, tangent=None):
         """Eigenvalue nearest zero (N/m) and its mode of the symmetric stiffness -(J + J^T)/2 at the current

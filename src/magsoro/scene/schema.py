@@ -835,6 +835,7 @@ class Static(Strict):
     levels: list[Annotated[float, Field(allow_inf_nan=False)]] = Field(default_factory=lambda: [1.0], min_length=1, max_length=10000, description="Field scale factors, solved in this order, each from the previous equilibrium. Default [1.0].")
     tolerance: float = Field(default=1e-8, gt=0, lt=1, description="Newton tolerance: largest node force over the out-of-balance force of the undeformed body under the level's load.")
     max_iterations: int = Field(default=40, ge=1, le=1000, description="Newton iterations per load increment before the increment is halved.")
+    arc_length: bool = Field(default=False, description="Follow the equilibrium path from each level to the next by arc length (the load factor an unknown) instead of load increments: passes limit points (a snap-through) and reports the field levels where the path turned back (run.json static.levels[].limit_levels). Scenes without colliders. Where load increments fail, the solver takes it anyway.")
 
 
 class Output(Strict):
