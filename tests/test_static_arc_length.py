@@ -26,21 +26,23 @@ G, K, BR = 66.7e3, 1.334e6, 0.0443
 PUSH_T = 3.2e-3  # the field level solved (about twice the limit): downward
 
 
-def centreline(x):
+def centreline(x, rise=RISE):
     inside = np.abs(x) <= 0.5 * SPAN
-    y = np.where(inside, 0.5 * RISE * (1.0 + np.cos(2.0 * math.pi * x / SPAN)), 0.0)
-    s = np.where(inside, -RISE * math.pi / SPAN * np.sin(2.0 * math.pi * x / SPAN), 0.0)
+    y = np.where(inside, 0.5 * rise * (1.0 + np.cos(2.0 * math.pi * x / SPAN)), 0.0)
+    s = np.where(inside, -rise * math.pi / SPAN * np.sin(2.0 * math.pi * x / SPAN), 0.0)
     return y, s
 
 
-def arch_scene(level_T: float, **static) -> dict:
-    """The arch with GRIP of straight strip into a clamp at each end, 2D plane strain, dx = t/4."""
+def arch_scene(level_T: float, rise: float = RISE, tilt_deg: float = 0.0, **static) -> dict:
+    """The arch with GRIP of straight strip into a clamp at each end, 2D plane strain, dx = t/4; the field
+    downward, turned by ``tilt_deg`` towards +x."""
     x = np.linspace(-0.5 * SPAN - GRIP, 0.5 * SPAN + GRIP, 241)
-    y, s = centreline(x)
+    y, s = centreline(x, rise)
     normal = np.stack([-s, np.ones_like(s)], axis=1) / np.sqrt(1.0 + s * s)[:, None]
     c = np.stack([x, y], axis=1)
     outline = np.concatenate([c + 0.5 * THICK * normal, (c - 0.5 * THICK * normal)[::-1]]).tolist()
-    slope = f"(where(abs(x) <= {0.5 * SPAN}, -{RISE * math.pi / SPAN} * sin({2.0 * math.pi / SPAN} * x), 0.0))"
+    slope = f"(where(abs(x) <= {0.5 * SPAN}, -{rise * math.pi / SPAN} * sin({2.0 * math.pi / SPAN} * x), 0.0))"
+    tilt = math.radians(tilt_deg)
     clamp = lambda side: {"region": {"type": "rectangle", "center": [side * (0.5 * SPAN + GRIP), 0.0],  # noqa: E731
                                       "size": [2.0 * GRIP, 4.0 * THICK]}}
     return {
@@ -53,7 +55,7 @@ def arch_scene(level_T: float, **static) -> dict:
                                       "y": f"{BR} * sign(-x) * {slope} / sqrt(1 + {slope}**2)", "z": "0"},
                     "magnetic": True}],
         "clamps": [clamp(-1), clamp(1)],
-        "fields": [{"name": "push", "type": "uniform", "B": [0.0, -level_T, 0.0]}],
+        "fields": [{"name": "push", "type": "uniform", "B": [level_T * math.sin(tilt), -level_T * math.cos(tilt), 0.0]}],
         "static": {"levels": [1.0], **static},
     }
 
@@ -177,3 +179,38 @@ def test_arc_length_refuses_colliders():
     sim = Simulation(parse_scene(data))
     with pytest.raises(SimulationError, match="arc_length"):
         sim.solve_static()
+
+
+def test_stability_check_finds_a_negative_eigenvalue_behind_a_positive_one():
+    """A higher arch (rise 4 mm) under a field tilted 2 degrees loses stability by its asymmetric mode at about
+    6.6 mT (the elastica of the test above, with this rise: 6.62 mT). Solved at 10 mT straight from rest, Newton
+    lands on the near-symmetric equilibrium, which is unstable, but the eigenvalue nearest zero there is a positive
+    one (+0.0036 N/m; the check used to take it and accept the state, crown 3.05 mm up). The determinant's sign
+    (an odd number of negative eigenvalues) sends the check on to the negative one: the level is reported
+    buckled and ends on the stable, snapped-through branch."""
+    from magsoro.scene import parse_scene
+    from magsoro.simulation import Simulation
+
+    sim = Simulation(parse_scene(arch_scene(0.010, rise=0.004, tilt_deg=2.0)))
+    X = sim.model.host["positions"]
+    res = sim.solve_static()
+    level = res.levels[-1]
+    crown = float(sim.state.x.numpy()[np.abs(X[:, 0]) < 0.5 * sim.model.dx, 1].mean())
+    assert res.converged and level.buckled
+    assert level.lowest_eigenvalue > 0.0
+    assert crown < -0.002                                # snapped (the stable branch at 10 mT), not 3 mm up
+
+
+def test_permutation_parity_and_negative_count():
+    import scipy.sparse as sp
+
+    from magsoro.mpm.static import _odd_negative_count, _permutation_parity
+
+    assert _permutation_parity([0, 1, 2, 3]) == 0 and _permutation_parity([1, 0, 2, 3]) == 1
+    assert _permutation_parity([1, 2, 0]) == 0 and _permutation_parity([3, 2, 1, 0]) == 0
+    rng = np.random.default_rng(3)
+    Q, _ = np.linalg.qr(rng.normal(size=(12, 12)))
+    for negatives in range(4):
+        w = np.concatenate([-np.arange(1, negatives + 1), np.arange(1, 13 - negatives)]) * 0.7
+        K = sp.csc_matrix(Q @ np.diag(w) @ Q.T)
+        assert _odd_negative_count(K) == (negatives % 2 == 1)
