@@ -7,8 +7,10 @@ thin (1 mm) hinges, the parts magnetised up / outwards / down from the centre ou
   the strips (how far the outermost parts move in towards the centre), and the level at which it saturates is
   compared with the paper's 35 mT.
 - crawling (Fig. 14a): a downward field passed under the robot; the paper reports a crawl in the magnet's
-  direction (3.5 mm/s). Reproduced by one pass of the magnet (south face up) under the robot; the quantity is the
-  robot's displacement along the pass.
+  direction (3.5 mm/s). Reproduced by one pass of the scene's magnet (south face up) along the underside of the
+  plate, as in the paper's experiment (seed 002 sec 4.1: 50 mT at the centre of the magnet's face); the quantities
+  are the robot's displacement along the pass and its mean speed over the pass (the paper gives no magnet speed).
+  The grip sweep uses the N35 of sec 3 instead (``GRIP_REMANENCE``), not the scene's crawl magnet.
 """
 
 from __future__ import annotations
@@ -32,6 +34,9 @@ MID_Z = 0.0015       # m: mid-plane of the 3 mm thick parts lying on the plate
 PAPER_SATURATION_MT = 35.0   # seed 002 sec 5.2: "maximum deformation when the magnetic density is 35 mT"
 SATURATION_FRACTION = 0.9    # the level where the closure first reaches 90 % of its largest value
 TOL_SATURATION_MT = 10.0
+GRIP_REMANENCE = 1.21        # T: the grip sweep's magnet, the N35 of seed 002 sec 3 (the scene's magnet is the crawl's)
+PAPER_CRAWL_SPEED = 3.5      # mm/s, seed 002 sec 5.2 (magnet speed not given)
+FLAT_CENTROID_Z = 3.0        # mm: above this the robot's centroid is not lying flat (1.4 mm when flat)
 
 
 def _parts(sim, kind: str) -> list[np.ndarray]:
@@ -42,7 +47,7 @@ def _parts(sim, kind: str) -> list[np.ndarray]:
 
 def _grip(ctx: Context, data: dict, levels, frames: FrameRecorder):
     magnet = next(f for f in data["fields"] if f.get("name") == "magnet")
-    magnet["remanence"] = abs(magnet["remanence"])           # north face up: upward field (Fig. 14b)
+    magnet["remanence"] = GRIP_REMANENCE                      # north face up: upward field (Fig. 14b)
     offsets = [[0.0, 0.0, MID_Z - magnet_distance(magnet, lv * 1e-3, (0.0, 0.0, MID_Z))] for lv in levels]
     times, positions, reads = stepped_path(offsets, FIRST_HOLD, HOLD, MOVE)
     magnet["path"] = {"times": times, "positions": positions}
@@ -90,6 +95,15 @@ def _crawl(ctx: Context, data: dict, frames: FrameRecorder):
     return np.array(track), sim, time.perf_counter() - w0
 
 
+def _pass(data: dict) -> tuple[float, float]:
+    """Duration (s) and speed (m/s) of the magnet's pass: the path's longest leg along x (the scene waits, passes
+    under the robot and rests)."""
+    magnet = next(f for f in data["fields"] if f.get("name") == "magnet")
+    t, x = np.asarray(magnet["path"]["times"], float), np.asarray(magnet["path"]["positions"], float)[:, 0]
+    k = int(np.argmax(np.abs(np.diff(x))))
+    return float(t[k + 1] - t[k]), float(abs(x[k + 1] - x[k]) / (t[k + 1] - t[k]))
+
+
 def _with_dx(data: dict) -> dict:
     """The scene with its [preview] dx and particles per cell (the crawl always runs the whole pass)."""
     d = copy.deepcopy(data)
@@ -121,6 +135,7 @@ def reproduce(ctx: Context) -> ReproduceResult:
     crawl_csv = write_csv(ctx.out / f"{NAME}_crawl.csv", {
         "t_s": track[:, 0], "magnet_x_mm": track[:, 1] * 1e3, "centroid_x_mm": track[:, 2] * 1e3,
         "centroid_y_mm": track[:, 3] * 1e3, "centroid_z_mm": track[:, 4] * 1e3, "highest_point_mm": track[:, 5] * 1e3,
+        "centroid_speed_x_mm_s": np.gradient(track[:, 2], track[:, 0]) * 1e3,
     })
     png = plot_curve(ctx.out / f"{NAME}.png", B, {"grip closure (outer parts towards the centre)": closure,
                                                   "rise of the outer parts": lift},
@@ -137,6 +152,11 @@ def reproduce(ctx: Context) -> ReproduceResult:
 
     case = f"robot-{NAME}"
     disp = float((track[-1, 2] - track[0, 2]) * 1e3)
+    pass_s, magnet_speed = _pass(base)
+    speed = disp / pass_s                          # mm/s: the displacement over the time the magnet moves
+    end_z = float(track[-1, 4] * 1e3)
+    passed = np.flatnonzero(track[:, 1] >= track[:, 2])      # frames after the magnet's centre passed the centroid
+    trailing = float((track[-1, 2] - track[passed[0], 2]) * 1e3) if len(passed) else 0.0
     spread = float((closure_each[-1].max() - closure_each[-1].min()) / max(closure[-1], 1e-9))
     rows = [
         Row(case, "gripping: lowest level reaching 90 % of the closure (mT) vs seed 002 sec 5.2 (35 mT)",
@@ -150,15 +170,24 @@ def reproduce(ctx: Context) -> ReproduceResult:
             float(lift[-1]), float(max(0.0, 5.0 - lift[-1])), 0.0),
         # crawling: the robot moves along with the magnet (seed 002 sec 5.2), by at least 1 mm in one pass
         Row(case, "crawling: centroid displacement along the magnet's pass (mm), at least +1 mm",
-            {"pass_mm": float((track[-1, 1] - track[0, 1]) * 1e3)}, 1.0, disp, float(max(0.0, 1.0 - disp)), 0.0),
+            {"pass_mm": float((track[-1, 1] - track[0, 1]) * 1e3), "magnet_speed_mm_s": magnet_speed * 1e3},
+            1.0, disp, float(max(0.0, 1.0 - disp)), 0.0),
     ]
+    shape = ("lies flat again" if end_z < FLAT_CENTROID_Z else
+             f"ends folded in a heap (centroid {end_z:.0f} mm high, 1.4 mm when flat)")
     summary = (f"Gripping: the strips close by {closure[-1]:.1f} mm at 45 mT and reach 90 % of that at {sat:.0f} mT "
-               f"(paper: maximum deformation at 35 mT); crawling: one pass of the magnet moves the robot "
-               f"{disp:+.1f} mm along the pass (peak height {track[:, 5].max() * 1e3:.0f} mm), where the paper "
-               f"reports a crawl in the magnet's direction. Hinge lengths, remanence and magnet height are our "
+               f"(paper: maximum deformation at 35 mT); crawling: one pass of the magnet along the underside of the "
+               f"plate at {magnet_speed * 1e3:.0f} mm/s moves the robot {disp:+.1f} mm along the pass (mean "
+               f"{speed:.0f} mm/s over the pass; paper: {PAPER_CRAWL_SPEED} mm/s at a magnet speed it does not give), "
+               f"{trailing:+.1f} mm of it after the magnet's centre has passed the robot's (carried by its trailing "
+               f"rim); it folds (peak height {track[:, 5].max() * 1e3:.0f} mm) and {shape}, not the paper's gait of "
+               f"Fig. 14a. Hinge lengths, the robot's remanence, the magnet's speed and exact placement are our "
                f"assumptions.")
     info = {"particles": int(len(sim.model.host["positions"])), "dx_m": sim.model.dx, "levels_mT": list(map(float, B)),
             "crawl_displacement_mm": disp, "crawl_peak_height_mm": float(track[:, 5].max() * 1e3),
+            "crawl_magnet_speed_mm_s": magnet_speed * 1e3, "crawl_mean_speed_mm_s": speed,
+            "paper_crawl_speed_mm_s": PAPER_CRAWL_SPEED, "crawl_end_centroid_z_mm": end_z,
+            "crawl_displacement_after_magnet_passed_mm": trailing,
             "saturation_level_mT": sat, "run_wall_s": round(wall_c + wall_g, 1), "gif_bytes": gif.stat().st_size,
             "crawl_csv": crawl_csv.name}
     return ReproduceResult(NAME, csv, png, gif, summary, rows, info)
