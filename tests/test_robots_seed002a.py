@@ -109,9 +109,10 @@ def test_cross_full(tmp_path):
     _check_cross(reproduce("cross", out=tmp_path))
 
 
-# the pentagram checks that our model fails (scenes/pentagram.toml says why): the paper's crawl, and the five
-# strips closing alike on the coarse (dx 2 mm) lattice
-PENTAGRAM_KNOWN_GAPS = ("crawling:", "gripping: spread")
+# the pentagram check that our model fails: the five strips closing alike on the coarse (dx 2 mm) lattice (the
+# preview's grip). The crawl check passes (the robot moves with the magnet) though not by the paper's gait: it is
+# carried along folded in a heap (scenes/pentagram.toml says so), so it is no longer a known gap.
+PENTAGRAM_KNOWN_GAPS = ("gripping: spread",)
 
 
 def _check_pentagram(res):
