@@ -193,16 +193,15 @@ def make_static_kernels(dim: int, scalar) -> dict:
         br: wp.array(dtype=vec)
         H: wp.array(dtype=mat)
 
-    Yrows = wp.types.matrix(shape=(dim, dim * dim), dtype=scalar)
-
     @wp.kernel
     def assemble_tangent(X: wp.array(dtype=vec), block: Block, bodies: wp.array(dtype=Bodies), A: wp.array(dtype=mat),
                          fterms: FieldTerms, dof: wp.array(dtype=wp.int32), indptr: wp.array(dtype=wp.int32),
-                         indices: wp.array(dtype=wp.int32), data: wp.array(dtype=scalar)):
+                         slots: wp.array(dtype=wp.int32), data: wp.array(dtype=scalar)):
         """Adds the dim x dim blocks of one particle's stencil node s (thread p 3^dim + s) against every node t of
-        its stencil to the CSC values ``data`` (pattern ``indptr``, ``indices``: rows of free node dof[i]). Block
-        (s a, t b): -V0 A_acbd g_s^c g_t^d, and with a field G_ab (Br . g_s) w_t V0/mu0 + w_s G_ba (Br . g_t)
-        V0/mu0 + w_s w_t H_ab (g the reference weight gradients, w the weights)."""
+        its stencil to the CSC values ``data`` (column pointers ``indptr``; ``slots[(p 3^dim + s) 3^dim + t]``: where
+        the rows of node s start in the columns of node t, counted from each column's start, -1 where either node
+        is not free). Block (s a, t b): -V0 A_acbd g_s^c g_t^d, and with a field G_ab (Br . g_s) w_t V0/mu0 + w_s
+        G_ba (Br . g_t) V0/mu0 + w_s w_t H_ab (g the reference weight gradients, w the weights)."""
         tid = wp.tid()
         p = tid // NS
         s = tid - p * NS
@@ -216,45 +215,33 @@ def make_static_kernels(dim: int, scalar) -> dict:
             return
         gs = (scalar(4.0) * inv_dx * ws) * (ofs - fx)
         V0 = bodies[0].vol0[p]
-        Y = Yrows()  # Y[a, d dim + b] = sum_c A_acbd g_s^c
-        for b in range(dim):
-            for d in range(dim):
-                y = A[p * dim * dim + b * dim + d] * gs
-                for a in range(dim):
-                    Y[a, d * dim + b] = y[a]
         brs = scalar(0.0)
         if fterms.active != 0:
             brs = wp.dot(fterms.br[p], gs)
-        for t in range(NS):
-            wt, oft, idt = stencil_node(t, w0, w1, w2, first, block.shape)
-            ct = dof[idt]
-            if ct < 0:
-                continue
-            gt = (scalar(4.0) * inv_dx * wt) * (oft - fx)
-            K = mat()
-            for a in range(dim):
-                for b in range(dim):
-                    acc = scalar(0.0)
-                    for d in range(dim):
-                        acc += Y[a, d * dim + b] * gt[d]
-                    K[a, b] = -V0 * acc
-            if fterms.active != 0:
-                G = fterms.G[p]
-                c = fterms.coef[p]
-                K = K + (c * brs * wt) * G + (c * ws * wp.dot(fterms.br[p], gt)) * wp.transpose(G) + (ws * wt) * fterms.H[p]
-            for b in range(dim):
-                col = ct * dim + b
-                lo = indptr[col]
-                hi = indptr[col + 1] - 1
-                row = rs * dim
-                while lo < hi:  # the first entry of the column's (sorted) rows that is >= row; rows row + a follow it
-                    mid = (lo + hi) // 2
-                    if indices[mid] < row:
-                        lo = mid + 1
-                    else:
-                        hi = mid
+        for b in range(dim):
+            # column b of every block (s, t): -V0 Y_b g_t, Y_b's column d = A_.cbd g_s^c (formed once per b)
+            Yb = mat()
+            for d in range(dim):
+                unit_d = vec()
+                unit_d[d] = scalar(1.0)
+                Yb = Yb + wp.outer(A[p * dim * dim + b * dim + d] * gs, unit_d)
+            unit_b = vec()
+            unit_b[b] = scalar(1.0)
+            for t in range(NS):
+                slot = slots[tid * NS + t]
+                if slot < 0:
+                    continue
+                wt, oft, idt = stencil_node(t, w0, w1, w2, first, block.shape)
+                ct = dof[idt]
+                gt = (scalar(4.0) * inv_dx * wt) * (oft - fx)
+                kb = (-V0) * (Yb * gt)
+                if fterms.active != 0:
+                    G = fterms.G[p]
+                    c = fterms.coef[p]
+                    kb = kb + (c * brs * wt) * (G * unit_b) + (c * ws * wp.dot(fterms.br[p], gt)) * (wp.transpose(G) * unit_b) + (ws * wt) * (fterms.H[p] * unit_b)
+                lo = indptr[ct * dim + b] + slot  # the rows of node s in column (t, b); rows rs dim + a follow
                 for a in range(dim):
-                    wp.atomic_add(data, lo + a, K[a, b])
+                    wp.atomic_add(data, lo + a, kb[a])
 
     return {"place_particles": place_particles, "particle_stress": particle_stress,
             "material_tangent": material_tangent, "assemble_tangent": assemble_tangent, "FieldTerms": FieldTerms}
@@ -561,7 +548,7 @@ class StaticSolver:
 
         self._scatter(u_nodes, field_level, gravity_level)  # x and F at u
         dim, n, k, dev = self.dim, self.model.n_particles, self.model.kernels, self.dev
-        indices, indptr, d_indices, d_indptr = self._pattern()
+        indices, indptr, d_slots, d_indptr = self._pattern()
         if getattr(self, "_tangent_arrays", None) is None:
             self._tangent_arrays = (wp.zeros(n * dim * dim, dtype=k["mat"], device=dev),
                                     wp.array(self.dof_of_node.astype(np.int32), dtype=wp.int32, device=dev),
@@ -583,7 +570,7 @@ class StaticSolver:
             fterms.H = wp.array(np.einsum("pbae,pb->pae", dG, m).astype(npsc), dtype=k["mat"], device=dev)
         data.zero_()
         wp.launch(self.kk["assemble_tangent"], dim=n * 3 ** dim, device=dev,
-                  inputs=[self.model.X0, self.block, self.bodies, A, fterms, dof, d_indptr, d_indices, data])
+                  inputs=[self.model.X0, self.block, self.bodies, A, fterms, dof, d_indptr, d_slots, data])
         n_dof = len(self.free) * dim
         J = sparse.csc_matrix((data.numpy().astype(np.float64), indices, indptr), shape=(n_dof, n_dof))
         if self.contact is not None:  # the colliders' springs at u (the scatter above evaluated them)
@@ -615,7 +602,13 @@ class StaticSolver:
             pick = np.arange(indptr[-1]) - np.repeat(indptr[:-1], lens) + np.repeat(starts, lens)
             indices = expanded[pick].astype(np.int32)
             indptr = indptr.astype(np.int32)
-            self._pattern_cache = (indices, indptr, wp.array(indices, dtype=wp.int32, device=self.dev),
+            # where the rows of each particle's stencil node s start in the columns of its node t, from the column's
+            # start (the same in the dim columns of node t): the assembly kernel adds there without a search (a
+            # binary search per block took two thirds of the assembly's time on the CPU)
+            first_key = np.concatenate([[0], np.cumsum(np.bincount(col_node, minlength=nf))[:-1]])
+            pair = rows[:, None, :] * nf + rows[:, :, None]  # (N, s, t): column node t, row node s
+            slots = np.where(ok, (np.searchsorted(key, pair) - first_key[np.maximum(rows, 0)][:, None, :]) * dim, -1)
+            self._pattern_cache = (indices, indptr, wp.array(slots.astype(np.int32).ravel(), dtype=wp.int32, device=self.dev),
                                    wp.array(indptr, dtype=wp.int32, device=self.dev))
         return self._pattern_cache
 
