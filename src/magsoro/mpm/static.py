@@ -604,7 +604,7 @@ class StaticSolver:
             indptr = indptr.astype(np.int32)
             # where the rows of each particle's stencil node s start in the columns of its node t, from the column's
             # start (the same in the dim columns of node t): the assembly kernel adds there without a search (a
-            # binary search per block took two thirds of the assembly's time on the CPU)
+            # binary search per block took about half of the assembly's time on the CPU)
             first_key = np.concatenate([[0], np.cumsum(np.bincount(col_node, minlength=nf))[:-1]])
             pair = rows[:, None, :] * nf + rows[:, :, None]  # (N, s, t): column node t, row node s
             slots = np.where(ok, (np.searchsorted(key, pair) - first_key[np.maximum(rows, 0)][:, None, :]) * dim, -1)
