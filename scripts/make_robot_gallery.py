@@ -26,7 +26,7 @@ frictional contact between bodies with free separation; self-contact where a sce
 re-run with it and magnetic_chain was made on 2026-11-24; gripper and pentagram were re-run on 2026-11-26 with the
 contact law of commit a03a409 (a minimum mass fraction at contact nodes between bodies): gripper at commit 47cb910
 on one core shared with other jobs (hence its wall time), pentagram with its magnet under the plate (commit
-71a6c38); bistable_arch, curling_strip,
+71a6c38), and arch once more at commit 52e7539 (the same result; its summary now says why it saturates); bistable_arch, curling_strip,
 c_shape, l_shape and s_shape were made on 2026-11-26. On 2026-11-26 (the repository between commits 8547b65 and
 9d708e2) arch, cross, obstacle_beam, pentahedron, strip_magnet and triangle were re-run in full, and
 continuum_discrete, continuum_soft and tentacle were redone once their reproductions solved the field levels with
