@@ -214,3 +214,15 @@ def test_permutation_parity_and_negative_count():
         w = np.concatenate([-np.arange(1, negatives + 1), np.arange(1, 13 - negatives)]) * 0.7
         K = sp.csc_matrix(Q @ np.diag(w) @ Q.T)
         assert _odd_negative_count(K) == (negatives % 2 == 1)
+
+
+def test_limit_load_is_the_vertex_of_the_parabola_through_three_steps():
+    from magsoro.mpm.static import _vertex
+
+    def a(s):  # a parabola with its top, 0.7, at s = 2
+        return 0.7 - 0.3 * (s - 2.0) ** 2
+
+    assert _vertex([(s, a(s)) for s in (1.0, 1.6, 3.1)]) == pytest.approx(0.7, abs=1e-12)
+    assert _vertex([(s, a(s)) for s in (1.7, 2.1, 2.2)]) == pytest.approx(0.7, abs=1e-12)  # unequal steps
+    assert _vertex([(0.0, 0.1), (1.0, 0.2), (2.0, 0.3)]) == 0.2  # (nearly) a straight line: the middle point
+    assert _vertex([(s, a(s)) for s in (0.0, 0.5, 1.0)]) == a(0.5)  # the top is beyond the three points

@@ -112,14 +112,18 @@ def _permutation_parity(perm) -> int:
 
 def _vertex(points) -> float:
     """The extreme value of the parabola through three (path length, load fraction) points: a limit point's load
-    between arc-length steps (the middle point's load where the parabola is degenerate)."""
+    between arc-length steps (the middle point's load where the parabola's extreme lies outside the three points,
+    as for points nearly on a line)."""
     (s0, a0), (s1, a1), (s2, a2) = points
     d01, d12 = (a1 - a0) / (s1 - s0), (a2 - a1) / (s2 - s1)
     curv = (d12 - d01) / (s2 - s0)  # half the second derivative
     if curv == 0.0:
         return a1
     slope1 = d01 + curv * (s1 - s0)  # the parabola's slope at s1
-    return a1 - slope1 * slope1 / (4.0 * curv)
+    shift = -slope1 / (2.0 * curv)  # where the extreme lies, from s1
+    if not s0 <= s1 + shift <= s2:
+        return a1
+    return a1 + 0.5 * slope1 * shift
 
 
 @functools.cache
