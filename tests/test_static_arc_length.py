@@ -61,6 +61,7 @@ def arch_scene(level_T: float, rise: float = RISE, tilt_deg: float = 0.0, **stat
 
 
 def _elastica_class():
+    from magsoro.actuation.planning import plane_strain_modulus
     from magsoro.robots.bistable_arch import ArchElastica
 
     class CosineArch(ArchElastica):
@@ -68,8 +69,7 @@ def _elastica_class():
         K), clamped with horizontal tangents at x = +-L/2, with the field's point force on the crown."""
 
         def __init__(self, n: int = 40):
-            e_plane = 4.0 * G * (3.0 * K + G) / (3.0 * K + 4.0 * G)
-            super().__init__(SPAN, 1.0, THICK, WIDTH, e_plane, 1000.0, BR, n)
+            super().__init__(SPAN, 1.0, THICK, WIDTH, plane_strain_modulus(G, K), 1000.0, BR, n)
             x = np.linspace(-0.5 * SPAN, 0.5 * SPAN, n + 1)
             self.rest = np.stack([x, centreline(x)[0]], axis=1)
             seg = np.diff(self.rest, axis=0)

@@ -784,8 +784,8 @@ class StaticSolver:
         with the constraint, the root of its quadratic in the load change nearer the last step's direction. dR/da
         by central differences over half the load change (exact, the loads enter R linearly). Stops where a reaches
         1 again: the level is then solved at a = 1 from the state interpolated between the two steps around it
-        (a stable equilibrium is required, else the path goes on). Returns (ok, iterations, steps, |R|, the load
-        fractions where a turned back, message)."""
+        (a stable equilibrium is required, else the path goes on). Returns (ok, iterations, steps, |R|, the field
+        levels where a turned back, message)."""
         from scipy.sparse.linalg import splu
 
         def load(a):
@@ -810,8 +810,7 @@ class StaticSolver:
         dl, last, history = dl0, None, [(0.0, 0.0)]  # (path length, load fraction) of the accepted steps
         iterations = steps = 0
         norm, turns = 0.0, []
-        while steps < ARC_STEPS:
-            (tan,) = solve(u, a, [-slope(u, a)])
+        while steps < ARC_STEPS:  # tan: the path's tangent at the last accepted state (u, a)
             size = float(np.linalg.norm(tan))
             sign = 1.0 if last is None or float(tan @ last) >= 0.0 else -1.0
             D = sign * dl / size * tan
@@ -848,7 +847,7 @@ class StaticSolver:
             steps += 1
             history.append((history[-1][0] + dl, A))
             if len(history) >= 3 and (history[-2][1] - history[-3][1]) * (history[-1][1] - history[-2][1]) < 0.0:
-                turns.append(_vertex(history[-3:]))  # the load factor turned back: a limit point
+                turns.append(load(_vertex(history[-3:]))[0])  # the load factor turned back: a limit point
             if a < 1.0 <= A or (A < 1.0 <= a):  # the path reaches the level: solve it there
                 f = (1.0 - a) / (A - a)
                 guess = u + f * self._expand(D)
@@ -862,6 +861,7 @@ class StaticSolver:
                         return True, iterations, steps, norm_new, turns, ""
                     self.u_nodes, self.field_level, self.gravity_level = keep
             u, a, last = U, A, D
+            (tan,) = solve(u, a, [-slope(u, a)])
             if it <= 4:
                 dl = min(dl * ARC_GROW, ARC_LONGEST * dl0)
         return False, iterations, steps, norm, turns, f"{ARC_STEPS} arc-length steps did not reach the level (load fraction {a:.4g})"
@@ -916,8 +916,7 @@ class StaticSolver:
         buckled, lam, limits = False, None, []
         if self.arc_length:  # the whole way along the path, limit points reported
             here = (self.field_level, self.gravity_level)
-            ok, its, arc_steps, norm, turns, message = self._arc_length(here, target, scale)
-            limits = [here[0] + f * (target[0] - here[0]) for f in turns]
+            ok, its, arc_steps, norm, limits, message = self._arc_length(here, target, scale)
             if not ok:
                 self._scatter(self.u_nodes, self.field_level, self.gravity_level)
                 return LevelResult(level, False, its, 0, norm, norm / scale, time.perf_counter() - t0,
@@ -935,7 +934,7 @@ class StaticSolver:
                 here = (self.field_level, self.gravity_level)
                 ok, its, steps, norm, turns, arc_message = self._arc_length(here, target, scale)
                 iterations, arc_steps = iterations + its, arc_steps + steps
-                limits += [here[0] + f * (target[0] - here[0]) for f in turns]
+                limits += turns
                 if ok:
                     break
                 message = f"{message}; arc length: {arc_message}"

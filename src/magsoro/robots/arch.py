@@ -165,16 +165,14 @@ def magnetoelastic_level(sim, data: dict) -> tuple[float, float]:
     the couple density |Br| B t cos(phi) / mu0 integrated over R dphi), with the moment that straightens the arch's
     curvature 1/R (E' t^3 / (12 R)); E' = E / (1 - nu^2) (plane strain) from the engine's G and K. At N ~ 1 the
     field can unbend the arch. Returns (N per tesla at the arch's mid radius, the level in T where N = 1, |Br|)."""
+    from magsoro.actuation.planning import plane_strain_modulus
     from magsoro.robots.continuum_soft import body_material
 
     mat = body_material(sim, "arch")
     br = float(np.median(np.linalg.norm(mat["remanence"], axis=1)))
-    G, K = float(mat["G"]), float(mat["K"])
-    E = 9.0 * K * G / (3.0 * K + G)
-    nu = (3.0 * K - 2.0 * G) / (2.0 * (3.0 * K + G))
     shape = data["robot"]["parts"][0]["shape"]
     R, t = float(shape["radius"]), float(shape["width"])
-    per_tesla = 12.0 * br * R ** 2 / (MU0 * E / (1.0 - nu ** 2) * t ** 2)
+    per_tesla = 12.0 * br * R ** 2 / (MU0 * plane_strain_modulus(mat["G"], mat["K"]) * t ** 2)
     return per_tesla, 1.0 / per_tesla, br
 
 
