@@ -596,7 +596,8 @@ class StaticSolver:
             nf = len(self.free)
             rows = self.dof_of_node[nodes]  # (N, S): the free node's index, -1 for a held or empty node
             ok = (rows[:, :, None] >= 0) & (rows[:, None, :] >= 0)
-            key = np.unique((rows[:, None, :] * nf + rows[:, :, None])[ok])  # column node j, row node i: j nf + i
+            pair = rows[:, None, :] * nf + rows[:, :, None]  # (N, s, t): column node t, row node s
+            key = np.unique(pair[ok])  # column node j, row node i: j nf + i
             col_node, row_node = key // nf, key % nf
             glen = np.bincount(col_node, minlength=nf) * dim  # entries of each column of node j
             gstart = np.concatenate([[0], np.cumsum(glen)[:-1]])
@@ -609,9 +610,8 @@ class StaticSolver:
             # where the rows of each particle's stencil node s start in the columns of its node t, from the column's
             # start (the same in the dim columns of node t): the assembly kernel adds there without a search (a
             # binary search per block took about half of the assembly's time on the CPU)
-            first_key = np.concatenate([[0], np.cumsum(np.bincount(col_node, minlength=nf))[:-1]])
-            pair = rows[:, None, :] * nf + rows[:, :, None]  # (N, s, t): column node t, row node s
-            slots = np.where(ok, (np.searchsorted(key, pair) - first_key[np.maximum(rows, 0)][:, None, :]) * dim, -1)
+            # (node j's first key sits at gstart[j] / dim in ``key``)
+            slots = np.where(ok, np.searchsorted(key, pair) * dim - gstart[np.maximum(rows, 0)][:, None, :], -1)
             self._pattern_cache = (indices, indptr, wp.array(slots.astype(np.int32).ravel(), dtype=wp.int32, device=self.dev),
                                    wp.array(indptr, dtype=wp.int32, device=self.dev))
         return self._pattern_cache
