@@ -177,6 +177,12 @@ def _cpu_model() -> str:
 
 
 def _commit() -> str:
+    """The checkout's short commit; MAGSORO_COMMIT where the tree has no git history (a copy sent to another
+    machine)."""
+    import os
+
+    if os.environ.get("MAGSORO_COMMIT"):
+        return os.environ["MAGSORO_COMMIT"]
     try:
         out = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True, cwd=Path(__file__).parent, timeout=10)
         return out.stdout.strip() or "unknown"
