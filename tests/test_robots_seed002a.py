@@ -77,6 +77,37 @@ def _check_triangle(res):
     for f in (res.csv, res.png, res.animation):
         assert f.exists() and f.stat().st_size > 0
     assert res.animation.stat().st_size < 1.5e6
+    _check_speeds(res, ("warping_vertex_rise_rate_mm_s",))
+    sp = read_csv(res.figures[0]["csv"])
+    # the robot goes along with the magnet, and slower than it
+    loco = sp["locomotion_centroid_speed_along_magnet_mm_s"][-1]
+    assert 0.0 < loco < sp["magnet_speed_mm_s"][-1]
+
+
+def _check_speeds(res, columns):
+    """Speeds under the moving magnet: one figure (CSV, PNG); the rates are positive (the right way) and, where
+    several magnet speeds were run, grow with the magnet's speed (the shape follows the magnet)."""
+    assert len(res.figures) == 1
+    sp = read_csv(res.figures[0]["csv"])
+    assert res.figures[0]["png"].stat().st_size > 0
+    for col in columns:
+        assert np.all(sp[col] > 0), (col, sp[col])
+        assert np.all(np.diff(sp[col]) > 0), (col, sp[col])
+        # quasi-static: the rate is a fraction of the magnet's speed
+        assert np.all(sp[col] < sp["magnet_speed_mm_s"])
+
+
+def test_speed_helpers():
+    from magsoro.robots._seed002_speeds import largest_rate, magnet_speed_for
+
+    t = np.arange(0.0, 0.2, 0.005)
+    z = np.where(t < 0.1, 0.0, 0.003 * (t - 0.1))   # still, then 3 mm/s
+    rate, when = largest_rate(t, z)
+    assert rate == pytest.approx(0.003) and when >= 0.1
+    assert largest_rate(t, z, t_from=1.0)[0] != largest_rate(t, z, t_from=1.0)[0]   # nothing after t_from: NaN
+    assert magnet_speed_for(15.0, [50, 100, 200], [10.0, 20.0, 40.0]) == pytest.approx(75.0)
+    assert magnet_speed_for(5.0, [50, 100], [10.0, 20.0]) is None       # below the range: not extrapolated
+    assert magnet_speed_for(15.0, [50, 100], [20.0, 10.0]) is None      # not growing with the magnet's speed
 
 
 def test_triangle_preview_warps(tmp_path):
@@ -97,6 +128,7 @@ def _check_cross(res):
     # a 10 mm strip cannot rise by more than its length
     assert data["grab_deflection_mm"].max() < 12.0 and data["arch_deflection_mm"].max() < 12.0
     assert res.animation.stat().st_size < 1.5e6
+    _check_speeds(res, ("arching_deflection_rate_mm_s", "grabbing_deflection_rate_mm_s"))
 
 
 @pytest.mark.slow

@@ -61,7 +61,9 @@ def reproduce(name: str, out=None, preview: bool = False, device: str | None = N
     atomic_write_json(out / "result.json", {
         "name": name, "title": robot.title, "source": robot.source, "quantity": robot.quantity,
         "preview": bool(preview), "wall_s": round(wall, 1), "summary": res.summary,
-        "files": {"csv": res.csv.name, "png": res.png.name, "animation": res.animation.name if res.animation else None},
+        "files": {"csv": res.csv.name, "png": res.png.name, "animation": res.animation.name if res.animation else None,
+                  "figures": [{"csv": Path(f["csv"]).name, "png": Path(f["png"]).name, "caption": f["caption"]}
+                              for f in res.figures]},
         "info": res.info, "checks": [r.as_dict() for r in res.rows], "passed": res.passed,
     })
     return res

@@ -42,7 +42,8 @@ class Context:
 class ReproduceResult:
     """Files written and what they show. ``summary``: one sentence comparing with the paper (the README /
     gallery line); ``rows``: acceptance checks as validation rows (``magsoro validate --all``); ``info``: run
-    facts (particles, steps, wall time, resolution)."""
+    facts (particles, steps, wall time, resolution); ``figures``: further results of the same run, each a CSV and a
+    PNG with a caption (shown under the main curve in the gallery)."""
 
     name: str
     csv: Path
@@ -51,6 +52,7 @@ class ReproduceResult:
     summary: str = ""
     rows: list = field(default_factory=list)
     info: dict = field(default_factory=dict)
+    figures: list = field(default_factory=list)  # further results: {"csv": Path, "png": Path, "caption": str}
 
     @property
     def passed(self) -> bool:
@@ -156,9 +158,10 @@ def read_csv(path: Path) -> dict[str, np.ndarray]:
 
 
 def plot_curve(path: Path, x, series: dict[str, np.ndarray], xlabel: str, ylabel: str, title: str,
-               paper: dict[str, tuple] | None = None, note: str = "") -> Path:
+               paper: dict[str, tuple] | None = None, note: str = "", hlines: dict[str, float] | None = None) -> Path:
     """PNG of simulated ``series`` (label -> y over ``x``, lines with markers) and the ``paper``'s values
-    (label -> (x, y), open markers). ``note`` goes under the title."""
+    (label -> (x, y), open markers; ``hlines``: label -> y, dashed lines, for values the paper gives without an
+    x). ``note`` goes under the title."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -169,6 +172,8 @@ def plot_curve(path: Path, x, series: dict[str, np.ndarray], xlabel: str, ylabel
         ax.plot(x, y, "o-", ms=4, label=f"magsoro: {label}")
     for label, (px, py) in (paper or {}).items():
         ax.plot(px, py, "s", mfc="none", ms=7, mew=1.5, label=f"paper: {label}")
+    for k, (label, y) in enumerate((hlines or {}).items()):
+        ax.axhline(y, ls=("--", ":", "-.")[k % 3], color="0.3", lw=1.2, label=f"paper: {label}")
     ax.set_xlabel(xlabel)
     ax.set_ylabel(ylabel)
     ax.set_title(title + (f"\n{note}" if note else ""), fontsize=9)

@@ -30,6 +30,8 @@ MOVE = 0.02
 FRAME_EVERY = 0.02
 MID_Z = 0.001      # m: mid-plane of the 2 mm cross lying on the plate
 ARM_LENGTH, ARM_WIDTH, THICKNESS, HALF_CORE = 0.010, 0.004, 0.002, 0.002   # m, scenes/cross.toml
+PAPER_ARCH_SPEED, PAPER_GRAB_SPEED = 4.8, 3.5   # mm/s, seed 002 sec 5.1
+MAGNET_SPEEDS = [0.05, 0.1, 0.2]   # m/s of the rising actuator (the paper gives none; preview: the last only)
 TOL_ROD = 0.20   # mean relative difference: dx = 1 mm leaves 2 cells through the thickness (~10 % stiff)
 
 
@@ -123,6 +125,41 @@ def _sweep(ctx: Context, data: dict, levels_mt, remanence: float, label: str, fr
     return np.array(out), sim, time.perf_counter() - w0
 
 
+def speeds(ctx: Context, base: dict) -> dict:
+    """Arching and grabbing speeds under the paper's actuator rising under the centre (robots/_seed002_speeds.py):
+    the largest rate of the deflection (centre above the tips for arching, south face up; tips above the centre
+    for grabbing, north face up), at each magnet speed."""
+    from magsoro.robots import _seed002_speeds as sp
+
+    def markers(X0):
+        r = np.maximum(np.abs(X0[:, 0]), np.abs(X0[:, 1]))
+        return {"centre": r < HALF_CORE, "tips": r > HALF_CORE + ARM_LENGTH - 0.0015}
+
+    mags = MAGNET_SPEEDS[-1:] if ctx.preview else MAGNET_SPEEDS
+    runs = {mode: [sp.rising_run(NAME, base, (0.0, 0.0), v, sign, markers, ctx, mode) for v in mags]
+            for mode, sign in (("arching", -1.0), ("grabbing", +1.0))}
+
+    def deflection(r, mode):
+        return (r["centre"] - r["tips"]) if mode == "arching" else (r["tips"] - r["centre"])
+
+    rate = {mode: [sp.largest_rate(r["t"], deflection(r, mode))[0] for r in rs] for mode, rs in runs.items()}
+    grow = {mode: [float(deflection(r, mode)[-1] - deflection(r, mode)[np.searchsorted(r["t"], sp.SETTLE)])
+                   for r in rs] for mode, rs in runs.items()}
+    table = {"magnet_speed_mm_s": [v * 1e3 for v in mags],
+             "arching_deflection_rate_mm_s": [x * 1e3 for x in rate["arching"]],
+             "grabbing_deflection_rate_mm_s": [x * 1e3 for x in rate["grabbing"]],
+             "arching_deflection_growth_mm": [x * 1e3 for x in grow["arching"]],
+             "grabbing_deflection_growth_mm": [x * 1e3 for x in grow["grabbing"]]}
+    dx = runs["arching"][0]["dx"]
+    csv, png = sp.write_speeds(ctx.out, NAME, table, {"arching 4.8 mm/s (sec 5.1)": PAPER_ARCH_SPEED,
+                                                      "grabbing 3.5 mm/s (sec 5.1)": PAPER_GRAB_SPEED},
+                               note=f"dx = {dx * 1e3:.1f} mm; the paper gives no magnet speed")
+    match = {mode: sp.magnet_speed_for(paper, [v * 1e3 for v in mags], [x * 1e3 for x in rate[mode]])
+             for mode, paper in (("arching", PAPER_ARCH_SPEED), ("grabbing", PAPER_GRAB_SPEED))}
+    return {"table": table, "csv": csv, "png": png, "grow": grow, "match": match, "dx": dx, "mags": mags,
+            "wall_s": sum(r["wall_s"] for rs in runs.values() for r in rs)}
+
+
 def reproduce(ctx: Context) -> ReproduceResult:
     levels = PREVIEW_LEVELS_MT if ctx.preview else LEVELS_MT
     base = scene_data(NAME)
@@ -186,14 +223,33 @@ def reproduce(ctx: Context) -> ReproduceResult:
             {"levels_mT": list(map(float, B))}, 0.0, float(min(np.diff(d_arch).min(), np.diff(d_grab).min()) * 1e3),
             float(max(0.0, -min(np.diff(d_arch).min(), np.diff(d_grab).min()) * 1e3)), 0.1),
     ]
+    # speeds under the moving actuator: each at least goes the right way (issue "Robot library II")
+    sp = speeds(ctx, base)
+    v_top = sp["mags"][-1] * 1e3
+    for mode in ("arching", "grabbing"):
+        g = sp["grow"][mode][-1] * 1e3
+        what = "centre above the tips" if mode == "arching" else "tips above the centre"
+        rows.append(Row(case, f"{mode} under the rising magnet: growth of the deflection ({what}, mm), at least 1 mm",
+                        {"magnet_speed_mm_s": v_top, "dx_mm": sp["dx"] * 1e3}, 1.0, g, float(max(0.0, 1.0 - g)), 0.0))
+    t = sp["table"]
+    speeds_text = "; ".join(f"{v:.0f} mm/s: arching {a:.1f}, grabbing {g:.1f} mm/s" for v, a, g in
+                            zip(t["magnet_speed_mm_s"], t["arching_deflection_rate_mm_s"], t["grabbing_deflection_rate_mm_s"]))
+    match = " and ".join(f"{mode} at {v:.0f} mm/s" for mode, v in sp["match"].items() if v)
     summary = (f"At 45 mT the cross arches its centre {d_arch[top] * 1e3:.1f} mm above its tips (field down) and "
                f"grabs with its tips {d_grab[top] * 1e3:.1f} mm above its centre (field reversed); at 25 mT the grab "
                f"is {d_grab[k25] * 1e3:.1f} mm against {rod[k25] * 1e3:.1f} mm for a Kirchhoff rod of one "
                f"strip. Seed 002 Fig. 12 gives no values (only the trend delta ~ B of eq 4), and the 2 mm thickness "
-               f"is our assumption.")
+               f"is our assumption. Under the paper's actuator (50 mT at its face) rising under the centre at a "
+               f"stated speed (the paper gives none), the largest deflection rates are, by magnet speed, {speeds_text} "
+               f"(paper: arching 4.8, grabbing 3.5 mm/s"
+               + (f"; reached with the magnet {match}" if match else "") + ").")
     info = {"particles": int(len(sim.model.host["positions"])), "dx_m": sim.model.dx, "levels_mT": list(map(float, B)),
-            "run_wall_s": round(wall_a + wall_g, 1), "gif_bytes": gif.stat().st_size}
-    return ReproduceResult(NAME, csv, png, gif, summary, rows, info)
+            "run_wall_s": round(wall_a + wall_g, 1), "gif_bytes": gif.stat().st_size,
+            "speeds_wall_s": round(sp["wall_s"], 1), "speeds_dx_m": sp["dx"],
+            "magnet_speed_for_paper_mm_s": {k: v for k, v in sp["match"].items()}}
+    figures = [{"csv": sp["csv"], "png": sp["png"],
+                "caption": "arching and grabbing speeds against the speed of the rising magnet (seed 002 sec 5.1)"}]
+    return ReproduceResult(NAME, csv, png, gif, summary, rows, info, figures)
 
 
 ROBOT = Robot(

@@ -67,6 +67,11 @@ def gallery_markdown(docs_dir: Path) -> str:
             out.append(f"Result ({robot.quantity}; data: [robots/{name}/{files['csv']}](robots/{name}/{files['csv']})): "
                        f"{res['summary']}")
             out.append("")
+            for fig in files.get("figures", []):
+                out.append(f"![{name}: {fig['caption']}](robots/{name}/{fig['png']})")
+                out.append("")
+                out.append(f"{fig['caption']} (data: [robots/{name}/{fig['csv']}](robots/{name}/{fig['csv']})).")
+                out.append("")
             for c in res["checks"]:
                 mark = "pass" if c["passed"] else "FAIL"
                 out.append(f"- check `{c['quantity']}`: {c['value']:.4g} vs {c['reference']:.4g}, error "

@@ -35,6 +35,12 @@ FAR = 1.0        # m: magnet distance standing for "no magnet" (field at the rob
 PAPER_WT = {"exp.": 11.0, "sim.": 12.0}    # sec 4.3, Fig. 9
 PAPER_HT = {"exp.": 3.5, "sim.": 3.7}      # sec 4.2, Fig. 6
 TOL_PAPER = 0.30   # relative: thickness and remanence are our assumptions (scenes/triangle.toml)
+# speeds under the moving actuator (robots/_seed002_speeds.py); seed 002 gives no magnet speed, so a range
+PAPER_WARP_SPEED = 9.0     # mm/s, sec 4.3 (Fig. 7c)
+PAPER_LOCO_SPEED = 1.5     # mm/s, sec 4.4 (Fig. 4c)
+WARP_MAGNET_SPEEDS = [0.05, 0.1, 0.2]    # m/s (preview: the last only)
+LOCO_MAGNET_SPEEDS = [0.1, 0.2]          # m/s (preview: the last only)
+LOCO_DOMAIN = ((-0.036, -0.170, -0.004), (0.036, 0.044, 0.040))   # room for the pass along -y (m)
 
 
 # -- helpers shared by the seed 002 robots ------------------------------------------------------------------
@@ -141,6 +147,47 @@ def magnet_offsets(magnet: dict, levels_mt) -> list:
             for lv in levels_mt]
 
 
+def speeds(ctx: Context, data: dict, corners: np.ndarray) -> dict:
+    """Warping and locomotion speeds under the paper's actuator (module docstring of robots/_seed002_speeds.py):
+    the magnet rising under the top vertex (largest rise rate of that vertex) and passing along -y from beyond
+    the top vertex to beyond the opposite side (mean speed of the centroid along the pass, positive with the
+    magnet). North face up, as in the field sweep."""
+    from magsoro.robots import _seed002_speeds as sp
+
+    top = corners[int(np.argmax(corners[:, 1]))]
+
+    def vertices(X0):
+        return {f"v{i}": np.linalg.norm(X0[:, :2] - c, axis=1) < 0.002 for i, c in enumerate(corners)}
+
+    key = f"v{int(np.argmax(corners[:, 1]))}"
+    warp_v = WARP_MAGNET_SPEEDS[-1:] if ctx.preview else WARP_MAGNET_SPEEDS
+    loco_v = LOCO_MAGNET_SPEEDS[-1:] if ctx.preview else LOCO_MAGNET_SPEEDS
+    warp = [sp.rising_run(NAME, data, top, v, +1.0, vertices, ctx, "warping") for v in warp_v]
+    loco = [sp.passing_run(NAME, data, v, +1.0, LOCO_DOMAIN, ctx, "locomotion") for v in loco_v]
+    mags = sorted(set(warp_v) | set(loco_v))
+    warp_rate = {r["speed"]: sp.largest_rate(r["t"], r[key])[0] for r in warp}
+    loco_rate = {r["speed"]: -r["mean_speed"] for r in loco}   # the magnet moves along -y
+    table = {
+        "magnet_speed_mm_s": [v * 1e3 for v in mags],
+        "warping_vertex_rise_rate_mm_s": [warp_rate.get(v, float("nan")) * 1e3 for v in mags],
+        "locomotion_centroid_speed_along_magnet_mm_s": [loco_rate.get(v, float("nan")) * 1e3 for v in mags],
+        "vertex_rise_over_run_mm": [1e3 * (next((r[key][-1] - r[key][np.searchsorted(r["t"], sp.SETTLE)]
+                                                 for r in warp if r["speed"] == v), float("nan"))) for v in mags],
+        "centroid_along_magnet_in_pass_mm": [1e3 * -next((r["dy"] for r in loco if r["speed"] == v), float("nan"))
+                                             for v in mags],
+    }
+    dx = warp[0]["dx"]
+    csv, png = sp.write_speeds(ctx.out, NAME, table, {"warping 9 mm/s (sec 4.3)": PAPER_WARP_SPEED,
+                                                      "locomotion 1.5 mm/s (sec 4.4)": PAPER_LOCO_SPEED},
+                               note=f"dx = {dx * 1e3:.1f} mm; the paper gives no magnet speed")
+    wv = sorted(warp_rate)
+    return {"table": table, "csv": csv, "png": png, "key": key, "warp": warp, "loco": loco,
+            "wall_s": sum(r["wall_s"] for r in warp + loco),
+            "warp_magnet_speed_for_paper_mm_s": sp.magnet_speed_for(PAPER_WARP_SPEED, [v * 1e3 for v in wv],
+                                                                    [warp_rate[v] * 1e3 for v in wv]),
+            "dx": dx}
+
+
 def reproduce(ctx: Context) -> ReproduceResult:
     levels_mt = PREVIEW_LEVELS_MT if ctx.preview else LEVELS_MT
     data = scene_data(NAME)
@@ -217,14 +264,46 @@ def reproduce(ctx: Context) -> ReproduceResult:
             {"levels_mT": list(map(float, B))},
             0.0, float(increments.min()), float(max(0.0, -increments.min())), 0.2),
     ]
+    # speeds under the moving actuator: each at least goes the right way (issue "Robot library II")
+    from magsoro.robots._seed002_speeds import SETTLE as MAGNET_WAIT
+
+    sp = speeds(ctx, scene_data(NAME), corners)
+    fast = sp["warp"][-1]
+    rise = float(fast[sp["key"]][-1] - fast[sp["key"]][np.searchsorted(fast["t"], MAGNET_WAIT)]) * 1e3
+    along = float(-sp["loco"][-1]["dy"] * 1e3)
+    v_w, v_l = fast["speed"] * 1e3, sp["loco"][-1]["speed"] * 1e3
+    rows += [
+        Row(case, "warping: rise of the top vertex while the magnet rises under it (mm), at least 1 mm",
+            {"magnet_speed_mm_s": v_w, "dx_mm": sp["dx"] * 1e3}, 1.0, rise, float(max(0.0, 1.0 - rise)), 0.0),
+        Row(case, "locomotion: centroid displacement along the magnet's pass (mm), at least 1 mm with the magnet",
+            {"magnet_speed_mm_s": v_l, "dx_mm": sp["dx"] * 1e3}, 1.0, along, float(max(0.0, 1.0 - along)), 0.0),
+    ]
+    t = sp["table"]
+    speeds_text = "; ".join(
+        f"{v:.0f} mm/s: warping {w:.1f}, locomotion {lo:.1f} mm/s" if math.isfinite(lo) else f"{v:.0f} mm/s: warping {w:.1f} mm/s"
+        for v, w, lo in zip(t["magnet_speed_mm_s"], t["warping_vertex_rise_rate_mm_s"],
+                            t["locomotion_centroid_speed_along_magnet_mm_s"]))
+    match = sp["warp_magnet_speed_for_paper_mm_s"]
+    rates = t["warping_vertex_rise_rate_mm_s"]
+    grows = len(rates) > 1 and bool(np.all(np.diff(rates) > 0))
     low = np.interp(10.0, B, ht) if B.max() >= 10 else float("nan")
     summary = (f"At 45 mT the vertices warp W_t = {wt[top]:.1f} mm (paper 11 mm exp. / 12 mm sim.) and the centroid "
                f"rises H_t = {ht[top]:.1f} mm (paper 3.5 / 3.7 mm); our robot already lifts below 14 mT "
                f"(H_t = {low:.1f} mm at 10 mT) where the paper's experiment stays flat, and its 2 mm thickness and "
-               f"44 mT remanence are our assumptions.")
+               f"44 mT remanence are our assumptions. Under the paper's actuator (50 mT at its face) moving at a "
+               f"stated speed (the paper gives none), at magnet speed {speeds_text}"
+               + ("; the warping rate grows with the magnet's speed (the shape follows the magnet)"
+                  if grows else "")
+               + (f", the paper's 9 mm/s at a magnet rising at {match:.0f} mm/s" if match else "")
+               + f"; in a pass the robot goes along with the magnet at {along / (v_l * (sp['loco'][-1]['t_pass'] - MAGNET_WAIT)):.2f} "
+               f"of its speed at {v_l:.0f} mm/s (paper 1.5 mm/s; scenes/triangle.toml describes how it is carried).")
     info = {"particles": int(len(X0)), "dx_m": sim.model.dx, "steps": sim.steps, "sim_time_s": round(sim.time, 4),
-            "run_wall_s": round(wall, 1), "levels_mT": list(map(float, B)), "gif_bytes": gif.stat().st_size}
-    return ReproduceResult(NAME, csv, png, gif, summary, rows, info)
+            "run_wall_s": round(wall, 1), "levels_mT": list(map(float, B)), "gif_bytes": gif.stat().st_size,
+            "speeds_wall_s": round(sp["wall_s"], 1), "speeds_dx_m": sp["dx"],
+            "warping_magnet_speed_for_paper_mm_s": match}
+    figures = [{"csv": sp["csv"], "png": sp["png"],
+                "caption": "warping and locomotion speeds against the speed of the magnet (seed 002 secs 4.3-4.4)"}]
+    return ReproduceResult(NAME, csv, png, gif, summary, rows, info, figures)
 
 
 ROBOT = Robot(

@@ -1,0 +1,155 @@
+"""Speeds of seed 002's robots under the paper's actuator moving under the plate (issue "Robot library II").
+
+Seed 002 reports speeds for its robots (triangle: warping 9 mm/s, locomotion 1.5 mm/s; cross: arching 4.8 and
+grabbing 3.5 mm/s; secs 4.3, 4.4, 5.1) but not the speed of the magnet that drives them. These runs move the
+paper's actuator at a stated constant speed and read how fast the robot answers:
+
+- rising magnet (triangle warping, cross arching and grabbing): the magnet, centred under the point that moves
+  (the triangle's top vertex, the cross's centre), waits ``SETTLE`` s at ``Z_START`` while the robot settles on the
+  plate, then rises at constant speed until its top face is 1 mm under the plate top; the heights of marked
+  material are sampled every ``SAMPLE`` s and the speed is the largest rate over two samples (10 ms);
+- passing magnet (triangle locomotion): the magnet moves along -y from beyond the top vertex to beyond the
+  opposite side at constant speed, under the plate; the speed is the centroid's mean speed along the pass.
+
+The actuator (seed 002 sec 4.1): an N35 disc, 100 mm across and 10 mm thick, remanence set to ``ACTUATOR_BR``
+so that the field at the centre of its face is 50 mT as the paper states (the same magnet as
+scenes/pentagram.toml, which moves it along the plate).
+"""
+
+from __future__ import annotations
+
+import copy
+import time
+
+import numpy as np
+
+from magsoro.robots.base import plot_curve, simulation, write_csv
+
+ACTUATOR_BR = 0.5099   # T: 50 mT at the face centre of the 100 mm x 10 mm disc (scenes/pentagram.toml)
+Z_TOP = -0.006         # m: magnet centre with its top face 1 mm below the plate top (z = 0 is the plate top)
+Z_START = -0.08        # m: magnet centre at the start of a rising run (|B| at the robot ~2 mT)
+SETTLE = 0.04          # s: the robot settles on the plate before the magnet moves
+SAMPLE = 0.005         # s between height samples; rates are taken over two samples
+AFTER = 0.06           # s the run goes on after the magnet stops
+PASS_FROM, PASS_TO = 0.09, -0.08   # m: y of the magnet's centre at the start and end of a pass (triangle)
+PASS_AFTER = 0.05      # s after a pass
+
+
+def actuator(data: dict, remanence_sign: float) -> dict:
+    """The scene's ``magnet`` field table made the paper's actuator (50 mT at its face), north face up for +1."""
+    m = next(f for f in data["fields"] if f.get("name") == "magnet")
+    m.update(diameter=0.1, length=0.01, axis=[0.0, 0.0, 1.0], remanence=float(remanence_sign) * ACTUATOR_BR)
+    return m
+
+
+def largest_rate(t: np.ndarray, z: np.ndarray, t_from: float = SETTLE) -> tuple[float, float]:
+    """Largest rate dz/dt (m/s) of samples ``z`` at times ``t`` over centred two-sample differences from
+    ``t_from`` on, and the time it happens."""
+    t, z = np.asarray(t, float), np.asarray(z, float)
+    if len(t) < 3:
+        return float("nan"), float("nan")
+    rate = (z[2:] - z[:-2]) / (t[2:] - t[:-2])
+    tm = t[1:-1]
+    ok = tm >= t_from
+    if not ok.any():
+        return float("nan"), float("nan")
+    k = int(np.argmax(rate[ok]))
+    return float(rate[ok][k]), float(tm[ok][k])
+
+
+def _sampled(sim, t_end: float, take) -> float:
+    """Advance ``sim`` to ``t_end`` calling ``take`` every SAMPLE s (and at the start); returns the wall time."""
+    w0 = time.perf_counter()
+    take()
+    while sim.time < t_end - 1e-9:
+        sim.advance_to(min(t_end, sim.time + SAMPLE))
+        take()
+    return time.perf_counter() - w0
+
+
+def rising_run(name: str, base: dict, xy, speed: float, remanence_sign: float, markers, ctx, label: str) -> dict:
+    """The magnet rises under ``xy`` at ``speed`` (m/s). ``markers(X0) -> {key: mask}`` picks the material whose
+    mean height is sampled. Returns times, magnet heights, marker heights (m) and run facts."""
+    data = copy.deepcopy(base)
+    m = actuator(data, remanence_sign)
+    t_move = SETTLE + (Z_TOP - Z_START) / speed
+    start, top = [float(xy[0]), float(xy[1]), Z_START], [float(xy[0]), float(xy[1]), Z_TOP]
+    m["position"] = start
+    m["path"] = {"times": [0.0, SETTLE, t_move], "positions": [start, start, top]}
+    t_end = t_move + AFTER
+    data["simulation"]["duration"] = t_end
+    sim = simulation(name, data, preview=ctx.preview, device=ctx.device)
+    X0 = sim.model.host["positions"].astype(np.float64)
+    masks = markers(X0)
+    rec = {"t": [], "magnet_z": [], **{k: [] for k in masks}}
+
+    def take():
+        x = sim.state.x.numpy().astype(np.float64)
+        if not np.isfinite(x).all():
+            raise FloatingPointError(f"{label}: non-finite positions at t = {sim.time:.4f} s")
+        rec["t"].append(sim.time)
+        rec["magnet_z"].append(float(np.interp(sim.time, [0.0, SETTLE, t_move], [Z_START, Z_START, Z_TOP])))
+        for k, mask in masks.items():
+            rec[k].append(float(x[mask, 2].mean()))
+
+    wall = _sampled(sim, t_end, take)
+    out = {k: np.asarray(v) for k, v in rec.items()}
+    out.update(speed=speed, t_move=t_move, wall_s=wall, dx=sim.model.dx, particles=int(len(X0)))
+    ctx.log(f"  {label} at {speed * 1e3:.0f} mm/s: {wall:.0f} s wall")
+    return out
+
+
+def passing_run(name: str, base: dict, speed: float, remanence_sign: float, domain, ctx, label: str) -> dict:
+    """The magnet passes along y from PASS_FROM to PASS_TO under the plate at ``speed`` (m/s) in a domain widened
+    to ``domain`` (lo, hi); the mass centre is sampled. Returns times, magnet y, centroid (m) and run facts."""
+    data = copy.deepcopy(base)
+    m = actuator(data, remanence_sign)
+    t_pass = SETTLE + (PASS_FROM - PASS_TO) / speed
+    p0, p1 = [0.0, PASS_FROM, Z_TOP], [0.0, PASS_TO, Z_TOP]
+    m["position"] = p0
+    m["path"] = {"times": [0.0, SETTLE, t_pass], "positions": [p0, p0, p1]}
+    t_end = t_pass + PASS_AFTER
+    S = data["simulation"]
+    S["duration"], S["domain_lo"], S["domain_hi"] = t_end, list(domain[0]), list(domain[1])
+    sim = simulation(name, data, preview=ctx.preview, device=ctx.device)
+    mass = sim.model.host["mass"].astype(np.float64)
+    rec = {"t": [], "magnet_y": [], "cx": [], "cy": [], "cz": []}
+
+    def take():
+        x = sim.state.x.numpy().astype(np.float64)
+        if not np.isfinite(x).all():
+            raise FloatingPointError(f"{label}: non-finite positions at t = {sim.time:.4f} s")
+        c = (mass[:, None] * x).sum(0) / mass.sum()
+        rec["t"].append(sim.time)
+        rec["magnet_y"].append(float(np.interp(sim.time, [0.0, SETTLE, t_pass], [PASS_FROM, PASS_FROM, PASS_TO])))
+        rec["cx"].append(c[0]), rec["cy"].append(c[1]), rec["cz"].append(c[2])
+
+    wall = _sampled(sim, t_end, take)
+    out = {k: np.asarray(v) for k, v in rec.items()}
+    i0, i1 = np.searchsorted(out["t"], SETTLE), np.searchsorted(out["t"], t_pass)
+    out.update(speed=speed, t_pass=t_pass, wall_s=wall, dx=sim.model.dx, particles=int(len(mass)),
+               dy=float(out["cy"][i1] - out["cy"][i0]), mean_speed=float((out["cy"][i1] - out["cy"][i0]) / (t_pass - SETTLE)))
+    ctx.log(f"  {label} at {speed * 1e3:.0f} mm/s: centroid moved {out['dy'] * 1e3:+.1f} mm along y in the pass "
+            f"({wall:.0f} s wall)")
+    return out
+
+
+def magnet_speed_for(paper: float, magnet_speeds, speeds) -> float | None:
+    """The magnet speed at which the measured speed equals the paper's (linear in between the measured magnet
+    speeds; None outside them or when the speeds do not grow with the magnet's)."""
+    v, s = np.asarray(magnet_speeds, float), np.asarray(speeds, float)
+    if len(v) < 2 or not np.all(np.diff(s) > 0) or not (s[0] <= paper <= s[-1]):
+        return None
+    return float(np.interp(paper, s, v))
+
+
+def write_speeds(out_dir, name: str, table: dict, paper: dict, note: str):
+    """``name``_speeds.csv (one row per magnet speed) and .png (robot speed against magnet speed, the paper's
+    value as a line: it gives no magnet speed)."""
+    csv = write_csv(out_dir / f"{name}_speeds.csv", table)
+    v = np.asarray(table["magnet_speed_mm_s"], float)
+    series = {k.removesuffix("_mm_s").replace("_", " "): np.asarray(table[k], float)
+              for k in table if k.endswith("_mm_s") and k != "magnet_speed_mm_s"}
+    png = plot_curve(out_dir / f"{name}_speeds.png", v, series, "magnet speed (mm/s)", "robot speed (mm/s)",
+                     f"{name}: speed under the moving magnet", hlines=paper, note=note)
+    return csv, png
