@@ -52,7 +52,15 @@ FLOOR = {
     "contact": {"friction": 0.3},
     "fields": [{"type": "uniform", "B": [0.0, 0.0, 0.0]}],
 }
-SCENES = {"ramp": RAMP, "rotating": ROTATING, "moving_collider": MOVING, "floor_contact": FLOOR}
+# a dipole moving past the strip and a resting one: non-uniform sources, whose parameters at each step come from
+# the drive table (load_params) and whose kernels run at the step's positions inside the window
+DIPOLE = {
+    "simulation": {"dt": 3e-6},
+    "fields": [{"type": "dipole", "moment": [0.0, 0.05, 0.0], "position": [0.005, 0.03, 0.0],
+                "path": {"times": [0.0, 0.0012], "positions": [[0.005, 0.03, 0.0], [0.025, 0.028, 0.0]]}},
+               {"type": "dipole", "moment": [0.02, 0.0, 0.0], "position": [0.03, 0.004, 0.0]}],
+}
+SCENES = {"ramp": RAMP, "rotating": ROTATING, "moving_collider": MOVING, "floor_contact": FLOOR, "dipole": DIPOLE}
 
 
 def _scene(extra: dict, **sim_keys):
@@ -155,9 +163,8 @@ def test_a_window_that_fails_runs_again_in_checked_steps():
 
 
 def test_a_scene_that_needs_the_host_every_step_runs_the_plain_loop_and_says_why(tmp_path):
-    extra = {"fields": [{"type": "dipole", "moment": [0.0, 0.05, 0.0], "position": [0.02, 0.03, 0.0]}],
-             "output": {"every": 0.0001}}
-    sim = Simulation(_scene(extra, dt=2e-6, duration=0.0002), device="cpu")
+    extra = {"output": {"every": 0.0001}}
+    sim = Simulation(_scene(extra, dt=2e-6, duration=0.0002, magnetic_interaction="dipole"), device="cpu")
     from magsoro.io.recorder import RunWriter
 
     writer = RunWriter(tmp_path, sim, {}, particles=False)
@@ -165,7 +172,7 @@ def test_a_scene_that_needs_the_host_every_step_runs_the_plain_loop_and_says_why
     writer.finish(result, result.wall_time)
     assert result.status == "completed" and sim.solver.graph_windows == 0
     reason = sim.solver.graph_refusal(sim.control)
-    assert reason.startswith("non-uniform field sources")
+    assert reason.startswith("the magnetic interaction")
     assert sim.notes == [f"graph windows off (plain step loop): {reason}"]
     info = json.loads((tmp_path / "run.json").read_text())
     assert info["notes"] == sim.notes and info["graph_windows"]["windows"] == 0

@@ -77,6 +77,30 @@ class FieldEvaluator:
             out += s.uniform_value(t)
         return out
 
+    @property
+    def param_arrays(self) -> list:
+        """The device arrays (float64) the non-uniform sources' kernels read their parameters from, in order."""
+        return list(self._params)
+
+    def params_at(self, t: float) -> np.ndarray:
+        """The non-uniform sources' parameters at time ``t``, one after the other (the layout of
+        :attr:`param_arrays`)."""
+        out = []
+        for src, prm in zip(self.point_sources, self._params):
+            values = np.asarray(src.device_params(t), dtype=np.float64)
+            if values.shape != tuple(prm.shape):
+                raise ValueError(f"{type(src).__name__}.device_params changed length during the run")
+            out.append(values)
+        return np.concatenate(out) if out else np.zeros(0)
+
+    def record_launches(self, x: wp.array, B: wp.array, G: wp.array) -> list:
+        """The launches of :meth:`evaluate` for positions ``x``, recorded (``wp.Launch``) for a check window: they
+        read the parameters the arrays of :attr:`param_arrays` hold when they run (the window's drive table
+        fills them), not those of a time given here."""
+        return [wp.launch(kern, dim=x.shape[0], inputs=[x, prm, wp.float64(self.plane_z), 1 if k == 0 else 0, B, G],
+                          device=self.device, record_cmd=True)
+                for k, (kern, prm) in enumerate(zip(self._kernels, self._params))]
+
     def evaluate(self, x: wp.array, B: wp.array, G: wp.array, t: float) -> None:
         """Write the non-uniform sources' B and grad B at positions ``x`` into ``B`` and ``G`` (device arrays)."""
         n = x.shape[0]

@@ -169,6 +169,14 @@ def make_g2p(dim: int, scalar, two_fields: bool = False) -> dict:
         cursor[0] = row + 1
 
     @wp.kernel
+    def load_params(table: wp.array(dtype=wp.float64), width: int, cursor: wp.array(dtype=wp.int32), offset: int,
+                    params: wp.array(dtype=wp.float64)):
+        """After ``load_step``: a field source's parameters at the step's time, from the row ``load_step`` took
+        (``cursor[0] - 1``), columns ``offset`` on, into the array its field kernel reads (one thread per value)."""
+        i = wp.tid()
+        params[i] = table[(cursor[0] - 1) * width + offset + i]
+
+    @wp.kernel
     def remap_node_velocity(
         grid_r: wp.array(dtype=vec),
         grid_m: wp.array(dtype=scalar),
@@ -259,4 +267,5 @@ def make_g2p(dim: int, scalar, two_fields: bool = False) -> dict:
         o.x[p] = o.x[p] + dt * dv
 
     return dict(g2p=g2p, reset_reductions=reset_reductions, remap_node_velocity=remap_node_velocity, remap_F=remap_F,
-                contact_gather=contact_gather, load_step=load_step)
+                contact_gather=contact_gather, load_step=load_step,
+                load_params=load_params)

@@ -1040,9 +1040,6 @@ class Solver:
             return "the magnetic interaction refreshes the bodies' field on the host (an FFT) every interaction_every steps"
         if self.model.stimuli:
             return "stimulus eigenstrain: the stimulus tables are set on the host at every step"
-        if self._fields(control).has_gradient:
-            return ("non-uniform field sources: their parameters at the step's time are copied from the host and their "
-                    "kernels launched with the step's positions at every step")
         if self._tcontact:
             return "the total form with contact fits its contact grid to the positions on the host at every step"
         if self.phase_times is not None:
@@ -1083,18 +1080,20 @@ class Solver:
             times.append(times[-1] + dt)
         step0 = state_a.step
         self._update_colliders(control, times[0])
-        L = (self._launch_set(state_a, state_b, control, False), self._launch_set(state_b, state_a, control, False))
+        gradient = self._fields(control).has_gradient
+        L = (self._launch_set(state_a, state_b, control, gradient), self._launch_set(state_b, state_a, control, gradient))
         moving = self._fill_drive(control, dts, times)
+        F = (self._window_fields(state_a), self._window_fields(state_b))
         # from here the device's Step and collider table hold window rows: a plain step writes its own again
         self._step_written = None
         if moving:
             self._collider_host = None
         load = self._drive["launch"]
         if self.capture_refusal() is None:
-            self._replay(L, load, n, tick)
+            self._replay(L, load, n, tick, F)
         else:
             for k in range(n):
-                self._window_step(L[k % 2], load)
+                self._window_step(L[k % 2], load, F[k % 2])
                 if tick is not None:
                     tick()
         self.graph_windows += 1
@@ -1108,13 +1107,18 @@ class Solver:
 
     def _fill_drive(self, control: Control, dts, times) -> bool:
         """Write the window's drive table (:meth:`run_window`) and copy it to the device; reset its cursor. Returns
-        whether the collider table is in it (a collider moves)."""
+        whether the collider table is in it (a collider moves). A row: dt, damping factor, uniform field, the
+        collider table when a collider moves, then the non-uniform field sources' parameters (``load_params``
+        copies them into the arrays their kernels read)."""
         n, dev, st = len(dts), self.device, self.settings
         moving = any(c.path is not None for c in control.colliders)
         n_values = COLLIDER_STRIDE * len(control.colliders) if moving else 0
-        width = 5 + n_values
+        fields = self._fields(control)
+        prm = fields.param_arrays
+        width = 5 + n_values + sum(int(a.shape[0]) for a in prm)
         d = self._drive
-        if d is None or d["width"] != width or d["rows"] < n or d["colliders"] is not self._collider_array:
+        if (d is None or d["width"] != width or d["rows"] < n or d["colliders"] is not self._collider_array
+                or d["fields"] is not fields):
             old = d["rows"] if d is not None else 0
             rows = old if old >= n else max(n, 2 * old, 64)  # grows by doubling: few reallocations, few re-captures
             table = wp.zeros(rows * width, dtype=wp.float64, device=dev)
@@ -1122,21 +1126,28 @@ class Solver:
             cursor = wp.zeros(1, dtype=wp.int32, device=dev)
             launch = wp.launch(self.k["load_step"], dim=1, device=dev, record_cmd=True,
                                inputs=[table, width, cursor, self._step_values, self._collider_array, n_values])
+            param_loads, offset = [], 5 + n_values
+            for a in prm:
+                param_loads.append(wp.launch(self.k["load_params"], dim=int(a.shape[0]), device=dev, record_cmd=True,
+                                             inputs=[table, width, cursor, offset, a]))
+                offset += int(a.shape[0])
             d = self._drive = {"width": width, "rows": rows, "table": table, "host": host, "host_np": host.numpy(),
                                "cursor": cursor, "cursor_np": cursor.numpy() if self._on_cpu else None, "launch": launch,
-                               "colliders": self._collider_array}
-            self._graphs.clear()  # they read the table and the collider array through this launch
+                               "colliders": self._collider_array, "fields": fields, "param_loads": param_loads,
+                               "field_launches": {}}
+            self._graphs.clear()  # they read the table, the collider array and the parameters through these launches
         if not self._on_cpu:  # the pinned buffer is rewritten: its last copy must be done (the device is idle here)
             wp.synchronize_device(dev)
         rows = d["host_np"][: n * width].reshape(n, width)
-        fields = self._fields(control)
         for k in range(n):
             row = rows[k]
             row[0] = dts[k]
             row[1] = math.exp(-st.damping * dts[k])
             row[2:5] = fields.uniform_value(times[k])
             if n_values:
-                row[5:] = collider_table(control.colliders, times[k])
+                row[5 : 5 + n_values] = collider_table(control.colliders, times[k])
+            if prm:
+                row[5 + n_values :] = fields.params_at(times[k])
         if self._on_cpu:
             d["cursor_np"][0] = 0
         else:
@@ -1144,15 +1155,34 @@ class Solver:
             d["cursor"].zero_()
         return moving
 
-    def _window_step(self, L: dict, load) -> None:
-        """One step of a window: its values from the next row of the drive table, then the phases of :meth:`step`."""
+    def _window_fields(self, state: State) -> list:
+        """The recorded launches of a window step from ``state``: the non-uniform sources' parameters from the
+        step's row of the drive table, then their kernels at the state's positions (none without such sources)."""
+        d = self._drive
+        if not d["param_loads"]:
+            return []
+        cache = d["field_launches"]
+        launches = cache.get(id(state.x))
+        if launches is None:
+            if len(cache) >= 8:  # states made afresh each call
+                cache.clear()
+                self._graphs.clear()
+            launches = cache[id(state.x)] = d["param_loads"] + d["fields"].record_launches(
+                state.x, self.B_particle, self.G_particle)
+        return launches
+
+    def _window_step(self, L: dict, load, fields=()) -> None:
+        """One step of a window: its values from the next row of the drive table (``load``, then ``fields``: the
+        non-uniform field at the particles), then the phases of :meth:`step`."""
         load.launch()
+        for launch in fields:
+            launch.launch()
         self._clear_grid()
         self._scatter(L)
         self._update_grid(L)
         self._gather(L)
 
-    def _replay(self, L: tuple, load, n: int, tick=None) -> None:
+    def _replay(self, L: tuple, load, n: int, tick=None, F: tuple = ((), ())) -> None:
         """``n`` steps as graphs of 2^j steps (binary digits of n, largest first), each captured at its first use
         per (size, first state); ``L`` the launch sets from state a to b and back."""
         start, size = 0, 1 << max(n.bit_length() - 1, 0)
@@ -1164,13 +1194,13 @@ class Solver:
                     if len(self._graphs) >= 64:  # launch sets dropped without a refit (many state pairs)
                         self._graphs.clear()
                     try:
-                        graph = self._graphs[key] = self._capture(L, load, size, start)
+                        graph = self._graphs[key] = self._capture(L, load, size, start, F)
                     except Exception as exc:  # nothing of the piece ran: launch it, and capture no more
                         self.graph_capture = False
                         self.capture_failure = f"the capture failed ({type(exc).__name__}: {exc})"
                 if graph is None:
                     for j in range(size):
-                        self._window_step(L[(start + j) % 2], load)
+                        self._window_step(L[(start + j) % 2], load, F[(start + j) % 2])
                 else:
                     wp.capture_launch(graph)
                     self.graph_replays += 1
@@ -1179,13 +1209,13 @@ class Solver:
                 start = (start + size) % 2
             size >>= 1
 
-    def _capture(self, L: tuple, load, size: int, start: int):
+    def _capture(self, L: tuple, load, size: int, start: int, F: tuple = ((), ())):
         """Capture ``size`` window steps from launch set ``L[start]`` on (nothing runs while capturing)."""
         self._host_ops = False  # zero the grids with device operations, which the graph records
         try:
             with wp.ScopedCapture(device=self.device, force_module_load=False) as capture:
                 for j in range(size):
-                    self._window_step(L[(start + j) % 2], load)
+                    self._window_step(L[(start + j) % 2], load, F[(start + j) % 2])
         finally:
             self._host_ops = self._on_cpu
         self.graph_captures += 1
