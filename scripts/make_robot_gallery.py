@@ -38,18 +38,18 @@ The 3D robots' entries also show a picture and an animation drawn by `magsoro re
 scene (`magsoro run scenes/NAME.toml`): `magsoro reproduce` keeps no particle frames, so that run is separate from
 the reproduction, and its caption says whether it was a full-resolution or a `--preview` run.
 
-Speeds under a moving magnet (seed 002 reports them; measured on 2026-11-26 with scratch scripts driving the
-scenes, not yet by the reproductions; numbers, resolutions and wall times in the headers of scenes/triangle.toml,
-scenes/cross.toml and scenes/pentagram.toml). The actuator is the paper's (sec 4.1: disc r 50 mm, 10 mm thick,
-50 mT at its face centre, under the ~1 mm plate); the paper gives no magnet speed, so each is reported with the
-magnet speed used.
+Speeds under a moving magnet (seed 002 reports them). The triangle's and the cross's are measured by their
+reproductions (`magsoro reproduce triangle`, `magsoro reproduce cross`: NAME_speeds.csv and .png, shown in their
+sections below), the pentagram's and the arch's by theirs. The actuator is the paper's (sec 4.1: disc r 50 mm,
+10 mm thick, 50 mT at its face centre, under the ~1 mm plate); the paper gives no magnet speed, so each is
+reported with the magnet speeds used.
 
 | quantity | paper | ours | gap |
 |---|---|---|---|
 | triangle warping speed (vertex rise, magnet rising under it) | 9 mm/s | 19.6 mm/s at 100 mm/s (dx 1 mm); ~0.2 x the magnet speed | the shape follows the magnet quasi-statically: 9 mm/s needs a magnet at ~45 mm/s |
 | triangle locomotion speed (magnet from a vertex to the opposite side) | 1.5 mm/s | moves with the magnet: -33.5 mm per pass at 200 mm/s (39 mm/s mean, dx 1 mm) | no lift-and-push gait: pushed or dragged, sliding, by the magnet's rim; 1.5 mm/s not reached |
-| cross arching speed (field down) | 4.8 mm/s | 8.8 mm/s at 100 mm/s (dx 1 mm); ~0.09 x the magnet speed | quasi-static: needs a magnet at ~50 mm/s |
-| cross grabbing speed (field reversed) | 3.5 mm/s | 8.0 mm/s at 100 mm/s (dx 1 mm) | quasi-static: needs a magnet at ~40 mm/s |
+| cross arching speed (field down) | 4.8 mm/s | 4.4 / 8.8 / 17.8 mm/s at 50 / 100 / 200 mm/s (dx 1 mm); ~0.09 x the magnet speed | quasi-static: 4.8 mm/s with the magnet rising at 55 mm/s |
+| cross grabbing speed (field reversed) | 3.5 mm/s | 4.0 / 7.9 / 15.9 mm/s at 50 / 100 / 200 mm/s (dx 1 mm) | quasi-static: 3.5 mm/s needs a magnet below 50 mm/s (~44 mm/s in proportion; not run) |
 | pentagram crawling speed | 3.5 mm/s | moves with the magnet: +54.4 mm per pass at 200 mm/s (reproduction); mean speed 0.27 x the magnet's | folded into a heap and carried by the magnet's rim, not the gait of Fig. 14a; 3.5 mm/s would need a magnet at ~13 mm/s (not run) |
 | arch flip time | 0.5 s | 0.02 s after the field reaches 45 mT (reproduction) | the paper does not say how fast its magnet approached |"""
 
