@@ -8,7 +8,10 @@ equilibrium of a 1 mT level (a bent state, so every particle's F differs from I)
 - ``StaticSolver.tangent`` as shipped (kernels ``material_tangent`` and ``assemble_tangent``, magsoro.mpm.static);
 - the numpy assembly the solver used before (dP/dF by 2 dim^2 launches of the stress kernel, then an einsum over
   particles and a bincount into the CSC pattern; written out again below as the reference);
-- one sparse LU factorisation of the tangent (SuperLU), for scale.
+- one sparse LU factorisation of the tangent (SuperLU), for scale;
+- the stability check on that tangent: ``StaticSolver.lowest_mode`` as shipped (one LU shared by the shift-invert
+  eigensolver and the determinant's sign) against the check before (eigsh factorising K itself, then a second LU
+  for the sign), written out again below; both must give the same eigenvalue.
 
 Both tangents are compared entry by entry (largest difference over the largest entry). Writes
 benchmarks/results/<date>-cpu-<commit>-static-assembly.json with the machine and the commit.
@@ -80,6 +83,19 @@ def numpy_tangent(st, u_nodes, field_level: float):
     return sparse.csc_matrix((np.concatenate(vals), (np.concatenate(r_idx), np.concatenate(c_idx))), shape=(n_dof, n_dof))
 
 
+def stability_before(st, J):
+    """The lowest-mode check as it was before the shared factorisation: eigsh's own LU, a second one for the sign."""
+    from scipy.sparse.linalg import eigsh
+
+    from magsoro.mpm.static import _odd_negative_count
+
+    K = (0.5 * (-J + -J.T)).tocsc()
+    vals, _ = eigsh(K, k=1, sigma=0.0, which="LM", v0=np.ones(K.shape[0]))
+    if vals[0] > 0.0 and st.contact is None and _odd_negative_count(K):
+        vals, _ = eigsh(K, k=1, sigma=0.0, which="SA", v0=np.ones(K.shape[0]))
+    return float(vals[0])
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--rounds", type=int, default=3)
@@ -97,7 +113,8 @@ def main() -> None:
     st = StaticSolver(sim, 0.1)
     level = st.solve_level(1.0)
     u = st.u_nodes.copy()
-    kernel_s, numpy_s, lu_s = [], [], []
+    kernel_s, numpy_s, lu_s, check_s, before_s = [], [], [], [], []
+    lams = []
     st.tangent(u, 1.0, 1.0)  # compiles and builds the pattern once
     for _ in range(args.rounds):
         t = time.perf_counter()
@@ -109,12 +126,20 @@ def main() -> None:
         t = time.perf_counter()
         splu(J)
         lu_s.append(time.perf_counter() - t)
+        t = time.perf_counter()
+        lam_now, _ = st.lowest_mode(J)
+        check_s.append(time.perf_counter() - t)
+        t = time.perf_counter()
+        lam_before = stability_before(st, J)
+        before_s.append(time.perf_counter() - t)
+        lams.append((lam_now, lam_before))
     # the shipped tangent is on the unknowns (E^T J E, the slaving of light nodes) less a null-mode shift of 1e-12
     # of its median diagonal: compare it with the numpy tangent taken the same way
     J_np_red = (st.E.T @ J_np @ st.E).tocsc()
     n = J.shape[0]
     rel = float(np.abs((J - J_np_red).data).max()) / float(np.abs(J_np_red.data).max())
-    med = {k: float(np.median(v)) for k, v in (("kernel", kernel_s), ("numpy", numpy_s), ("lu", lu_s))}
+    med = {k: float(np.median(v)) for k, v in (("kernel", kernel_s), ("numpy", numpy_s), ("lu", lu_s),
+                                                ("stability_check", check_s), ("stability_check_before", before_s))}
     result = {
         "date": datetime.datetime.now().isoformat(timespec="seconds"),
         "commit": _commit(),
@@ -122,7 +147,10 @@ def main() -> None:
         "scene": "scenes/continuum_soft.toml --preview, uniform 1 mT along +x, at its equilibrium",
         "particles": int(sim.model.n_particles), "unknowns": int(n), "nonzeros": int(J.nnz),
         "level_converged": bool(level.converged), "level_iterations": int(level.iterations),
-        "rounds_s": {"kernel": kernel_s, "numpy": numpy_s, "lu": lu_s}, "median_s": med,
+        "rounds_s": {"kernel": kernel_s, "numpy": numpy_s, "lu": lu_s, "stability_check": check_s,
+                     "stability_check_before": before_s}, "median_s": med,
+        "speedup_stability_check": med["stability_check_before"] / med["stability_check"],
+        "lowest_eigenvalue_now_before": lams,
         "speedup_assembly": med["numpy"] / med["kernel"],
         "largest_difference_over_largest_entry": rel,
     }
@@ -130,6 +158,8 @@ def main() -> None:
     out.write_text(json.dumps(result, indent=1))
     print(f"{result['particles']} particles, {n} unknowns: tangent {med['kernel']:.3f} s (kernels) against {med['numpy']:.3f} s "
           f"(numpy), {result['speedup_assembly']:.1f}x; one LU {med['lu']:.3f} s; largest difference {rel:.2e} of the largest entry")
+    print(f"stability check {med['stability_check']:.3f} s (one LU) against {med['stability_check_before']:.3f} s (two), "
+          f"{result['speedup_stability_check']:.2f}x; lowest eigenvalue (now, before) {lams[-1]}")
     print(f"wrote {out}")
 
 

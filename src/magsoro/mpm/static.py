@@ -83,14 +83,15 @@ LIGHT = {2: 0.0, 3: 1.0e-2}
 NULL_SHIFT = 1.0e-12
 
 
-def _odd_negative_count(K) -> bool:
+def _odd_negative_count(K, lu=None) -> bool:
     """Whether the symmetric sparse matrix ``K`` has an odd number of negative eigenvalues: the sign of its
     determinant from an LU factorisation (Pr K Pc = L U, L with a unit diagonal: sign det K = sign prod diag U times
-    the signs of the two permutations). Sylvester's law of inertia makes the determinant's sign the parity of the
-    negative eigenvalues; an even number of them (two modes crossing zero together) is not seen."""
+    the signs of the two permutations; ``lu``: scipy's ``splu(K)`` when the caller has it). Sylvester's law of
+    inertia makes the determinant's sign the parity of the negative eigenvalues; an even number of them (two modes
+    crossing zero together) is not seen."""
     from scipy.sparse.linalg import splu
 
-    lu = splu(K)
+    lu = splu(K) if lu is None else lu
     negative = int(np.count_nonzero(lu.U.diagonal() < 0.0))
     return (negative + _permutation_parity(lu.perm_r) + _permutation_parity(lu.perm_c)) % 2 == 1
 
@@ -962,19 +963,23 @@ class StaticSolver:
         """Eigenvalue nearest zero (N/m) and its mode of the symmetric stiffness -(J + J^T)/2 at the current
         equilibrium (shift-invert about zero), from ``tangent`` when given (the last Newton iteration's, one
         converged step away); (None, None) when the eigensolver does not converge."""
-        from scipy.sparse.linalg import ArpackNoConvergence, eigsh
+        from scipy.sparse.linalg import ArpackNoConvergence, LinearOperator, eigsh, splu
 
         K = -(tangent if tangent is not None else self.tangent(self.u_nodes, self.field_level, self.gravity_level))
         K = (0.5 * (K + K.T)).tocsc()
         try:
-            vals, vecs = eigsh(K, k=1, sigma=0.0, which="LM", v0=np.ones(K.shape[0]))
-            if vals[0] > 0.0 and self.contact is None and _odd_negative_count(K):
+            # one factorisation of K for the shift-invert about zero (the one eigsh makes itself) and for the
+            # determinant's sign below
+            lu = splu(K)
+            inverse = LinearOperator(K.shape, matvec=lu.solve, dtype=K.dtype)
+            vals, vecs = eigsh(K, k=1, sigma=0.0, which="LM", v0=np.ones(K.shape[0]), OPinv=inverse)
+            if vals[0] > 0.0 and self.contact is None and _odd_negative_count(K, lu):
                 # a negative eigenvalue farther from zero than the positive one found (a load increment that went
                 # well past a bifurcation): in shift-invert mode 'SA' picks the most negative 1/lambda, the
                 # negative eigenvalue nearest zero. Not with colliders: their friction makes J unsymmetric, and
                 # the symmetric part of a block resting on a friction floor has negative eigenvalues (-0.21 N/m in
                 # tests/test_static_contact.py) where the block is at rest
-                vals, vecs = eigsh(K, k=1, sigma=0.0, which="SA", v0=np.ones(K.shape[0]))
+                vals, vecs = eigsh(K, k=1, sigma=0.0, which="SA", v0=np.ones(K.shape[0]), OPinv=inverse)
         except (ArpackNoConvergence, RuntimeError):
             return None, None
         mode = vecs[:, 0]
