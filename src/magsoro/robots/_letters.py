@@ -25,6 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
+from magsoro.actuation.planning import plane_strain_modulus
 from magsoro.robots.base import (
     Context,
     FrameRecorder,
@@ -172,13 +173,6 @@ def strip(data: dict) -> Strip:
 
 
 # -- the rod of seed 003 Note S1 ----------------------------------------------------------------------------
-def plane_strain_modulus(shear_modulus: float, bulk_modulus: float) -> float:
-    """Bending modulus (Pa) of a strip in plane strain made of the engine's compressible Neo-Hookean solid at
-    small strain: E / (1 - nu^2) = 4 G (3 K + G) / (3 K + 4 G) (K = 20 G: 3.81 G)."""
-    G, K = shear_modulus, bulk_modulus
-    return 4.0 * G * (3.0 * K + G) / (3.0 * K + 4.0 * G)
-
-
 def base_rotation(axis) -> np.ndarray:
     """Rod clamp orientation for a strip bending in the x-y plane: d3 along the strip, d1 = +z (the width, out
     of plane), d2 = d3 x d1 (the thickness, in plane)."""

@@ -35,6 +35,7 @@ import time
 
 import numpy as np
 
+from magsoro.actuation.planning import plane_strain_modulus
 from magsoro.constants import MU0
 from magsoro.robots.base import (Context, FrameRecorder, ReproduceResult, Robot, RobotError, scene_data,
                                  simulation, write_csv)
@@ -293,7 +294,7 @@ def elastica_for(sim, prm: dict, n: int = ELASTICA_NODES) -> ArchElastica:
     h = sim.model.host
     free = h["clamped"] == 0
     G, K = float(np.median(h["shear_modulus"][free])), float(np.median(h["bulk_modulus"][free]))
-    youngs_plane = 4.0 * G * (3.0 * K + G) / (3.0 * K + 4.0 * G)   # E / (1 - nu^2)
+    youngs_plane = plane_strain_modulus(G, K)
     br = float(np.median(np.linalg.norm(h["remanence"][free], axis=1)))
     rho = float(np.median(h["density"][free]))
     return ArchElastica(prm["span"], prm["stretch"], prm["thickness"], prm["width"], youngs_plane, rho, br, n)
