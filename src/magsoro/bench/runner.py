@@ -145,6 +145,9 @@ def run_scene(name: str, device: str = "cpu", steps: int | None = None, threads:
         out["copies"] = copies
         out["sequential_ms_per_step"] = copies * single["ms_per_step"]
         out["batch_speedup"] = out["sequential_ms_per_step"] / out["ms_per_step"]
+        # the same in check windows, the loop magsoro run uses (on CUDA: captured graphs)
+        out["window_sequential_ms_per_step"] = copies * single["window_ms_per_step"]
+        out["window_batch_speedup"] = out["window_sequential_ms_per_step"] / out["window_ms_per_step"]
     return out
 
 
