@@ -51,3 +51,34 @@ def test_safe_box_is_inside_the_fit_and_the_domain():
             else:
                 hi[a] += 0.01 * m.dx
             assert not solver._fits(lo, hi) or lo[a] < m.domain_lo[a] or hi[a] > m.domain_hi[a]
+
+
+def test_an_oversized_block_is_fitted_again(monkeypatch):
+    """A block holding more than GRID_SHRINK times the nodes a fit needs (left by a body that folded up and
+    flattened again, or by the room a fast phase asked for) is fitted again at the next check, where before it
+    was kept as long as the particles stayed inside it. The trajectory is the same to 1e-12 (the nodes keep
+    their global positions)."""
+    import numpy as np
+
+    import magsoro.mpm.solver as solver_module
+
+    scene = {
+        "simulation": {"dim": 2, "dx": 5e-4, "domain_lo": [0.0, 0.0], "domain_hi": [0.04, 0.02], "duration": 0.004,
+                       "precision": "float64", "formulation": "updated", "dt": 2e-5, "gravity": [0.0, -9.81],
+                       "check_every": 20},
+        "bodies": [{"name": "strip", "shape": {"type": "rectangle", "center": [0.02, 0.01], "size": [0.008, 0.001]},
+                    "material": {"density": 1200.0, "shear_modulus": 3e4}, "velocity": [0.5, 0.2]}],
+        "fields": [{"type": "uniform", "B": [0.0, 0.01, 0.0]}],
+    }
+    runs = {}
+    for shrink in (2.0, float("inf")):
+        monkeypatch.setattr(solver_module, "GRID_SHRINK", shrink)
+        sim = Simulation(parse_scene(scene), device="cpu")
+        sim.solver._refit(np.array([0.002, 0.002]), np.array([0.038, 0.018]))  # the whole domain
+        big = sim.solver.grid_info()["nodes"]
+        sim.run()
+        runs[shrink] = (sim.state.x.numpy().astype(np.float64), sim.solver.grid_info(), big)
+    (x, info, big), (x_kept, info_kept, _) = runs[2.0], runs[float("inf")]
+    assert info_kept["nodes"] == big  # nothing left the block: it was kept
+    assert info["nodes"] < 0.25 * big and info["refits"] > info_kept["refits"]
+    assert np.abs(x - x_kept).max() <= 1e-12 * np.abs(x).max()

@@ -79,6 +79,8 @@ def resolve_threads(requested: int | None, device: str, n_particles: int) -> int
 #: the window's steps are launched one by one (see Solver.capture_refusal and docs/engine.md, "CUDA graph windows").
 CPU_GRAPHS = False
 
+#: the grid block is fitted again when it holds more than this many times the nodes a fit to the particles needs
+GRID_SHRINK = 2.0
 COLLIDER_SKIN = 0.1  # cells: total-Lagrangian nodes touch a collider from this signed distance down
 
 
@@ -660,6 +662,17 @@ class Solver:
         # one spare node on each side: the kernels locate particles in the run's precision (float32 by default),
         # which can round a particle on the block edge one node further out than this float64 test
         return bool(np.all(first >= self.org + 1) and np.all(last < self.org + self.shape - 1))
+
+    def _oversized(self, lo, hi) -> bool:
+        """Whether the grid block holds more than GRID_SHRINK times the nodes a fit to the particle box ``lo``-``hi``
+        would: a body that moved across the domain left the block grown behind it, and every grid phase pays for
+        its nodes. Then the block is fitted again (the nodes keep their global positions, so the particles see
+        the same grid)."""
+        if self.n_active == 0:
+            return False
+        first, last = self._node_range(lo, hi)
+        need = int(np.prod(last - first + 1 + 2 * self.settings.grid_margin))
+        return self.n_active > GRID_SHRINK * need
 
     def _refit(self, lo, hi) -> None:
         first, last = self._node_range(lo, hi)
@@ -1250,7 +1263,8 @@ class Solver:
         lo, hi = lo0, hi0
         if reach > 0.0:
             lo, hi = np.maximum(lo0 - reach, m.domain_lo), np.minimum(hi0 + reach, m.domain_hi)
-        if self._safe_lo is not None and (lo >= self._safe_lo).all() and (hi < self._safe_hi).all():
+        inside = self._safe_lo is not None and (lo >= self._safe_lo).all() and (hi < self._safe_hi).all()
+        if inside and not self._oversized(lo, hi):
             return
         if not (np.all(np.isfinite(lo0)) and np.all(np.isfinite(hi0))):
             raise SimulationError("particle positions are not finite", state_in.step, t, input_rejected=True)
@@ -1262,7 +1276,7 @@ class Solver:
                 t,
                 input_rejected=True,
             )
-        if not self._fits(lo, hi):
+        if not self._fits(lo, hi) or self._oversized(lo, hi):
             self._refit(lo, hi)
 
     def _particle_fields(self, control: Control, state_in: State):
