@@ -665,9 +665,9 @@ class Solver:
 
     def _oversized(self, lo, hi) -> bool:
         """Whether the grid block holds more than GRID_SHRINK times the nodes a fit to the particle box ``lo``-``hi``
-        would: a body that moved across the domain left the block grown behind it, and every grid phase pays for
-        its nodes. Then the block is fitted again (the nodes keep their global positions, so the particles see
-        the same grid)."""
+        would: a robot that folded up and flattened again, or the room a fast phase's check windows asked for,
+        kept while the particles stay inside, and every grid phase pays for its nodes. Then the block is fitted
+        again (the nodes keep their global positions, so the particles see the same grid)."""
         if self.n_active == 0:
             return False
         first, last = self._node_range(lo, hi)
