@@ -46,8 +46,8 @@ reported with the magnet speeds used.
 
 | quantity | paper | ours | gap |
 |---|---|---|---|
-| triangle warping speed (vertex rise, magnet rising under it) | 9 mm/s | 19.6 mm/s at 100 mm/s (dx 1 mm); ~0.2 x the magnet speed | the shape follows the magnet quasi-statically: 9 mm/s needs a magnet at ~45 mm/s |
-| triangle locomotion speed (magnet from a vertex to the opposite side) | 1.5 mm/s | moves with the magnet: -33.5 mm per pass at 200 mm/s (39 mm/s mean, dx 1 mm) | no lift-and-push gait: pushed or dragged, sliding, by the magnet's rim; 1.5 mm/s not reached |
+| triangle warping speed (vertex rise, magnet rising under it) | 9 mm/s | 9.9 / 19.6 / 39.8 mm/s at 50 / 100 / 200 mm/s (dx 1 mm); 0.2 x the magnet speed | the shape follows the magnet quasi-statically: 9 mm/s needs a magnet at ~46 mm/s (in proportion; not run) |
+| triangle locomotion speed (magnet from a vertex to the opposite side) | 1.5 mm/s | moves with the magnet: 37.3 / 39.4 mm/s (63.4 / 33.5 mm per pass) at 100 / 200 mm/s (dx 1 mm) | no lift-and-push gait: pushed or dragged, sliding, by the magnet's rim; 1.5 mm/s not reached |
 | cross arching speed (field down) | 4.8 mm/s | 4.4 / 8.8 / 17.8 mm/s at 50 / 100 / 200 mm/s (dx 1 mm); ~0.09 x the magnet speed | quasi-static: 4.8 mm/s with the magnet rising at 55 mm/s |
 | cross grabbing speed (field reversed) | 3.5 mm/s | 4.0 / 7.9 / 15.9 mm/s at 50 / 100 / 200 mm/s (dx 1 mm) | quasi-static: 3.5 mm/s needs a magnet below 50 mm/s (~44 mm/s in proportion; not run) |
 | pentagram crawling speed | 3.5 mm/s | moves with the magnet: +54.4 mm per pass at 200 mm/s (reproduction); mean speed 0.27 x the magnet's | folded into a heap and carried by the magnet's rim, not the gait of Fig. 14a; 3.5 mm/s would need a magnet at ~13 mm/s (not run) |

@@ -151,5 +151,5 @@ def write_speeds(out_dir, name: str, table: dict, paper: dict, note: str):
     series = {k.removesuffix("_mm_s").replace("_", " "): np.asarray(table[k], float)
               for k in table if k.endswith("_mm_s") and k != "magnet_speed_mm_s"}
     png = plot_curve(out_dir / f"{name}_speeds.png", v, series, "magnet speed (mm/s)", "robot speed (mm/s)",
-                     f"{name}: speed under the moving magnet", hlines=paper, note=note)
+                     f"{name}: speed under the moving magnet", hlines=paper, note=note, legend_loc="center right")
     return csv, png

@@ -158,7 +158,8 @@ def read_csv(path: Path) -> dict[str, np.ndarray]:
 
 
 def plot_curve(path: Path, x, series: dict[str, np.ndarray], xlabel: str, ylabel: str, title: str,
-               paper: dict[str, tuple] | None = None, note: str = "", hlines: dict[str, float] | None = None) -> Path:
+               paper: dict[str, tuple] | None = None, note: str = "", hlines: dict[str, float] | None = None,
+               legend_loc: str = "best") -> Path:
     """PNG of simulated ``series`` (label -> y over ``x``, lines with markers) and the ``paper``'s values
     (label -> (x, y), open markers; ``hlines``: label -> y, dashed lines, for values the paper gives without an
     x). ``note`` goes under the title."""
@@ -178,7 +179,7 @@ def plot_curve(path: Path, x, series: dict[str, np.ndarray], xlabel: str, ylabel
     ax.set_ylabel(ylabel)
     ax.set_title(title + (f"\n{note}" if note else ""), fontsize=9)
     ax.grid(alpha=0.3)
-    ax.legend(fontsize=7)
+    ax.legend(fontsize=7, loc=legend_loc)
     fig.tight_layout()
     _save(fig, path)
     plt.close(fig)
