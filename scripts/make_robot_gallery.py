@@ -20,7 +20,7 @@ from pathlib import Path
 
 from magsoro.robots.gallery import gallery_markdown
 
-ENGINE = """Engine of the results: every result except hexahedron's was computed with the engine of issue "Engine 2.0"
+ENGINE = """Engine of the results: every result was computed with the engine of issue "Engine 2.0"
 or a later one (scene default `formulation = "auto"`: total Lagrangian for one body, updated with contact;
 frictional contact between bodies with free separation; self-contact where a scene asks for it). walker was
 re-run with it and magnetic_chain was made on 2026-11-24; gripper and pentagram were re-run on 2026-11-26 with the
@@ -30,9 +30,10 @@ on one core shared with other jobs (hence its wall time), pentagram with its mag
 c_shape, l_shape and s_shape were made on 2026-11-26. On 2026-11-26 (the repository between commits 8547b65 and
 9d708e2) arch, cross, obstacle_beam, pentahedron, strip_magnet and triangle were re-run in full, and
 continuum_discrete, continuum_soft and tentacle were redone once their reproductions solved the field levels with
-the static solver. hexahedron's result still predates "Engine 2.0" (2026-11-22: updated form; bodies touching each
-other shared one velocity field, i.e. stuck): its full reproduction did not finish within 16 minutes on the 2-core
-CPU (the old run took 1374 s). Engine changes committed after a result was made are not in it.
+the static solver. Later on 2026-11-26 cross and triangle were re-run in full with their speeds under the moving
+magnet (commits d4e276a and f543fcc; their field sweeps came out as before), and hexahedron, whose result had
+predated "Engine 2.0", at commit d05a375 (974 s on one core; beta at 45 mT 45.9 deg against 46.8 deg with the old
+engine). Engine changes committed after a result was made are not in it.
 
 The 3D robots' entries also show a picture and an animation drawn by `magsoro render` from one run of the robot's
 scene (`magsoro run scenes/NAME.toml`): `magsoro reproduce` keeps no particle frames, so that run is separate from
