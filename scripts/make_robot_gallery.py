@@ -51,7 +51,7 @@ reported with the magnet speeds used.
 | triangle locomotion speed (magnet from a vertex to the opposite side) | 1.5 mm/s | moves with the magnet: 37.3 / 39.4 mm/s (63.4 / 33.5 mm per pass) at 100 / 200 mm/s (dx 1 mm) | no lift-and-push gait: pushed or dragged, sliding, by the magnet's rim; 1.5 mm/s not reached |
 | cross arching speed (field down) | 4.8 mm/s | 4.4 / 8.8 / 17.8 mm/s at 50 / 100 / 200 mm/s (dx 1 mm); ~0.09 x the magnet speed | quasi-static: 4.8 mm/s with the magnet rising at 55 mm/s |
 | cross grabbing speed (field reversed) | 3.5 mm/s | 4.0 / 7.9 / 15.9 mm/s at 50 / 100 / 200 mm/s (dx 1 mm) | quasi-static: 3.5 mm/s needs a magnet below 50 mm/s (~44 mm/s in proportion; not run) |
-| pentagram crawling speed | 3.5 mm/s | moves with the magnet: +54.4 mm per pass at 200 mm/s (reproduction); mean speed 0.27 x the magnet's | folded into a heap and carried by the magnet's rim, not the gait of Fig. 14a; 3.5 mm/s would need a magnet at ~13 mm/s (not run) |
+| pentagram crawling speed | 3.5 mm/s | moves with the magnet: +54.4 mm per pass at 200 mm/s (reproduction), +53.6 and +55.9 mm at 50 and 25 mm/s (`python scripts/pentagram_magnet_speed.py 50`, preview resolution): 54, 13.4 and 7.0 mm/s, 0.27-0.28 x the magnet's | folded into a heap and carried by the magnet's rim, not the gait of Fig. 14a; at 25 mm/s within a factor of 2 of 3.5 mm/s, by being carried |
 | arch flip time | 0.5 s | 0.02 s after the field reaches 45 mT (reproduction) | the paper does not say how fast its magnet approached |"""
 
 _ENGINE_RE = re.compile(r"^Engine of the results:.*?(?=\n\n|\n\| robot)", flags=re.MULTILINE | re.DOTALL)
