@@ -174,15 +174,16 @@ def reproduce(ctx: Context) -> ReproduceResult:
             1.0, disp, float(max(0.0, 1.0 - disp)), 0.0),
     ]
     shape = ("lies flat again" if end_z < FLAT_CENTROID_Z else
-             f"ends folded in a heap (centroid {end_z:.0f} mm high, 1.4 mm when flat)")
+             f"ends folded in a heap (centroid {end_z:.0f} mm high, 1.4 mm when flat), not the paper's gait of Fig. 14a")
+    # most of the displacement after the magnet's centre passed the robot's: its trailing rim carried the robot
+    carried = " (carried by its trailing rim)" if trailing > 0.5 * disp > 0.0 else ""
     summary = (f"Gripping: the strips close by {closure[-1]:.1f} mm at 45 mT and reach 90 % of that at {sat:.0f} mT "
                f"(paper: maximum deformation at 35 mT); crawling: one pass of the magnet along the underside of the "
                f"plate at {magnet_speed * 1e3:.0f} mm/s moves the robot {disp:+.1f} mm along the pass (mean "
                f"{speed:.0f} mm/s over the pass; paper: {PAPER_CRAWL_SPEED} mm/s at a magnet speed it does not give), "
-               f"{trailing:+.1f} mm of it after the magnet's centre has passed the robot's (carried by its trailing "
-               f"rim); it folds (peak height {track[:, 5].max() * 1e3:.0f} mm) and {shape}, not the paper's gait of "
-               f"Fig. 14a. Hinge lengths, the robot's remanence, the magnet's speed and exact placement are our "
-               f"assumptions.")
+               f"{trailing:+.1f} mm of it after the magnet's centre has passed the robot's{carried}; it folds (peak "
+               f"height {track[:, 5].max() * 1e3:.0f} mm) and {shape}. Hinge lengths, the robot's remanence, the "
+               f"magnet's speed and exact placement are our assumptions.")
     info = {"particles": int(len(sim.model.host["positions"])), "dx_m": sim.model.dx, "levels_mT": list(map(float, B)),
             "crawl_displacement_mm": disp, "crawl_peak_height_mm": float(track[:, 5].max() * 1e3),
             "crawl_magnet_speed_mm_s": magnet_speed * 1e3, "crawl_mean_speed_mm_s": speed,

@@ -154,12 +154,12 @@ def speeds(ctx: Context, data: dict, corners: np.ndarray) -> dict:
     magnet). North face up, as in the field sweep."""
     from magsoro.robots import _seed002_speeds as sp
 
-    top = corners[int(np.argmax(corners[:, 1]))]
+    i_top = int(np.argmax(corners[:, 1]))
+    top, key = corners[i_top], f"v{i_top}"
 
     def vertices(X0):
         return {f"v{i}": np.linalg.norm(X0[:, :2] - c, axis=1) < 0.002 for i, c in enumerate(corners)}
 
-    key = f"v{int(np.argmax(corners[:, 1]))}"
     warp_v = WARP_MAGNET_SPEEDS[-1:] if ctx.preview else WARP_MAGNET_SPEEDS
     loco_v = LOCO_MAGNET_SPEEDS[-1:] if ctx.preview else LOCO_MAGNET_SPEEDS
     warp = [sp.rising_run(NAME, data, top, v, +1.0, vertices, ctx, "warping") for v in warp_v]
