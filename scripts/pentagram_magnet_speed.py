@@ -12,6 +12,7 @@ Measured on 2026-11-26 (one core each): 50 mm/s: +53.6 mm, 13.4 mm/s, 681 s wall
 
 import argparse
 import json
+import math
 import sys
 import time
 from pathlib import Path
@@ -29,8 +30,8 @@ def main() -> None:
     ap.add_argument("speed", type=float, help="magnet speed (mm/s)")
     ap.add_argument("--out", type=Path, help="write the result as JSON here")
     args = ap.parse_args()
-    if not args.speed > 0:
-        raise SystemExit("pentagram_magnet_speed: SPEED_MM_S must be > 0")
+    if not (args.speed > 0 and math.isfinite(args.speed)):
+        raise SystemExit(f"pentagram_magnet_speed: SPEED_MM_S must be a finite number > 0, got {args.speed}")
     v = args.speed * 1e-3
     data = _with_dx(scene_data("pentagram"))
     magnet = next(f for f in data["fields"] if f.get("name") == "magnet")
