@@ -87,6 +87,8 @@ class _Slot:
         self.Gs = [wp.zeros(n, dtype=k["m3"], device=dev, requires_grad=True) for _ in range(n_point)]
         self.Bsum = [wp.zeros(n, dtype=k["v3"], device=dev, requires_grad=True) for _ in range(max(n_point - 1, 0))]
         self.Gsum = [wp.zeros(n, dtype=k["m3"], device=dev, requires_grad=True) for _ in range(max(n_point - 1, 0))]
+        self.affine = wp.zeros(n, dtype=k["mat"], device=dev, requires_grad=True)  # p2g_affine -> p2g_scatter
+        self.momentum = wp.zeros(n, **g)
         self.grid_p = wp.zeros(n_nodes, dtype=k["vec"], device=dev, requires_grad=True)
         self.grid_m = wp.zeros(n_nodes, dtype=sc, device=dev, requires_grad=True)
         self.grid_v = wp.zeros(n_nodes, dtype=k["vec"], device=dev, requires_grad=True)
@@ -110,7 +112,8 @@ class _Slot:
         return self._structs
 
     def grad_arrays(self):
-        out = [self.x, self.v, self.C, self.F, self.B, self.grid_p, self.grid_m, self.grid_v, self.grid_q]
+        out = [self.x, self.v, self.C, self.F, self.B, self.affine, self.momentum, self.grid_p, self.grid_m, self.grid_v,
+               self.grid_q]
         out += self.Bs + self.Gs + self.Bsum + self.Gsum
         if self.G is not None:
             out += [self.G, self.Btot]
@@ -304,11 +307,14 @@ class Rollout:
         applied.B, applied.G = B_particle, G_particle
         structs = dst.structs(k, self)
         wp.launch(
-            k["p2g"], dim=n,
-            inputs=[src.structs(k, self)["out"], self._bodies, applied, self._block, dt, structs["grid"], self.error, 0,
-                    self._no_contact, self._no_viscous],
+            k["p2g_affine"], dim=n,
+            inputs=[src.structs(k, self)["out"], self._bodies, applied, self._block, dt, self.error, 0, self._no_viscous,
+                    dst.affine, dst.momentum],
             device=dev,
         )
+        wp.launch(k["p2g_scatter"], dim=n,
+                  inputs=[src.x, self._bodies, self._block, dst.affine, dst.momentum, structs["grid"], self._no_contact],
+                  device=dev)
         wp.launch(
             k["grid_update"], dim=self.n_nodes,
             inputs=[
@@ -321,10 +327,12 @@ class Rollout:
         wp.launch(
             k["g2p"], dim=n,
             inputs=[dst.grid_v, self._bodies, self._block, dt, src.x, src.x, src.F, structs["out"], self._checks, f_update,
-                    dst.grid_q, self._no_contact],
+                    self._no_contact],
             device=dev,
         )
         if remap:  # the engine's velocity-gradient remap (docs/engine.md), same kernels
+            wp.launch(k["remap_scatter"], dim=n,
+                      inputs=[src.x, self._bodies, self._block, structs["out"], dst.grid_q, self._no_contact], device=dev)
             wp.launch(k["remap_node_velocity"], dim=self.n_nodes,
                       inputs=[dst.grid_q, dst.grid_m, dst.grid_clamp, dst.grid_w, self.n_nodes], device=dev)
             wp.launch(k["remap_F"], dim=n,

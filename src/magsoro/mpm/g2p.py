@@ -60,13 +60,10 @@ def make_g2p(dim: int, scalar, two_fields: bool = False) -> dict:
         out: wp.array(dtype=Particles),
         checks: wp.array(dtype=Checks),
         f_update: int,
-        grid_r: wp.array(dtype=vec),
         ct: wp.array(dtype=ContactGrid),
     ):
         """Grid-to-particle transfer: new x, v, C. With ``f_update`` = F_FROM_GRID F is updated from the same node
-        velocities; with F_FROM_REMAP F is left to :func:`remap_F`, and the particle's new affine velocity field
-        v + C (x_i - x_p) is scattered, mass-weighted, into ``grid_r`` (the first half of the velocity-gradient
-        remap; it needs only this particle's new v and C, so it rides on the same stencil pass).
+        velocities; with F_FROM_REMAP F is left to the remap (:func:`remap_scatter`, :func:`remap_F`).
 
         ``x_in`` are the positions the grid weights are taken at and ``x_cur`` the particles' current positions,
         which move by dt v: the same array in the updated-Lagrangian form. In the total-Lagrangian form
@@ -124,18 +121,42 @@ def make_g2p(dim: int, scalar, two_fields: bool = False) -> dict:
                 ok = wp.determinant(Fn) > scalar(0.0)
             elif f_update == F_FROM_GRID:
                 ok = update_F(F_in, o.F, p, dts * new_C)
-            else:
-                mp = bodies[0].mass[p]
-                Cd = new_C * dx
-                Cfx = Cd * fx
-                for q in range(NS):  # new_v added per node, as in p2g
-                    weight, of, idx = stencil_node(q, w0, w1, w2, first, block.shape)
-                    slot = slot_of(ct, p, idx)
-                    wp.atomic_add(grid_r, slot, (weight * mp) * (new_v + (Cd * of - Cfx)))
             report(checks, ok, xc, new_v)
         for a in range(dim):
             wp.atomic_min(checks[0].bounds, a, xp[a])
             wp.atomic_max(checks[0].bounds, dim + a, xp[a])
+
+    @wp.kernel
+    def remap_scatter(
+        x: wp.array(dtype=vec),
+        bodies: wp.array(dtype=Bodies),
+        block: Block,
+        out: wp.array(dtype=Particles),
+        grid_r: wp.array(dtype=vec),
+        ct: wp.array(dtype=ContactGrid),
+    ):
+        """First half of the velocity-gradient remap, after :func:`g2p`: each particle's new affine velocity field
+        v + C (x_i - x_p), mass-weighted, into ``grid_r`` over the stencil of its start-of-step position ``x`` (the
+        one g2p gathered at). A kernel of its own: inside g2p its 3^dim-node scatter loop held registers that the
+        gather did not need (docs/engine.md, "Register pressure")."""
+        p = wp.tid()
+        b = bodies[0]
+        if b.clamped[p] != 0:
+            return  # held particles scatter nothing: their nodes are held
+        dx = block.dx
+        base, fx = local_coords(x[p], block.lo, scalar(1.0) / dx)
+        if outside_block(base, block.shape):
+            return  # g2p has flagged it
+        w0, w1, w2 = bspline_weights(fx)
+        o = out[0]
+        new_v = o.v[p]
+        mp = b.mass[p]
+        Cd = o.C[p] * dx
+        Cfx = Cd * fx
+        first = flat_index(base, block.shape)
+        for q in range(NS):  # new_v added per node, as in p2g
+            weight, of, idx = stencil_node(q, w0, w1, w2, first, block.shape)
+            wp.atomic_add(grid_r, slot_of(ct, p, idx), (weight * mp) * (new_v + (Cd * of - Cfx)))
 
     @wp.kernel
     def reset_reductions(bounds: wp.array(dtype=scalar), max_speed: wp.array(dtype=scalar), big: scalar):
@@ -266,6 +287,6 @@ def make_g2p(dim: int, scalar, two_fields: bool = False) -> dict:
         o.v[p] = o.v[p] + dv
         o.x[p] = o.x[p] + dt * dv
 
-    return dict(g2p=g2p, reset_reductions=reset_reductions, remap_node_velocity=remap_node_velocity, remap_F=remap_F,
+    return dict(g2p=g2p, remap_scatter=remap_scatter, reset_reductions=reset_reductions, remap_node_velocity=remap_node_velocity, remap_F=remap_F,
                 contact_gather=contact_gather, load_step=load_step,
                 load_params=load_params)

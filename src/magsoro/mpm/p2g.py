@@ -18,7 +18,7 @@ def make_p2g(dim: int, scalar, two_fields: bool = False) -> dict:
     """Scatter kernels for ``dim``, ``scalar``; ``two_fields``: the contact variant (:mod:`magsoro.mpm.contact`)."""
     s = make_stencil(dim, scalar, two_fields)
     t = s.types
-    vec, mat, v3, m3 = t.vec, t.mat, t.v3, t.m3
+    vec, mat, v3, m3, ivec = t.vec, t.mat, t.v3, t.m3, t.ivec
     Block, Bodies, Applied, GridArrays, Particles = t.Block, t.Bodies, t.Applied, t.GridArrays, t.Particles
     ContactGrid = s.ContactGrid
     NS = s.NS
@@ -56,46 +56,12 @@ def make_p2g(dim: int, scalar, two_fields: bool = False) -> dict:
         m3d = m3d * (b.vol0[p] * scalar(inv_mu0))
         return inplane(wp.transpose(G) * m3d)
 
-    @wp.kernel
-    def p2g(
-        src: wp.array(dtype=Particles),
-        bodies: wp.array(dtype=Bodies),
-        applied: Applied,
-        block: Block,
-        dt: scalar,
-        grid: wp.array(dtype=GridArrays),
-        error: wp.array(dtype=wp.int32),
-        total: int,
-        ct: wp.array(dtype=ContactGrid),
-        vs: Viscous,
-    ):
-        """Particle-to-grid transfer of mass, momentum and the stress impulse from the particles ``src`` (x, v, C,
-        F). Its ``x`` are the positions the grid weights are taken at: the current ones (updated Lagrangian, ``total`` = 0) or the reference ones (total
-        Lagrangian, ``total`` = 1: the grid is the reference configuration's, and the node force takes the first
-        Piola stress P instead of the Kirchhoff stress P F^T). In the contact variant each node has two
-        velocity fields (:mod:`magsoro.mpm.contact`): the particle scatters into its own, and adds its share of
-        that field's mass gradient. ``vs``: the Prony materials' internal stresses (:mod:`magsoro.mpm.viscous`),
-        whose overstress adds to P. With ``bodies[0].stepped`` dt and the uniform field come from
-        ``bodies[0].step[0]`` instead of ``dt`` and ``applied.B_uniform`` (:class:`magsoro.mpm.stencil` Step)."""
-        p = wp.tid()
-        dx = block.dx
-        inv_dx = scalar(1.0) / dx
-        sp = src[0]
-        base, fx = local_coords(sp.x[p], block.lo, inv_dx)
-        if outside_block(base, block.shape):
-            error[0] = 1  # particle outside the active grid block: the solver refits and reports
-            return
-        w0, w1, w2 = bspline_weights(fx)
-        b = bodies[0]
+    @wp.func
+    def affine_momentum(sp: Particles, b: Bodies, applied: Applied, p: int, dts: scalar, B: v3, dx: scalar,
+                        inv_dx: scalar, total: int, vs: Viscous):
+        """What particle ``p`` brings to its nodes: the affine matrix A (stress impulse plus m C, times dx) and its
+        momentum m v (with dt times the gradient force): node i receives w_i (m v + A o_i - A fx)."""
         Fp = sp.F[p]
-        B = applied.B_uniform
-        dts = dt
-        if b.stepped != 0:
-            sv = b.step[0]
-            B = sv.B_uniform
-            dts = sv.dt
-        if applied.has_gradient != 0:
-            B = B + applied.B[p]
         P = particle_stress(Fp, b, p, B)
         if vs.n_rows > 0:
             P = P + overstress(Fp, vs, p)
@@ -108,16 +74,19 @@ def make_p2g(dim: int, scalar, two_fields: bool = False) -> dict:
         mv = mp * sp.v[p]
         if applied.has_gradient != 0:
             mv = mv + dts * gradient_force(Fp, b, p, applied.G[p])
-        is_clamped = b.clamped[p]
-        g = grid[0]
-        # node value mv + affine (x_i - x_p) = mv + ((affine dx) o - affine fx dx). mv is added per node, not
-        # folded into the constant part: the small momentum of a settling body would lose its low bits to the
-        # large stress term once for all 27 nodes alike, a bias that makes float32 bodies creep
-        A = affine * dx
+        return affine * dx, mv
+
+    @wp.func
+    def scatter(g: GridArrays, ct: wp.array(dtype=ContactGrid), p: int, base: ivec, fx: vec, shape: ivec, mp: scalar,
+                A: mat, mv: vec, is_clamped: int):
+        """Scatter particle ``p``'s mass and the node values mv + A (o - fx) over its stencil. mv is added per
+        node, not folded into the constant part: the small momentum of a settling body would lose its low bits to
+        the large stress term once for all 27 nodes alike, a bias that makes float32 bodies creep."""
+        w0, w1, w2 = bspline_weights(fx)
         Afx = A * fx
-        first = flat_index(base, block.shape)
+        first = flat_index(base, shape)
         for q in range(NS):
-            weight, o, idx = stencil_node(q, w0, w1, w2, first, block.shape)
+            weight, o, idx = stencil_node(q, w0, w1, w2, first, shape)
             slot = slot_of(ct, p, idx)
             wp.atomic_add(g.p, slot, weight * (mv + (A * o - Afx)))
             wp.atomic_add(g.m, slot, weight * mp)
@@ -125,6 +94,81 @@ def make_p2g(dim: int, scalar, two_fields: bool = False) -> dict:
                 wp.atomic_add(ct[0].grad_m, slot, (weight * mp) * (o - fx))
             if is_clamped != 0:
                 g.clamp[idx] = 1
+
+    @wp.func
+    def step_values(b: Bodies, applied: Applied, dt: scalar):
+        """dt and the uniform field of this step: the arguments', or ``bodies[0].step[0]``'s when stepped, plus the
+        particle's own field added by the caller."""
+        B = applied.B_uniform
+        dts = dt
+        if b.stepped != 0:
+            sv = b.step[0]
+            B = sv.B_uniform
+            dts = sv.dt
+        return dts, B
+
+    @wp.kernel
+    def p2g_affine(
+        src: wp.array(dtype=Particles),
+        bodies: wp.array(dtype=Bodies),
+        applied: Applied,
+        block: Block,
+        dt: scalar,
+        error: wp.array(dtype=wp.int32),
+        total: int,
+        vs: Viscous,
+        affine: wp.array(dtype=mat),
+        momentum: wp.array(dtype=vec),
+    ):
+        """Particle-to-grid transfer, first half: each particle's affine matrix and momentum
+        (:func:`affine_momentum`) into ``affine`` and ``momentum``, which :func:`p2g_scatter` spreads over the
+        grid. ``src`` are the particles (x, v, C, F); its ``x`` are the positions the grid weights are taken at:
+        the current ones (updated Lagrangian, ``total`` = 0) or the reference ones (total Lagrangian, ``total`` =
+        1: the grid is the reference configuration's, and the node force takes the first Piola stress P instead of
+        the Kirchhoff stress P F^T). ``vs``: the Prony materials' internal stresses (:mod:`magsoro.mpm.viscous`),
+        whose overstress adds to P. With ``bodies[0].stepped`` dt and the uniform field come from
+        ``bodies[0].step[0]`` instead of ``dt`` and ``applied.B_uniform`` (:class:`magsoro.mpm.stencil` Step).
+
+        Two kernels, not one: the material laws, the polar decomposition and the viscous overstress need many
+        registers, and in one kernel they held them through the 3^dim-node scatter loop too (docs/engine.md,
+        "Register pressure")."""
+        p = wp.tid()
+        dx = block.dx
+        inv_dx = scalar(1.0) / dx
+        sp = src[0]
+        base, fx = local_coords(sp.x[p], block.lo, inv_dx)
+        if outside_block(base, block.shape):
+            error[0] = 1  # particle outside the active grid block: the solver refits and reports
+            return
+        b = bodies[0]
+        dts, B = step_values(b, applied, dt)
+        if applied.has_gradient != 0:
+            B = B + applied.B[p]
+        A, mv = affine_momentum(sp, b, applied, p, dts, B, dx, inv_dx, total, vs)
+        affine[p] = A
+        momentum[p] = mv
+
+    @wp.kernel
+    def p2g_scatter(
+        x: wp.array(dtype=vec),
+        bodies: wp.array(dtype=Bodies),
+        block: Block,
+        affine: wp.array(dtype=mat),
+        momentum: wp.array(dtype=vec),
+        grid: wp.array(dtype=GridArrays),
+        ct: wp.array(dtype=ContactGrid),
+    ):
+        """Particle-to-grid transfer, second half: mass and the node values of :func:`p2g_affine`'s affine matrix
+        and momentum over each particle's stencil at ``x`` (the positions p2g_affine's particles had). In the
+        contact variant each node has two velocity fields (:mod:`magsoro.mpm.contact`): the particle scatters
+        into its own, and adds its share of that field's mass gradient."""
+        p = wp.tid()
+        inv_dx = scalar(1.0) / block.dx
+        base, fx = local_coords(x[p], block.lo, inv_dx)
+        if outside_block(base, block.shape):
+            return  # p2g_affine flags it
+        b = bodies[0]
+        scatter(grid[0], ct, p, base, fx, block.shape, b.mass[p], affine[p], momentum[p], b.clamped[p])
 
     @wp.kernel
     def node_displacement(
@@ -216,4 +260,4 @@ def make_p2g(dim: int, scalar, two_fields: bool = False) -> dict:
             if wp.static(two_fields):
                 wp.atomic_add(ct[0].grad_m, slot, (weight * mp) * (o - fx))
 
-    return dict(p2g=p2g, node_displacement=node_displacement, contact_scan=contact_scan, contact_scatter=contact_scatter)
+    return dict(p2g_affine=p2g_affine, p2g_scatter=p2g_scatter, node_displacement=node_displacement, contact_scan=contact_scan, contact_scatter=contact_scatter)
