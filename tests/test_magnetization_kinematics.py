@@ -242,7 +242,7 @@ def test_stretched_bar_gradient_force_in_a_dipole_field(follows):
                       err, 1, viscous_struct(model, None), affine, momentum])
     wp.launch(k["p2g_scatter"], dim=8, device="cpu",
               inputs=[model.X0, bodies, block, affine, momentum, wp.array([grid], dtype=k["GridArrays"], device="cpu"),
-                      contact_grid(model)])
+                      contact_grid(model), 0])
     total = grid.p.numpy().sum(axis=0)
     stretch = lam if follows == "F" else 1.0
     m = np.array([stretch * Br * h**3 / MU0, 0.0, 0.0])

@@ -313,7 +313,7 @@ class Rollout:
             device=dev,
         )
         wp.launch(k["p2g_scatter"], dim=n,
-                  inputs=[src.x, self._bodies, self._block, dst.affine, dst.momentum, structs["grid"], self._no_contact],
+                  inputs=[src.x, self._bodies, self._block, dst.affine, dst.momentum, structs["grid"], self._no_contact, 0],
                   device=dev)
         wp.launch(
             k["grid_update"], dim=self.n_nodes,
@@ -332,7 +332,8 @@ class Rollout:
         )
         if remap:  # the engine's velocity-gradient remap (docs/engine.md), same kernels
             wp.launch(k["remap_scatter"], dim=n,
-                      inputs=[src.x, self._bodies, self._block, structs["out"], dst.grid_q, self._no_contact], device=dev)
+                      inputs=[src.x, self._bodies, self._block, structs["out"], dst.grid_q, self._no_contact, 0],
+                      device=dev)
             wp.launch(k["remap_node_velocity"], dim=self.n_nodes,
                       inputs=[dst.grid_q, dst.grid_m, dst.grid_clamp, dst.grid_w, self.n_nodes], device=dev)
             wp.launch(k["remap_F"], dim=n,

@@ -21,7 +21,7 @@ def make_g2p(dim: int, scalar, two_fields: bool = False) -> dict:
     """Gather kernels for ``dim``, ``scalar``; ``two_fields``: the contact variant (:mod:`magsoro.mpm.contact`)."""
     s = make_stencil(dim, scalar, two_fields)
     t = s.types
-    vec, mat, v3 = t.vec, t.mat, t.v3
+    vec, mat, v3, ivec = t.vec, t.mat, t.v3, t.ivec
     Block, Bodies, Particles, Checks, Step = t.Block, t.Bodies, t.Particles, t.Checks, t.Step
     ContactGrid = s.ContactGrid
     NS = s.NS
@@ -126,6 +126,12 @@ def make_g2p(dim: int, scalar, two_fields: bool = False) -> dict:
             wp.atomic_min(checks[0].bounds, a, xp[a])
             wp.atomic_max(checks[0].bounds, dim + a, xp[a])
 
+    @wp.func
+    def remap_node(grid_r: wp.array(dtype=vec), ct: wp.array(dtype=ContactGrid), p: int, q: int, w0: vec, w1: vec,
+                   w2: vec, first: int, shape: ivec, mp: scalar, new_v: vec, Cd: mat, Cfx: vec):
+        weight, of, idx = stencil_node(q, w0, w1, w2, first, shape)
+        wp.atomic_add(grid_r, slot_of(ct, p, idx), (weight * mp) * (new_v + (Cd * of - Cfx)))  # new_v per node, as in p2g
+
     @wp.kernel
     def remap_scatter(
         x: wp.array(dtype=vec),
@@ -134,12 +140,16 @@ def make_g2p(dim: int, scalar, two_fields: bool = False) -> dict:
         out: wp.array(dtype=Particles),
         grid_r: wp.array(dtype=vec),
         ct: wp.array(dtype=ContactGrid),
+        spread: int,
     ):
         """First half of the velocity-gradient remap, after :func:`g2p`: each particle's new affine velocity field
         v + C (x_i - x_p), mass-weighted, into ``grid_r`` over the stencil of its start-of-step position ``x`` (the
-        one g2p gathered at). A kernel of its own: inside g2p its 3^dim-node scatter loop held registers that the
-        gather did not need (docs/engine.md, "Register pressure")."""
-        p = wp.tid()
+        one g2p gathered at). ``spread``: one thread per particle (0) or per (particle, node) (1), as in
+        :func:`magsoro.mpm.p2g` p2g_scatter."""
+        tid = wp.tid()
+        p = tid
+        if spread != 0:
+            p = tid // NS
         b = bodies[0]
         if b.clamped[p] != 0:
             return  # held particles scatter nothing: their nodes are held
@@ -154,9 +164,11 @@ def make_g2p(dim: int, scalar, two_fields: bool = False) -> dict:
         Cd = o.C[p] * dx
         Cfx = Cd * fx
         first = flat_index(base, block.shape)
-        for q in range(NS):  # new_v added per node, as in p2g
-            weight, of, idx = stencil_node(q, w0, w1, w2, first, block.shape)
-            wp.atomic_add(grid_r, slot_of(ct, p, idx), (weight * mp) * (new_v + (Cd * of - Cfx)))
+        if spread != 0:
+            remap_node(grid_r, ct, p, tid - p * NS, w0, w1, w2, first, block.shape, mp, new_v, Cd, Cfx)
+        else:
+            for q in range(NS):
+                remap_node(grid_r, ct, p, q, w0, w1, w2, first, block.shape, mp, new_v, Cd, Cfx)
 
     @wp.kernel
     def reset_reductions(bounds: wp.array(dtype=scalar), max_speed: wp.array(dtype=scalar), big: scalar):

@@ -77,23 +77,19 @@ def make_p2g(dim: int, scalar, two_fields: bool = False) -> dict:
         return affine * dx, mv
 
     @wp.func
-    def scatter(g: GridArrays, ct: wp.array(dtype=ContactGrid), p: int, base: ivec, fx: vec, shape: ivec, mp: scalar,
-                A: mat, mv: vec, is_clamped: int):
-        """Scatter particle ``p``'s mass and the node values mv + A (o - fx) over its stencil. mv is added per
-        node, not folded into the constant part: the small momentum of a settling body would lose its low bits to
-        the large stress term once for all 27 nodes alike, a bias that makes float32 bodies creep."""
-        w0, w1, w2 = bspline_weights(fx)
-        Afx = A * fx
-        first = flat_index(base, shape)
-        for q in range(NS):
-            weight, o, idx = stencil_node(q, w0, w1, w2, first, shape)
-            slot = slot_of(ct, p, idx)
-            wp.atomic_add(g.p, slot, weight * (mv + (A * o - Afx)))
-            wp.atomic_add(g.m, slot, weight * mp)
-            if wp.static(two_fields):
-                wp.atomic_add(ct[0].grad_m, slot, (weight * mp) * (o - fx))
-            if is_clamped != 0:
-                g.clamp[idx] = 1
+    def scatter_node(g: GridArrays, ct: wp.array(dtype=ContactGrid), p: int, q: int, w0: vec, w1: vec, w2: vec,
+                     first: int, shape: ivec, fx: vec, mp: scalar, A: mat, Afx: vec, mv: vec, is_clamped: int):
+        """Particle ``p``'s share of node q of its stencil: mass and mv + A (o - fx). mv is added per node, not
+        folded into the constant part: the small momentum of a settling body would lose its low bits to the
+        large stress term once for all 27 nodes alike, a bias that makes float32 bodies creep."""
+        weight, o, idx = stencil_node(q, w0, w1, w2, first, shape)
+        slot = slot_of(ct, p, idx)
+        wp.atomic_add(g.p, slot, weight * (mv + (A * o - Afx)))
+        wp.atomic_add(g.m, slot, weight * mp)
+        if wp.static(two_fields):
+            wp.atomic_add(ct[0].grad_m, slot, (weight * mp) * (o - fx))
+        if is_clamped != 0:
+            g.clamp[idx] = 1
 
     @wp.func
     def step_values(b: Bodies, applied: Applied, dt: scalar):
@@ -157,18 +153,39 @@ def make_p2g(dim: int, scalar, two_fields: bool = False) -> dict:
         momentum: wp.array(dtype=vec),
         grid: wp.array(dtype=GridArrays),
         ct: wp.array(dtype=ContactGrid),
+        spread: int,
     ):
         """Particle-to-grid transfer, second half: mass and the node values of :func:`p2g_affine`'s affine matrix
         and momentum over each particle's stencil at ``x`` (the positions p2g_affine's particles had). In the
         contact variant each node has two velocity fields (:mod:`magsoro.mpm.contact`): the particle scatters
-        into its own, and adds its share of that field's mass gradient."""
-        p = wp.tid()
+        into its own, and adds its share of that field's mass gradient.
+
+        ``spread`` = 0: one thread per particle, its 3^dim nodes in turn (launch n particles); 1: one thread per
+        (particle, node), thread p 3^dim + q (launch n 3^dim): on a GPU the atomic adds of a particle no longer
+        wait for each other, and a small scene fills the device (docs/engine.md, "Scatter threads"). Each node
+        receives the same terms either way."""
+        tid = wp.tid()
+        p = tid
+        if spread != 0:
+            p = tid // NS
         inv_dx = scalar(1.0) / block.dx
         base, fx = local_coords(x[p], block.lo, inv_dx)
         if outside_block(base, block.shape):
             return  # p2g_affine flags it
         b = bodies[0]
-        scatter(grid[0], ct, p, base, fx, block.shape, b.mass[p], affine[p], momentum[p], b.clamped[p])
+        mp = b.mass[p]
+        A = affine[p]
+        mv = momentum[p]
+        is_clamped = b.clamped[p]
+        w0, w1, w2 = bspline_weights(fx)
+        Afx = A * fx
+        first = flat_index(base, block.shape)
+        g = grid[0]
+        if spread != 0:
+            scatter_node(g, ct, p, tid - p * NS, w0, w1, w2, first, block.shape, fx, mp, A, Afx, mv, is_clamped)
+        else:
+            for q in range(NS):
+                scatter_node(g, ct, p, q, w0, w1, w2, first, block.shape, fx, mp, A, Afx, mv, is_clamped)
 
     @wp.kernel
     def node_displacement(

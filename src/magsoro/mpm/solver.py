@@ -577,6 +577,9 @@ class Solver:
         # On CPU the host reads and resets the small per-step arrays (bounds, top speed, error flags) through numpy
         # views of the same memory, and zeroes the grid through views: a Warp call costs more than the work here.
         self._on_cpu = wp.get_device(dev).is_cpu
+        #: the scatters (p2g, the remap's) with one thread per (particle, stencil node) instead of per particle: on
+        #: a GPU by default (docs/engine.md, "Scatter threads"); set before the first step
+        self.spread_scatter = not self._on_cpu
         if self._on_cpu:
             self._bounds_np = [tb.numpy() for tb in self._thread_bounds]
             self._speed_np = [ts.numpy() for ts in self._thread_speed]
@@ -832,9 +835,13 @@ class Solver:
                 checks=wp.array([checks], dtype=k["Checks"], device=dev),
             ))
 
-        def particles(kernel, inputs_of):
-            return [wp.launch(kernel, dim=th["n"], inputs=inputs_of(th, th["cut"]), device=dev, record_cmd=True)
+        def particles(kernel, inputs_of, per_thread=1):
+            return [wp.launch(kernel, dim=th["n"] * per_thread, inputs=inputs_of(th, th["cut"]), device=dev,
+                              record_cmd=True)
                     for th in threads]
+
+        spread = 1 if self.spread_scatter else 0
+        spread_threads = 3**self.dim if spread else 1
 
         def nodes(kernel, inputs, n=n_act):
             return wp.launch(kernel, dim=n, inputs=inputs, device=dev, record_cmd=True)
@@ -845,7 +852,8 @@ class Solver:
                 th["src"], th["bodies"], th["applied"], block, sc(0.0), self.error, 1 if self._total else 0,
                 viscous_struct(m, state_in.H, cut), cut(self.particle_affine), cut(self.particle_momentum)]),
             "p2g": particles(k["p2g_scatter"], lambda th, cut: [
-                cut(x_grid), th["bodies"], block, cut(self.particle_affine), cut(self.particle_momentum), th["grid"], ct]),
+                cut(x_grid), th["bodies"], block, cut(self.particle_affine), cut(self.particle_momentum), th["grid"], ct,
+                spread], spread_threads),
             "grid_update": nodes(k["grid_update"], [
                 self.grid_p, self.grid_m, self._held if self._total else self.grid_clamp, org, block.shape, gs,
                 self.grid_v, ct, self.grid_u]),
@@ -876,7 +884,7 @@ class Solver:
             # second half of the remap: g2p has scattered the new affine velocities into grid_p (free after the
             # grid update); node velocities go to grid_v (free after g2p), and F is gathered from them
             L["remap_scatter"] = particles(k["remap_scatter"], lambda th, cut: [
-                cut(state_in.x), th["bodies"], block, th["out"], grid_p[th["t"]], ct])
+                cut(state_in.x), th["bodies"], block, th["out"], grid_p[th["t"]], ct, spread], spread_threads)
             L["remap_nodes"] = nodes(k["remap_node_velocity"], [self.grid_p, self.grid_m, self.grid_clamp, self.grid_v, n_act],
                                      self._fields_per_node * n_act)
             L["remap_F"] = particles(k["remap_F"], lambda th, cut: [

@@ -410,7 +410,7 @@ class StaticSolver:
                   inputs=[self.src, self.bodies, applied, self.block, sc(1.0), solver.error, 1, self.no_viscous,
                           solver.particle_affine, solver.particle_momentum])
         wp.launch(k["p2g_scatter"], dim=model.n_particles, device=self.dev,
-                  inputs=[model.X0, self.bodies, self.block, solver.particle_affine, solver.particle_momentum, self.grid, self.ct])
+                  inputs=[model.X0, self.bodies, self.block, solver.particle_affine, solver.particle_momentum, self.grid, self.ct, 0])
         self.residual_evaluations += 1
         f = solver.grid_p.numpy()[: self.n_nodes].astype(np.float64)
         m = solver.grid_m.numpy()[: self.n_nodes].astype(np.float64)
