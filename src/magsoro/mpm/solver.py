@@ -79,6 +79,12 @@ def resolve_threads(requested: int | None, device: str, n_particles: int) -> int
 #: the window's steps are launched one by one (see Solver.capture_refusal and docs/engine.md, "CUDA graph windows").
 CPU_GRAPHS = False
 
+#: Resident threads per streaming multiprocessor (2048 on sm_70 to sm_90): below this many particles per SM, one
+#: scatter thread per particle leaves the GPU partly empty, and one per (particle, stencil node) is faster; above,
+#: the extra threads only add atomic traffic (H100: walker 9,600 particles 1.12x faster, block1m 10^6 particles
+#: 0.61x; benchmarks/README.md, "Scatter threads")
+SPREAD_THREADS_PER_SM = 2048
+
 #: the grid block is fitted again when it holds more than this many times the nodes a fit to the particles needs
 GRID_SHRINK = 2.0
 COLLIDER_SKIN = 0.1  # cells: total-Lagrangian nodes touch a collider from this signed distance down
@@ -577,9 +583,11 @@ class Solver:
         # On CPU the host reads and resets the small per-step arrays (bounds, top speed, error flags) through numpy
         # views of the same memory, and zeroes the grid through views: a Warp call costs more than the work here.
         self._on_cpu = wp.get_device(dev).is_cpu
-        #: the scatters (p2g, the remap's) with one thread per (particle, stencil node) instead of per particle: on
-        #: a GPU by default (docs/engine.md, "Scatter threads"); set before the first step
-        self.spread_scatter = not self._on_cpu
+        #: the scatters (p2g, the remap's) with one thread per (particle, stencil node) instead of per particle: by
+        #: default on a GPU that one thread per particle leaves part empty (docs/engine.md, "Scatter threads"); set
+        #: before the first step
+        self.spread_scatter = (not self._on_cpu and
+                               model.n_particles < SPREAD_THREADS_PER_SM * wp.get_device(dev).sm_count)
         if self._on_cpu:
             self._bounds_np = [tb.numpy() for tb in self._thread_bounds]
             self._speed_np = [ts.numpy() for ts in self._thread_speed]
