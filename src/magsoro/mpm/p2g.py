@@ -57,6 +57,13 @@ def make_p2g(dim: int, scalar, two_fields: bool = False) -> dict:
         return inplane(wp.transpose(G) * m3d)
 
     @wp.func
+    def pressure_force(Fp: mat, area: vec, pressure: scalar):
+        """Force of a gauge ``pressure`` (Pa) on a particle's faces of reference area vector ``area`` (outward into
+        the cavity): -p n da with n da = J F^-T N dA (Nanson's formula), so the load follows the surface as it
+        turns and stretches."""
+        return (-pressure * wp.determinant(Fp)) * (wp.transpose(wp.inverse(Fp)) * area)
+
+    @wp.func
     def affine_momentum(sp: Particles, b: Bodies, applied: Applied, p: int, dts: scalar, B: v3, dx: scalar,
                         inv_dx: scalar, total: int, vs: Viscous):
         """What particle ``p`` brings to its nodes: the affine matrix A (stress impulse plus m C, times dx) and its
@@ -74,6 +81,10 @@ def make_p2g(dim: int, scalar, two_fields: bool = False) -> dict:
         mv = mp * sp.v[p]
         if applied.has_gradient != 0:
             mv = mv + dts * gradient_force(Fp, b, p, applied.G[p])
+        if b.n_pressures > 0:
+            row = b.pressure_row[p]
+            if row >= 0:
+                mv = mv + dts * pressure_force(Fp, b.pressure_area[p], b.pressure_value[row])
         return affine * dx, mv
 
     @wp.func

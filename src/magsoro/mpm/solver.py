@@ -139,6 +139,9 @@ def bodies_array(model: "Model", cut=lambda arr: arr, step: wp.array | None = No
     # the stimulus tables are indexed by each particle's stimulus row, not by particle: never cut
     b.stimulus, b.stretch_inv, b.stretch_scale = cut(model.stimulus), model.stretch_inv, model.stretch_scale
     b.n_stimuli = len(model.stimuli)
+    # pressure loads: per particle its face area vector and row; the table of values is indexed by row
+    b.pressure_area, b.pressure_row = cut(model.pressure_area), cut(model.pressure_row)
+    b.pressure_value, b.n_pressures = model.pressure_value, len(model.pressures)
     if step is not None:
         b.step, b.stepped = step, 1
     return wp.array([b], dtype=k["Bodies"], device=model.device)
@@ -271,6 +274,9 @@ class Model:
         magnetization_follows=None,
         prony=None,
         pronies=(),
+        pressure_area=None,
+        pressure_row=None,
+        pressures=(),
     ):
         if precision not in PRECISIONS:
             raise ValueError(f"precision must be one of {sorted(PRECISIONS)}, got {precision!r}")
@@ -330,6 +336,48 @@ class Model:
         self.contact_group = wp.array(group, dtype=wp.int32, device=dev)
         self._init_stimuli(stimulus, stimuli)
         self._init_prony(prony, pronies)
+        self._init_pressures(pressure_area, pressure_row, pressures)
+
+    def _init_pressures(self, area, rows, pressures) -> None:
+        """Pressure loads (:func:`magsoro.scene.build.pressure_faces`): per particle its reference face area vector
+        (m^2, outward from the body into the cavity; in 2D times the depth) and its pressure's row (-1: none), and
+        the device table of the pressures (Pa) at the current time, which :meth:`update_pressures` sets."""
+        n, dim, k, dev, s = self.n_particles, self.dim, self.kernels, self.device, self.np_scalar
+        self.pressures = tuple((float(v), float(r)) for v, r in pressures)
+        rows = np.broadcast_to(np.asarray(-1 if rows is None else rows, dtype=np.int32), (n,)).copy()
+        area = np.zeros((n, dim)) if area is None else np.asarray(area, dtype=np.float64).reshape(n, dim)
+        if np.any(rows < -1) or np.any(rows >= len(self.pressures)):
+            raise ValueError(f"pressure_row must be -1 (none) or a row of the {len(self.pressures)} pressures")
+        for v, r in self.pressures:
+            if not (math.isfinite(v) and math.isfinite(r) and r >= 0):
+                raise ValueError("a pressure needs a finite value (Pa) and a finite ramp >= 0 (s)")
+        self.host["pressure_row"], self.host["pressure_area"] = rows, area
+        self.pressure_row = wp.array(rows, dtype=wp.int32, device=dev)
+        self.pressure_area = wp.array(area.astype(s), dtype=k["vec"], device=dev)
+        self.pressure_value = wp.zeros(max(len(self.pressures), 1), dtype=self.scalar, device=dev)
+        self._pressure_values = None
+        self.update_pressures(0.0)
+
+    def pressures_at(self, t: float) -> tuple[float, ...]:
+        """Each pressure load's value (Pa) at time ``t`` (s): linear from 0 over its ramp, then held."""
+        return tuple(v if r <= 0.0 or t >= r else v * max(t, 0.0) / r for v, r in self.pressures)
+
+    def update_pressures(self, t: float) -> bool:
+        """Set the pressure table the kernels read to time ``t``; copies only when a value changed. Returns whether
+        it copied."""
+        if not self.pressures:
+            return False
+        values = self.pressures_at(t)
+        if values == self._pressure_values:
+            return False
+        self.pressure_value.assign(np.asarray(values, dtype=self.np_scalar))
+        self._pressure_values = values
+        return True
+
+    @property
+    def pressure_ramps(self) -> bool:
+        """Whether a pressure changes in time (the host sets it at every step)."""
+        return any(r > 0.0 for _, r in self.pressures)
 
     def _init_prony(self, prony, pronies) -> None:
         """Per-particle Prony rows and the device tables of g and tau per row (:mod:`magsoro.mpm.viscous`)."""
@@ -992,6 +1040,8 @@ class Solver:
         self._update_colliders(control, t)
         if self.model.stimuli:
             self.model.update_stimuli(t)
+        if self.model.pressures:
+            self.model.update_pressures(t)
         L = self._launch_set(state_in, state_out, control, has_gradient)
         self._set_step_values(b0, dt)
         self._clear_grid()
@@ -1076,6 +1126,8 @@ class Solver:
             return "the magnetic interaction refreshes the bodies' field on the host (an FFT) every interaction_every steps"
         if self.model.stimuli:
             return "stimulus eigenstrain: the stimulus tables are set on the host at every step"
+        if self.model.pressure_ramps:
+            return "a pressure ramp: the pressures are set on the host at every step"
         if self._tcontact:
             return "the total form with contact fits its contact grid to the positions on the host at every step"
         if self.phase_times is not None:

@@ -328,6 +328,7 @@ class StaticSolver:
         self.kk = make_static_kernels(self.dim, self.sc)
         state = sim.state
         model.update_stimuli(self.t)  # eigenstrains (material.stimulus) at the solve's time
+        model.update_pressures(self.t)  # pressure loads at the solve's time
         solver._check_and_fit(state, 0.0)  # the reference grid block, its held nodes
         self.block = block_struct(model, solver.org, solver.shape)
         self.n_nodes = int(solver.n_active)

@@ -71,6 +71,8 @@ def make_types(dim: int, scalar) -> SimpleNamespace:
         clamp flag. Stimulus eigenstrain (:mod:`magsoro.mpm.eigenstrain`): each particle's stimulus (a row of the
         two tables; -1: none), and per stimulus its current F_s^-1 and stress factor f det F_s, which the host
         updates when the stimulus changes; ``n_stimuli`` 0: no particle has one (the tables are never read).
+        Pressure loads: each particle's reference face area vector (m^2, outward into the cavity) and its row
+        of the pressure table (Pa, set by the host; -1: none); ``n_pressures`` 0: none (never read).
         ``stepped`` 1: the kernels take dt and the uniform field from ``step[0]`` (:class:`Step`) instead of their
         ``dt`` argument and ``Applied.B_uniform`` (the solver's launches); 0: from the arguments (other callers)."""
 
@@ -87,6 +89,10 @@ def make_types(dim: int, scalar) -> SimpleNamespace:
         stretch_inv: wp.array(dtype=mat)
         stretch_scale: wp.array(dtype=scalar)
         n_stimuli: int
+        pressure_area: wp.array(dtype=vec)
+        pressure_row: wp.array(dtype=wp.int32)
+        pressure_value: wp.array(dtype=scalar)
+        n_pressures: int
         step: wp.array(dtype=Step)
         stepped: int
 

@@ -302,6 +302,47 @@ class Particles:
     magnetization_follows: np.ndarray | None = None
     prony: np.ndarray | None = None
     pronies: list = field(default_factory=list)
+    pressure_area: np.ndarray | None = None
+    pressure_row: np.ndarray | None = None
+    pressures: list = field(default_factory=list)
+
+
+def pressure_faces(pts: np.ndarray, occupied: np.ndarray, cavity, h: float, depth: float) -> np.ndarray:
+    """Reference area vectors (N, dim) of the particle faces of ``pts`` that look into ``cavity``: for each axis a
+    and side s, a particle whose lattice neighbour X + s h e_a lies in the cavity and is not a particle site
+    (``occupied``: (M, dim) every particle of the scene) gets s e_a h^(dim-1) (in 2D times ``depth``), the
+    outward normal of that face times its area. On the lattice the faces close up, so the sum over a closed cavity
+    is zero and a pressure on them gives each part the force p times its projected area, as on the smooth wall."""
+    n, dim = pts.shape
+    area = np.zeros((n, dim))
+    if n == 0:
+        return area
+    lo = pts.min(axis=0) - 2.0 * h
+    idx = np.rint((pts - lo) / h).astype(np.int64)
+    occ = np.rint((occupied - lo) / h).astype(np.int64)
+    span = np.maximum(idx.max(axis=0), occ.max(axis=0)) + 4
+    span = np.maximum(span, 4)
+
+    def code(i):
+        c = np.zeros(len(i), dtype=np.int64)
+        for a in range(dim):
+            c = c * span[a] + (i[:, a] + 1)
+        return c
+
+    occ_codes = np.sort(code(occ[np.all((occ >= -1) & (occ < span - 1), axis=1)]))
+    face = h ** (dim - 1) * (depth if dim == 2 else 1.0)
+    for a in range(dim):
+        for side in (-1, 1):
+            Y = pts.copy()
+            Y[:, a] += side * h
+            j = idx.copy()
+            j[:, a] += side
+            c = code(j)
+            pos = np.searchsorted(occ_codes, c)
+            taken = (pos < len(occ_codes)) & (occ_codes[np.minimum(pos, len(occ_codes) - 1)] == c)
+            exposed = cavity.contains(Y) & ~taken
+            area[exposed, a] += side * face
+    return area
 
 
 def _lattice_index(pts, lo, h):
@@ -424,6 +465,28 @@ def fill_bodies(scene: Scene, source: str = "scene", magnetization=None) -> Part
         np.tile(np.asarray(b.velocity if b.velocity is not None else np.zeros(dim), dtype=np.float64), (len(pb["pts"]), 1))
         for b, pb in zip(scene.bodies, per_body)
     ])
+    pressure_area, pressure_row, pressures = np.zeros((len(X), dim)), np.full(len(X), -1, dtype=np.int32), []
+    start = 0
+    for i, (b, pb) in enumerate(zip(scene.bodies, per_body)):
+        n_b = len(pb["pts"])
+        if b.pressure is not None:
+            key = f"{pb['src']}: {pb['key']}.pressure.cavity"
+            base_dir = getattr(b, "_base_dir", None) or getattr(scene, "_base_dir", None)
+            try:
+                cavity = make_shape(b.pressure.cavity, base_dir, dim)
+            except MeshError as exc:
+                raise SceneError(f"{key}.file: {exc}") from None
+            except ValueError as exc:
+                raise SceneError(f"{key}: {exc}") from None
+            area = pressure_faces(pb["pts"], X, cavity, h, depth)
+            if not np.any(area != 0.0):
+                raise SceneError(f"{key}: no particle face of body '{b.name}' looks into the cavity: it must border the "
+                                 f"body's surface within one particle spacing ({h:g} m)")
+            loaded = np.any(area != 0.0, axis=1)
+            pressure_area[start : start + n_b] = area
+            pressure_row[start : start + n_b][loaded] = len(pressures)
+            pressures.append((float(b.pressure.value), float(b.pressure.ramp)))
+        start += n_b
     stimuli, pronies = [], []
     for pb in per_body:  # one row per body whose material has a stimulus, one per body with a Prony series
         pb["stimulus_row"] = -1 if pb["stimulus"] is None else len(stimuli)
@@ -451,6 +514,9 @@ def fill_bodies(scene: Scene, source: str = "scene", magnetization=None) -> Part
         magnetization_follows=per(lambda pb: pb["mat"]["follows"], np.int32),
         prony=per(lambda pb: pb["prony_row"], np.int32),
         pronies=pronies,
+        pressure_area=pressure_area,
+        pressure_row=pressure_row,
+        pressures=pressures,
     )
 
 
@@ -646,7 +712,8 @@ def build(scene: Scene, device: str | None = None, source: str = "scene", magnet
         dx=dx, domain_lo=lo, domain_hi=hi, precision=sim.precision, device=device or sim.device,
         material_model=p.material_model, material_params=p.material_params, contact_group=body_group[body_id],
         stimulus=p.stimulus, stimuli=p.stimuli, magnetization_follows=p.magnetization_follows,
-        prony=p.prony, pronies=p.pronies,
+        prony=p.prony, pronies=p.pronies, pressure_area=p.pressure_area, pressure_row=p.pressure_row,
+        pressures=p.pressures,
     )
     report = p.report
     p_vel = p.velocity

@@ -416,6 +416,16 @@ MagnetizationSpec = Annotated[
 MaterialSpec = Annotated[Union[Annotated[str, Tag("name")], Annotated[Material, Tag("table")]], Discriminator(_is_table("table", "name"))]
 
 
+class Pressure(Strict):
+    """A gauge pressure on the surface of a body that faces a cavity (an inflated chamber, the inside of an
+    everting tube): a follower load, acting on the current surface along its current normal (docs/engine.md,
+    "Pressure loads")."""
+
+    cavity: AnyShape = Field(description="The pressurised region, a shape as for bodies ('tube', 'cylinder', 'sphere', 'box', ... in 3D; 'rectangle', 'polygon', 'arc' in 2D). The load acts on the body's particle faces that look into it.")
+    value: float = Field(description="Gauge pressure, Pa (negative: suction).")
+    ramp: float = Field(default=0.0, ge=0, description="Rise time, s: the pressure grows linearly from 0 to value over [0, ramp], then stays (0: applied at once).")
+
+
 class Body(Strict):
     """A body (or a robot part): a shape filled with particles of one material, with a magnetisation profile."""
 
@@ -430,6 +440,7 @@ class Body(Strict):
     clamped: bool = Field(default=False, description="Hold every particle of this body fixed.")
     priority: int | None = Field(default=None, description="Where bodies overlap, the one with the higher priority keeps the shared particles (unset loses to any set value); overlapping bodies with equal or no priorities are refused.")
     velocity: Vec | None = Field(default=None, description="Initial velocity, m/s. Default at rest.")
+    pressure: Pressure | None = Field(default=None, description="A gauge pressure on the body's surface facing a cavity: a table [Pressure](#pressure).")
     _base_dir: object = PrivateAttr(default=None)
     _key: object = PrivateAttr(default=None)
     _source: object = PrivateAttr(default=None)
