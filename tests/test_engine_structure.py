@@ -16,7 +16,7 @@ MAX_STEP_LINES = 40
 def test_no_kernel_takes_more_than_twelve_arguments(contact):
     k = make_kernels(3, wp.float32, contact)
     kernels = {name: obj for name, obj in k.items() if isinstance(obj, wp.Kernel)}
-    assert {"p2g_affine", "p2g_scatter", "grid_update", "g2p", "remap_scatter", "remap_F", "contact_scan"} <= set(kernels)
+    assert {"p2g", "p2g_scatter", "grid_update", "g2p", "remap_scatter", "remap_F", "contact_scan"} <= set(kernels)
     counts = {name: len(kern.adj.args) for name, kern in kernels.items()}
     assert max(counts.values()) <= MAX_KERNEL_ARGS, counts
 

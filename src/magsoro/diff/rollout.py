@@ -87,8 +87,6 @@ class _Slot:
         self.Gs = [wp.zeros(n, dtype=k["m3"], device=dev, requires_grad=True) for _ in range(n_point)]
         self.Bsum = [wp.zeros(n, dtype=k["v3"], device=dev, requires_grad=True) for _ in range(max(n_point - 1, 0))]
         self.Gsum = [wp.zeros(n, dtype=k["m3"], device=dev, requires_grad=True) for _ in range(max(n_point - 1, 0))]
-        self.affine = wp.zeros(n, dtype=k["mat"], device=dev, requires_grad=True)  # p2g_affine -> p2g_scatter
-        self.momentum = wp.zeros(n, **g)
         self.grid_p = wp.zeros(n_nodes, dtype=k["vec"], device=dev, requires_grad=True)
         self.grid_m = wp.zeros(n_nodes, dtype=sc, device=dev, requires_grad=True)
         self.grid_v = wp.zeros(n_nodes, dtype=k["vec"], device=dev, requires_grad=True)
@@ -112,8 +110,7 @@ class _Slot:
         return self._structs
 
     def grad_arrays(self):
-        out = [self.x, self.v, self.C, self.F, self.B, self.affine, self.momentum, self.grid_p, self.grid_m, self.grid_v,
-               self.grid_q]
+        out = [self.x, self.v, self.C, self.F, self.B, self.grid_p, self.grid_m, self.grid_v, self.grid_q]
         out += self.Bs + self.Gs + self.Bsum + self.Gsum
         if self.G is not None:
             out += [self.G, self.Btot]
@@ -164,6 +161,11 @@ class Rollout:
             # the eigenstrain tables are set per step from the host; the rollout's tape has no per-step copy of them
             raise ValueError("the differentiable rollout has no stimulus-driven eigenstrain yet; remove material.stimulus "
                              "from the bodies (or run the scene with magsoro run)")
+        if getattr(m, "pressure_ramps", False):
+            # the pressure table is set per step from the host; the tape has no per-step copy of it (a constant
+            # pressure is a fixed table and differentiates)
+            raise ValueError("the differentiable rollout has no pressure ramp yet; give bodies' pressure ramp = 0 "
+                             "(or run the scene with magsoro run)")
         if getattr(m, "viscous", False):
             # the internal stresses are updated in place of the state; the rollout's states do not carry them
             raise ValueError("the differentiable rollout has no viscoelastic (prony) materials yet; remove material.prony "
@@ -175,6 +177,9 @@ class Rollout:
         self.k = k = m.kernels
         self._no_contact = contact_grid(m)  # one velocity field per node
         self._no_viscous = viscous_struct(m, None)
+        # p2g's arrays for the scatter threads' split (unused here: the rollout runs p2g whole)
+        self._no_affine = wp.zeros(0, dtype=m.kernels["mat"], device=m.device)
+        self._no_momentum = wp.zeros(0, dtype=m.kernels["vec"], device=m.device)
         self._no_shift = wp.zeros(1, dtype=k["vec"], device=m.device)  # grid_update's node displacements (total form only)
         self.dim, self.dev, self.sc = m.dim, m.device, m.scalar
         self.dt = float(dt)
@@ -307,14 +312,11 @@ class Rollout:
         applied.B, applied.G = B_particle, G_particle
         structs = dst.structs(k, self)
         wp.launch(
-            k["p2g_affine"], dim=n,
-            inputs=[src.structs(k, self)["out"], self._bodies, applied, self._block, dt, self.error, 0, self._no_viscous,
-                    dst.affine, dst.momentum],
+            k["p2g"], dim=n,
+            inputs=[src.structs(k, self)["out"], self._bodies, applied, self._block, dt, structs["grid"], self.error, 0,
+                    self._no_contact, self._no_viscous, self._no_affine, self._no_momentum],
             device=dev,
         )
-        wp.launch(k["p2g_scatter"], dim=n,
-                  inputs=[src.x, self._bodies, self._block, dst.affine, dst.momentum, structs["grid"], self._no_contact, 0],
-                  device=dev)
         wp.launch(
             k["grid_update"], dim=self.n_nodes,
             inputs=[
@@ -327,13 +329,10 @@ class Rollout:
         wp.launch(
             k["g2p"], dim=n,
             inputs=[dst.grid_v, self._bodies, self._block, dt, src.x, src.x, src.F, structs["out"], self._checks, f_update,
-                    self._no_contact],
+                    dst.grid_q, self._no_contact],
             device=dev,
         )
         if remap:  # the engine's velocity-gradient remap (docs/engine.md), same kernels
-            wp.launch(k["remap_scatter"], dim=n,
-                      inputs=[src.x, self._bodies, self._block, structs["out"], dst.grid_q, self._no_contact, 0],
-                      device=dev)
             wp.launch(k["remap_node_velocity"], dim=self.n_nodes,
                       inputs=[dst.grid_q, dst.grid_m, dst.grid_clamp, dst.grid_w, self.n_nodes], device=dev)
             wp.launch(k["remap_F"], dim=n,

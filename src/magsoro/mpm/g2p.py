@@ -14,6 +14,7 @@ wp.set_module_options({"max_unroll": 32})
 F_FROM_GRID = wp.constant(0)
 F_FROM_REMAP = wp.constant(1)
 F_TOTAL = wp.constant(2)
+F_REMAP_APART = wp.constant(3)  # F from the remap, whose scatter runs in remap_scatter (Solver.spread_scatter)
 
 
 @functools.cache
@@ -48,6 +49,12 @@ def make_g2p(dim: int, scalar, two_fields: bool = False) -> dict:
             wp.atomic_max(checks[0].error, 1, 1)
         wp.atomic_max(checks[0].max_speed, 0, wp.length(new_v))
 
+    @wp.func
+    def remap_node(grid_r: wp.array(dtype=vec), ct: wp.array(dtype=ContactGrid), p: int, q: int, w0: vec, w1: vec,
+                   w2: vec, first: int, shape: ivec, mp: scalar, new_v: vec, Cd: mat, Cfx: vec):
+        weight, of, idx = stencil_node(q, w0, w1, w2, first, shape)
+        wp.atomic_add(grid_r, slot_of(ct, p, idx), (weight * mp) * (new_v + (Cd * of - Cfx)))  # new_v per node, as in p2g
+
     @wp.kernel
     def g2p(
         grid_v: wp.array(dtype=vec),
@@ -60,10 +67,14 @@ def make_g2p(dim: int, scalar, two_fields: bool = False) -> dict:
         out: wp.array(dtype=Particles),
         checks: wp.array(dtype=Checks),
         f_update: int,
+        grid_r: wp.array(dtype=vec),
         ct: wp.array(dtype=ContactGrid),
     ):
         """Grid-to-particle transfer: new x, v, C. With ``f_update`` = F_FROM_GRID F is updated from the same node
-        velocities; with F_FROM_REMAP F is left to the remap (:func:`remap_scatter`, :func:`remap_F`).
+        velocities; with F_FROM_REMAP F is left to :func:`remap_F`, and the particle's new affine velocity field
+        v + C (x_i - x_p) is scattered, mass-weighted, into ``grid_r`` (the first half of the velocity-gradient
+        remap; it needs only this particle's new v and C, so it rides on the same stencil pass); with
+        F_REMAP_APART that scatter is left to :func:`remap_scatter` (the GPU's scatter threads).
 
         ``x_in`` are the positions the grid weights are taken at and ``x_cur`` the particles' current positions,
         which move by dt v: the same array in the updated-Lagrangian form. In the total-Lagrangian form
@@ -121,16 +132,16 @@ def make_g2p(dim: int, scalar, two_fields: bool = False) -> dict:
                 ok = wp.determinant(Fn) > scalar(0.0)
             elif f_update == F_FROM_GRID:
                 ok = update_F(F_in, o.F, p, dts * new_C)
+            elif f_update == F_FROM_REMAP:
+                mp = bodies[0].mass[p]
+                Cd = new_C * dx
+                Cfx = Cd * fx
+                for q in range(NS):
+                    remap_node(grid_r, ct, p, q, w0, w1, w2, first, block.shape, mp, new_v, Cd, Cfx)
             report(checks, ok, xc, new_v)
         for a in range(dim):
             wp.atomic_min(checks[0].bounds, a, xp[a])
             wp.atomic_max(checks[0].bounds, dim + a, xp[a])
-
-    @wp.func
-    def remap_node(grid_r: wp.array(dtype=vec), ct: wp.array(dtype=ContactGrid), p: int, q: int, w0: vec, w1: vec,
-                   w2: vec, first: int, shape: ivec, mp: scalar, new_v: vec, Cd: mat, Cfx: vec):
-        weight, of, idx = stencil_node(q, w0, w1, w2, first, shape)
-        wp.atomic_add(grid_r, slot_of(ct, p, idx), (weight * mp) * (new_v + (Cd * of - Cfx)))  # new_v per node, as in p2g
 
     @wp.kernel
     def remap_scatter(
@@ -142,10 +153,11 @@ def make_g2p(dim: int, scalar, two_fields: bool = False) -> dict:
         ct: wp.array(dtype=ContactGrid),
         spread: int,
     ):
-        """First half of the velocity-gradient remap, after :func:`g2p`: each particle's new affine velocity field
+        """First half of the velocity-gradient remap as a kernel of its own, after :func:`g2p` with F_REMAP_APART
+        (the scatter threads of a GPU; g2p does it itself with F_FROM_REMAP): each particle's new affine velocity field
         v + C (x_i - x_p), mass-weighted, into ``grid_r`` over the stencil of its start-of-step position ``x`` (the
         one g2p gathered at). ``spread``: one thread per particle (0) or per (particle, node) (1), as in
-        :func:`magsoro.mpm.p2g` p2g_scatter."""
+        :func:`magsoro.mpm.p2g` p2g_scatter (docs/engine.md, "Scatter threads")."""
         tid = wp.tid()
         p = tid
         if spread != 0:

@@ -20,13 +20,13 @@ import functools
 import warp as wp
 
 from magsoro.mpm.contact import make_contact
-from magsoro.mpm.g2p import F_FROM_GRID, F_FROM_REMAP, F_TOTAL, make_g2p
+from magsoro.mpm.g2p import F_FROM_GRID, F_FROM_REMAP, F_REMAP_APART, F_TOTAL, make_g2p
 from magsoro.mpm.grid import grid_settings_struct, make_grid
 from magsoro.mpm.materials import make_material_functions
 from magsoro.mpm.p2g import make_p2g
 from magsoro.mpm.stencil import make_body_elastic, make_types
 
-__all__ = ["make_kernels", "grid_settings_struct", "F_FROM_GRID", "F_FROM_REMAP", "F_TOTAL"]
+__all__ = ["make_kernels", "grid_settings_struct", "F_FROM_GRID", "F_FROM_REMAP", "F_REMAP_APART", "F_TOTAL"]
 
 
 @functools.cache

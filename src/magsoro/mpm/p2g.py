@@ -9,6 +9,10 @@ from magsoro.constants import MU0
 from magsoro.mpm.stencil import make_stencil
 from magsoro.mpm.viscous import make_viscous
 
+#: bits of p2g's ``flags``: the total-Lagrangian form; the affine matrix and momentum stored for p2g_scatter
+P2G_TOTAL = 1
+P2G_APART = 2
+
 # Unroll the 3^dim-node stencil loops (27 in 3D): constant offsets let the compiler fold the weight selection.
 wp.set_module_options({"max_unroll": 32})
 
@@ -115,30 +119,32 @@ def make_p2g(dim: int, scalar, two_fields: bool = False) -> dict:
         return dts, B
 
     @wp.kernel
-    def p2g_affine(
+    def p2g(
         src: wp.array(dtype=Particles),
         bodies: wp.array(dtype=Bodies),
         applied: Applied,
         block: Block,
         dt: scalar,
+        grid: wp.array(dtype=GridArrays),
         error: wp.array(dtype=wp.int32),
-        total: int,
+        flags: int,
+        ct: wp.array(dtype=ContactGrid),
         vs: Viscous,
         affine: wp.array(dtype=mat),
         momentum: wp.array(dtype=vec),
     ):
-        """Particle-to-grid transfer, first half: each particle's affine matrix and momentum
-        (:func:`affine_momentum`) into ``affine`` and ``momentum``, which :func:`p2g_scatter` spreads over the
-        grid. ``src`` are the particles (x, v, C, F); its ``x`` are the positions the grid weights are taken at:
-        the current ones (updated Lagrangian, ``total`` = 0) or the reference ones (total Lagrangian, ``total`` =
-        1: the grid is the reference configuration's, and the node force takes the first Piola stress P instead of
-        the Kirchhoff stress P F^T). ``vs``: the Prony materials' internal stresses (:mod:`magsoro.mpm.viscous`),
-        whose overstress adds to P. With ``bodies[0].stepped`` dt and the uniform field come from
-        ``bodies[0].step[0]`` instead of ``dt`` and ``applied.B_uniform`` (:class:`magsoro.mpm.stencil` Step).
-
-        Two kernels, not one: the material laws, the polar decomposition and the viscous overstress need many
-        registers, and in one kernel they held them through the 3^dim-node scatter loop too (docs/engine.md,
-        "Register pressure")."""
+        """Particle-to-grid transfer of mass, momentum and the stress impulse from the particles ``src`` (x, v, C,
+        F): each particle's affine matrix and momentum (:func:`affine_momentum`), scattered over its stencil. Its
+        ``x`` are the positions the grid weights are taken at: the current ones (updated Lagrangian) or, with bit
+        0 of ``flags`` (P2G_TOTAL), the reference ones (total Lagrangian: the grid is the reference
+        configuration's, and the node force takes the first Piola stress P instead of the Kirchhoff stress P F^T).
+        With bit 1 (P2G_APART) the affine matrix and momentum go to ``affine`` and ``momentum`` instead, for
+        :func:`p2g_scatter` (the GPU's scatter threads, docs/engine.md "Scatter threads"). In the contact variant
+        each node has two velocity fields (:mod:`magsoro.mpm.contact`): the particle scatters into its own, and
+        adds its share of that field's mass gradient. ``vs``: the Prony materials' internal stresses
+        (:mod:`magsoro.mpm.viscous`), whose overstress adds to P. With ``bodies[0].stepped`` dt and the uniform
+        field come from ``bodies[0].step[0]`` instead of ``dt`` and ``applied.B_uniform`` (:class:`magsoro.mpm.stencil`
+        Step)."""
         p = wp.tid()
         dx = block.dx
         inv_dx = scalar(1.0) / dx
@@ -151,9 +157,19 @@ def make_p2g(dim: int, scalar, two_fields: bool = False) -> dict:
         dts, B = step_values(b, applied, dt)
         if applied.has_gradient != 0:
             B = B + applied.B[p]
-        A, mv = affine_momentum(sp, b, applied, p, dts, B, dx, inv_dx, total, vs)
-        affine[p] = A
-        momentum[p] = mv
+        A, mv = affine_momentum(sp, b, applied, p, dts, B, dx, inv_dx, flags % 2, vs)
+        if (flags // 2) % 2 != 0:
+            affine[p] = A
+            momentum[p] = mv
+            return
+        mp = b.mass[p]
+        is_clamped = b.clamped[p]
+        w0, w1, w2 = bspline_weights(fx)
+        Afx = A * fx
+        first = flat_index(base, block.shape)
+        g = grid[0]
+        for q in range(NS):
+            scatter_node(g, ct, p, q, w0, w1, w2, first, block.shape, fx, mp, A, Afx, mv, is_clamped)
 
     @wp.kernel
     def p2g_scatter(
@@ -166,10 +182,9 @@ def make_p2g(dim: int, scalar, two_fields: bool = False) -> dict:
         ct: wp.array(dtype=ContactGrid),
         spread: int,
     ):
-        """Particle-to-grid transfer, second half: mass and the node values of :func:`p2g_affine`'s affine matrix
-        and momentum over each particle's stencil at ``x`` (the positions p2g_affine's particles had). In the
-        contact variant each node has two velocity fields (:mod:`magsoro.mpm.contact`): the particle scatters
-        into its own, and adds its share of that field's mass gradient.
+        """The scatter of :func:`p2g` as a kernel of its own, after p2g with P2G_APART: mass and the node values of
+        the affine matrix and momentum it stored, over each particle's stencil at ``x`` (the positions p2g's
+        particles had), into the same slots as p2g.
 
         ``spread`` = 0: one thread per particle, its 3^dim nodes in turn (launch n particles); 1: one thread per
         (particle, node), thread p 3^dim + q (launch n 3^dim): on a GPU the atomic adds of a particle no longer
@@ -182,7 +197,7 @@ def make_p2g(dim: int, scalar, two_fields: bool = False) -> dict:
         inv_dx = scalar(1.0) / block.dx
         base, fx = local_coords(x[p], block.lo, inv_dx)
         if outside_block(base, block.shape):
-            return  # p2g_affine flags it
+            return  # p2g flags it
         b = bodies[0]
         mp = b.mass[p]
         A = affine[p]
@@ -288,4 +303,4 @@ def make_p2g(dim: int, scalar, two_fields: bool = False) -> dict:
             if wp.static(two_fields):
                 wp.atomic_add(ct[0].grad_m, slot, (weight * mp) * (o - fx))
 
-    return dict(p2g_affine=p2g_affine, p2g_scatter=p2g_scatter, node_displacement=node_displacement, contact_scan=contact_scan, contact_scatter=contact_scatter)
+    return dict(p2g=p2g, p2g_scatter=p2g_scatter, node_displacement=node_displacement, contact_scan=contact_scan, contact_scatter=contact_scatter)

@@ -28,7 +28,8 @@ from magsoro.fields.device import FieldEvaluator
 from magsoro.mpm.colliders import COLLIDER_STRIDE, MODES, Collider, collider_table
 from magsoro.mpm.interaction import MODES as INTERACTION_MODES
 from magsoro.mpm.interaction import MagneticInteraction
-from magsoro.mpm.kernels import F_FROM_GRID, F_FROM_REMAP, F_TOTAL, make_kernels
+from magsoro.mpm.kernels import F_FROM_GRID, F_FROM_REMAP, F_REMAP_APART, F_TOTAL, make_kernels
+from magsoro.mpm.p2g import P2G_APART, P2G_TOTAL
 from magsoro.mpm.materials import LAW_PARAM_COUNT, LAWS, describe_codes
 from magsoro.mpm.stencil import host_bspline
 from magsoro.mpm.timestep import cfl_time_step
@@ -655,7 +656,7 @@ class Solver:
         n = model.n_particles
         self.B_particle = wp.zeros(n, dtype=self.k["v3"], device=dev)
         self.G_particle = wp.zeros(n, dtype=self.k["m3"], device=dev)
-        self.particle_affine = wp.zeros(n, dtype=self.k["mat"], device=dev)  # p2g_affine -> p2g_scatter, each step
+        self.particle_affine = wp.zeros(n, dtype=self.k["mat"], device=dev)  # p2g -> p2g_scatter (scatter threads)
         self.particle_momentum = wp.zeros(n, dtype=self.k["vec"], device=dev)
         # the bodies' own field (None: off, or no magnetised particle), refreshed every interaction_every steps
         self.interaction = None
@@ -903,19 +904,22 @@ class Solver:
             return wp.launch(kernel, dim=n, inputs=inputs, device=dev, record_cmd=True)
 
         L = {
-            # p2g in two kernels (the per-particle stress, then the scatter): fewer registers each (docs/engine.md)
-            "p2g_affine": particles(k["p2g_affine"], lambda th, cut: [
-                th["src"], th["bodies"], th["applied"], block, sc(0.0), self.error, 1 if self._total else 0,
-                viscous_struct(m, state_in.H, cut), cut(self.particle_affine), cut(self.particle_momentum)]),
-            "p2g": particles(k["p2g_scatter"], lambda th, cut: [
+            # with the scatter threads (docs/engine.md, "Scatter threads") p2g stores each particle's affine matrix
+            # and momentum, and p2g_scatter spreads them with one thread per (particle, node)
+            "p2g": particles(k["p2g"], lambda th, cut: [
+                th["src"], th["bodies"], th["applied"], block, sc(0.0), th["grid"], self.error,
+                (P2G_TOTAL if self._total else 0) | (P2G_APART if spread else 0), ct, viscous_struct(m, state_in.H, cut),
+                cut(self.particle_affine), cut(self.particle_momentum)]),
+            "p2g_scatter": particles(k["p2g_scatter"], lambda th, cut: [
                 cut(x_grid), th["bodies"], block, cut(self.particle_affine), cut(self.particle_momentum), th["grid"], ct,
-                spread], spread_threads),
+                spread], spread_threads) if spread else [],
             "grid_update": nodes(k["grid_update"], [
                 self.grid_p, self.grid_m, self._held if self._total else self.grid_clamp, org, block.shape, gs,
                 self.grid_v, ct, self.grid_u]),
             "g2p": particles(k["g2p"], lambda th, cut: [
                 self.grid_v, th["bodies"], block, sc(0.0), cut(x_grid), cut(state_in.x), cut(state_in.F), th["out"],
-                th["checks"], f_update, ct]),
+                th["checks"], F_REMAP_APART if (spread and f_update == F_FROM_REMAP) else f_update, grid_p[th["t"]],
+                ct]),
             "sum_mass": [nodes(k["add_grid"], [self.grid_p, grid_p[t], self.grid_m, grid_m[t], 1]) for t in range(1, self.threads)],
             "sum_momentum": [nodes(k["add_grid"], [self.grid_p, grid_p[t], self.grid_m, grid_m[t], 0]) for t in range(1, self.threads)],
             # keep the states' arrays and the argument structs alive: the set is found again by the arrays' ids
@@ -940,7 +944,8 @@ class Solver:
             # second half of the remap: g2p has scattered the new affine velocities into grid_p (free after the
             # grid update); node velocities go to grid_v (free after g2p), and F is gathered from them
             L["remap_scatter"] = particles(k["remap_scatter"], lambda th, cut: [
-                cut(state_in.x), th["bodies"], block, th["out"], grid_p[th["t"]], ct, spread], spread_threads)
+                cut(state_in.x), th["bodies"], block, th["out"], grid_p[th["t"]], ct, spread],
+                spread_threads) if spread else []
             L["remap_nodes"] = nodes(k["remap_node_velocity"], [self.grid_p, self.grid_m, self.grid_clamp, self.grid_v, n_act],
                                      self._fields_per_node * n_act)
             L["remap_F"] = particles(k["remap_F"], lambda th, cut: [
@@ -1426,8 +1431,9 @@ class Solver:
                 v.fill_(fill)
             for one in L["contact"]:
                 one.launch()
-        self._parallel(L["p2g_affine"])
         self._parallel(L["p2g"])
+        if L["p2g_scatter"]:
+            self._parallel(L["p2g_scatter"])
         for one in L["sum_mass"]:
             one.launch()
         if self._total:
@@ -1453,7 +1459,8 @@ class Solver:
         the Prony materials' internal stresses at the new F."""
         self._parallel(L["g2p"])
         if self._remap:
-            self._parallel(L["remap_scatter"])
+            if L["remap_scatter"]:
+                self._parallel(L["remap_scatter"])
             for one in L["sum_momentum"]:
                 one.launch()
             L["remap_nodes"].launch()

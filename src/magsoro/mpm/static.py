@@ -44,6 +44,7 @@ import warp as wp
 
 from magsoro.errors import SimulationError
 from magsoro.constants import MU0
+from magsoro.mpm.p2g import P2G_TOTAL
 from magsoro.mpm.solver import block_struct, bodies_array, contact_grid
 from magsoro.mpm.stencil import host_bspline, make_stencil
 from magsoro.mpm.viscous import viscous_struct
@@ -407,11 +408,9 @@ class StaticSolver:
         solver.grid_p.zero_()
         solver.grid_m.zero_()
         solver.error.zero_()
-        wp.launch(k["p2g_affine"], dim=model.n_particles, device=self.dev,
-                  inputs=[self.src, self.bodies, applied, self.block, sc(1.0), solver.error, 1, self.no_viscous,
-                          solver.particle_affine, solver.particle_momentum])
-        wp.launch(k["p2g_scatter"], dim=model.n_particles, device=self.dev,
-                  inputs=[model.X0, self.bodies, self.block, solver.particle_affine, solver.particle_momentum, self.grid, self.ct, 0])
+        wp.launch(k["p2g"], dim=model.n_particles, device=self.dev,
+                  inputs=[self.src, self.bodies, applied, self.block, sc(1.0), self.grid, solver.error, P2G_TOTAL, self.ct,
+                          self.no_viscous, solver.particle_affine, solver.particle_momentum])
         self.residual_evaluations += 1
         f = solver.grid_p.numpy()[: self.n_nodes].astype(np.float64)
         m = solver.grid_m.numpy()[: self.n_nodes].astype(np.float64)
