@@ -24,6 +24,8 @@ import sys
 import tempfile
 from pathlib import Path
 
+from magsoro.bench.runner import _commit as commit
+
 ROOT = Path(__file__).resolve().parents[1]
 
 
@@ -35,9 +37,9 @@ def _git(*args: str) -> str:
 
 
 def _commit() -> str:
-    c = os.environ.get("MAGSORO_COMMIT") or _git("rev-parse", "--short", "HEAD") or "unknown"
+    """The checkout's commit (:func:`magsoro.bench.runner._commit`), marked '+changes' when tracked files differ."""
     dirty = _git("status", "--porcelain", "--untracked-files=no")
-    return c + ("+changes" if dirty else "")
+    return commit() + ("+changes" if dirty else "")
 
 
 def _source(spec: str | None, tmp: Path, name: str) -> tuple[Path, str]:
