@@ -656,8 +656,9 @@ class Solver:
         n = model.n_particles
         self.B_particle = wp.zeros(n, dtype=self.k["v3"], device=dev)
         self.G_particle = wp.zeros(n, dtype=self.k["m3"], device=dev)
-        self.particle_affine = wp.zeros(n, dtype=self.k["mat"], device=dev)  # p2g -> p2g_scatter (scatter threads)
-        self.particle_momentum = wp.zeros(n, dtype=self.k["vec"], device=dev)
+        # p2g -> p2g_scatter with the scatter threads (allocated by the first launch set that spreads; else empty)
+        self.particle_affine = wp.zeros(0, dtype=self.k["mat"], device=dev)
+        self.particle_momentum = wp.zeros(0, dtype=self.k["vec"], device=dev)
         # the bodies' own field (None: off, or no magnetised particle), refreshed every interaction_every steps
         self.interaction = None
         if st.magnetic_interaction == "dipole":
@@ -898,6 +899,9 @@ class Solver:
                     for th in threads]
 
         spread = 1 if self.spread_scatter else 0
+        if spread and self.particle_affine.shape[0] != m.n_particles:
+            self.particle_affine = wp.zeros(m.n_particles, dtype=k["mat"], device=dev)
+            self.particle_momentum = wp.zeros(m.n_particles, dtype=k["vec"], device=dev)
         spread_threads = 3**self.dim if spread else 1
 
         def nodes(kernel, inputs, n=n_act):

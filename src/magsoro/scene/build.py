@@ -307,29 +307,18 @@ class Particles:
     pressures: list = field(default_factory=list)
 
 
-def pressure_faces(pts: np.ndarray, occupied: np.ndarray, cavity, h: float, depth: float) -> np.ndarray:
+def pressure_faces(pts: np.ndarray, occupied: np.ndarray, cavity, lo: np.ndarray, h: float, depth: float) -> np.ndarray:
     """Reference area vectors (N, dim) of the particle faces of ``pts`` that look into ``cavity``: for each axis a
     and side s, a particle whose lattice neighbour X + s h e_a lies in the cavity and is not a particle site
-    (``occupied``: (M, dim) every particle of the scene) gets s e_a h^(dim-1) (in 2D times ``depth``), the
-    outward normal of that face times its area. On the lattice the faces close up, so the sum over a closed cavity
-    is zero and a pressure on them gives each part the force p times its projected area, as on the smooth wall."""
+    (``occupied``: (M, dim) every particle of the scene; ``lo`` the domain's lower corner, which the lattice is
+    aligned to) gets s e_a h^(dim-1) (in 2D times ``depth``), the outward normal of that face times its area. On
+    the lattice the faces close up, so the sum over a closed cavity is zero and a pressure on them gives each part
+    the force p times its projected area, as on the smooth wall."""
     n, dim = pts.shape
     area = np.zeros((n, dim))
-    if n == 0:
-        return area
-    lo = pts.min(axis=0) - 2.0 * h
-    idx = np.rint((pts - lo) / h).astype(np.int64)
-    occ = np.rint((occupied - lo) / h).astype(np.int64)
-    span = np.maximum(idx.max(axis=0), occ.max(axis=0)) + 4
-    span = np.maximum(span, 4)
-
-    def code(i):
-        c = np.zeros(len(i), dtype=np.int64)
-        for a in range(dim):
-            c = c * span[a] + (i[:, a] + 1)
-        return c
-
-    occ_codes = np.sort(code(occ[np.all((occ >= -1) & (occ < span - 1), axis=1)]))
+    idx, occ = _lattice_index(pts, lo, h), _lattice_index(occupied, lo, h)
+    code = _site_coder([idx, occ])  # valid for the neighbours one site away too
+    occ_codes = code(occ)
     face = h ** (dim - 1) * (depth if dim == 2 else 1.0)
     for a in range(dim):
         for side in (-1, 1):
@@ -337,10 +326,7 @@ def pressure_faces(pts: np.ndarray, occupied: np.ndarray, cavity, h: float, dept
             Y[:, a] += side * h
             j = idx.copy()
             j[:, a] += side
-            c = code(j)
-            pos = np.searchsorted(occ_codes, c)
-            taken = (pos < len(occ_codes)) & (occ_codes[np.minimum(pos, len(occ_codes) - 1)] == c)
-            exposed = cavity.contains(Y) & ~taken
+            exposed = cavity.contains(Y) & ~np.isin(code(j), occ_codes)
             area[exposed, a] += side * face
     return area
 
@@ -478,7 +464,7 @@ def fill_bodies(scene: Scene, source: str = "scene", magnetization=None) -> Part
                 raise SceneError(f"{key}.file: {exc}") from None
             except ValueError as exc:
                 raise SceneError(f"{key}: {exc}") from None
-            area = pressure_faces(pb["pts"], X, cavity, h, depth)
+            area = pressure_faces(pb["pts"], X, cavity, lo[:dim], h, depth)
             if not np.any(area != 0.0):
                 raise SceneError(f"{key}: no particle face of body '{b.name}' looks into the cavity: it must border the "
                                  f"body's surface within one particle spacing ({h:g} m)")
