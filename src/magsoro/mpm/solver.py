@@ -913,7 +913,9 @@ class Solver:
             "p2g": particles(k["p2g"], lambda th, cut: [
                 th["src"], th["bodies"], th["applied"], block, sc(0.0), th["grid"], self.error,
                 (P2G_TOTAL if self._total else 0) | (P2G_APART if spread else 0), ct, viscous_struct(m, state_in.H, cut),
-                cut(self.particle_affine), cut(self.particle_momentum)]),
+                # read only when spread; otherwise empty, and not sliced per thread
+                cut(self.particle_affine) if spread else self.particle_affine,
+                cut(self.particle_momentum) if spread else self.particle_momentum]),
             "p2g_scatter": particles(k["p2g_scatter"], lambda th, cut: [
                 cut(x_grid), th["bodies"], block, cut(self.particle_affine), cut(self.particle_momentum), th["grid"], ct,
                 spread], spread_threads) if spread else [],
