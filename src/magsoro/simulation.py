@@ -209,8 +209,9 @@ class Simulation:
             self.field_scale = solver.field_level  # field probes read the applied field of the level solved
             if not res.converged:
                 out.converged = False
-                out.message = (f"level {level:g} did not converge ({res.message}); the state is the last converged "
-                               f"level's: insert intermediate levels, raise static.max_iterations, or check the loads")
+                out.message = f"level {level:g} did not converge ({res.message}); the state is the last converged level's"
+                if res.wall_crossing is None:
+                    out.message += ": insert intermediate levels, raise static.max_iterations, or check the loads"
                 break
             if on_level is not None:
                 on_level(self, res)

@@ -25,7 +25,10 @@ leaves the body on the stable branch, and reports the level as buckled.
 
 Rigid colliders act at the nodes as the engine's total-Lagrangian form has them, by a penalty with stick and
 Coulomb slip (:mod:`magsoro.mpm.static_contact`; each level reports the penetration left). Not handled yet: domain
-walls, contact between bodies (refused).
+walls, contact between bodies (refused). The engine's walls act on nodes within two cells of the domain's edge;
+a body that starts there is refused, and a level whose equilibrium reaches that band is reported as not converged
+(:meth:`StaticSolver.wall_crossing`): the dynamics would have stopped the body at the wall, which the static
+solver does not model.
 
 Limit points: with ``[static] arc_length = true`` (scenes without colliders), and wherever load increments fail,
 the path from one level to the next is followed by arc length (:meth:`StaticSolver._arc_length`): a snap-through
@@ -272,6 +275,9 @@ class LevelResult:
     # (limit points, a snap-through starting at the first one) and its steps
     limit_levels: list = field(default_factory=list)
     arc_length_steps: int = 0
+    # where the equilibrium reached the band of the domain walls (StaticSolver.wall_crossing); the level is then
+    # not converged and the state stays at the previous level's
+    wall_crossing: str | None = None
 
 
 @dataclass
@@ -375,6 +381,10 @@ class StaticSolver:
             from magsoro.mpm.static_contact import ColliderPenalty
 
             self.contact = ColliderPenalty(self, sim.control.colliders, self.t, st.plane_z, st.depth)
+        start = self.wall_crossing(self.u_nodes)
+        if start is not None:
+            raise SimulationError(f"the body starts {start}; the static solver has no domain walls: move the body "
+                                  f"away from the domain's edge or enlarge simulation.domain_lo / domain_hi")
 
     # -- residual -----------------------------------------------------------------------------------------
     def _place(self, u_nodes: np.ndarray) -> None:
@@ -422,6 +432,35 @@ class StaticSolver:
     def residual(self, u_nodes, field_level, gravity_level) -> np.ndarray:
         """Out-of-balance force on the unknowns (the free nodes' forces gathered by the slaving), flat."""
         return self._reduce(self._scatter(u_nodes, field_level, gravity_level))
+
+    def wall_crossing(self, u_nodes: np.ndarray) -> str | None:
+        """Where the displacement ``u_nodes`` puts a free node carrying mass into the band of the domain walls (the
+        engine's walls stop a node whose position, its reference plus the mass-weighted displacement of its
+        particles, is within two cells of the domain's edge; :mod:`magsoro.mpm.grid`), as a phrase naming the wall
+        and its scene key; None when no node is there."""
+        model, dim, dx = self.model, self.dim, float(self.model.dx)
+        nodes, w, _ = self._stencil()
+        X = model.host["positions"]
+        mw = w * model.host["mass"][:, None]  # (N, S)
+        mass = np.bincount(nodes.ravel(), weights=mw.ravel(), minlength=self.n_nodes)
+        xp = X + np.einsum("ps,psd->pd", w, np.asarray(u_nodes)[nodes])  # the particles at u, as place_particles puts
+        clamped = model.host["clamped"] != 0
+        xp[clamped] = X[clamped]  # them: clamped ones stay
+        moved = np.stack([np.bincount(nodes.ravel(), weights=(mw * (xp - X)[:, a : a + 1]).ravel(), minlength=self.n_nodes)
+                          for a in range(dim)], axis=1)
+        held = self.solver._held.numpy()[: self.n_nodes] != 0
+        free = np.flatnonzero((mass > 0) & ~held)
+        ref = (model.domain_lo + self.solver.org * dx) + self.coords[free] * dx
+        pos = ref + moved[free] / mass[free, None]
+        lo = np.asarray(model.domain_lo, dtype=np.float64)[:dim] + 2.0 * dx
+        hi = np.asarray(model.domain_hi, dtype=np.float64)[:dim] - 2.0 * dx
+        axes = "xyz"
+        for a in range(dim):
+            for side, bound, beyond in (("lo", lo[a], pos[:, a] < lo[a]), ("hi", hi[a], pos[:, a] > hi[a])):
+                if np.any(beyond):
+                    return (f"within two cells of the domain wall at {axes[a]} = {bound + (2.0 * dx if side == 'hi' else -2.0 * dx):.6g} m "
+                            f"(simulation.domain_{side}[{a}]), where the engine's walls act")
+        return None
 
     # -- the unknowns -------------------------------------------------------------------------------------
     def _slaving(self, mass: np.ndarray, held: np.ndarray):
@@ -912,6 +951,7 @@ class StaticSolver:
         the solver switches to the stable branch and goes on (module docstring)."""
         t0 = time.perf_counter()
         target = (float(level), float(gravity_level))
+        before = (self.u_nodes.copy(), self.field_level, self.gravity_level)
         # the force scale of the tolerance: the out-of-balance force of the undeformed body under the target load
         r_ref = self._reduce(self._scatter(np.zeros_like(self.u_nodes), *target))
         scale = max(float(np.abs(r_ref).max()), 1e-30)
@@ -957,6 +997,15 @@ class StaticSolver:
         lam, _ = self.lowest_mode()
         r = self._reduce(self._scatter(self.u_nodes, *target))
         norm = float(np.abs(r).max()) if r.size else 0.0
+        crossing = self.wall_crossing(self.u_nodes)
+        if crossing is not None:
+            self.u_nodes, self.field_level, self.gravity_level = before
+            self._scatter(self.u_nodes, self.field_level, self.gravity_level)
+            return LevelResult(level, False, iterations, increments, norm, norm / scale, time.perf_counter() - t0,
+                               f"its equilibrium puts the body {crossing}; the static solver has no domain walls, "
+                               f"so the dynamics would stop the body there: enlarge simulation.domain_lo / domain_hi "
+                               f"(or give the wall as a collider)", lam, buckled,
+                               limit_levels=limits, arc_length_steps=arc_steps, wall_crossing=crossing)
         return LevelResult(level, True, iterations, increments, norm, norm / scale, time.perf_counter() - t0,
                            "", lam, buckled, None if self.contact is None else self.contact.penetration,
                            limit_levels=limits, arc_length_steps=arc_steps)
