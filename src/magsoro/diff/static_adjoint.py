@@ -15,7 +15,7 @@ per gradient, whatever the number of variables; each variable costs two residual
 Each evaluation solves the equilibrium from the unloaded state through the scene's levels, the path a `magsoro
 run --static` takes, so the loss is a function of the design alone. ``warm=True`` starts from the last
 evaluation's equilibrium instead (faster, falling back to the full path when it fails); a slender body can have
-several equilibria under one load (scenes/cantilever_2d.toml has two), and a warm start may then follow a branch
+several equilibria under one load (past a buckling or snap-through point), and a warm start may then follow a branch
 that loading from rest does not reach. The target is the one of ``magsoro optimize`` (:mod:`magsoro.diff.targets`)
 at the last level.
 """
