@@ -22,6 +22,10 @@ from magsoro.scene import Scene, load_scene
 from magsoro.scene.build import Built, build
 from magsoro.scene.schema import MAX_RECORDS
 
+#: cells from a domain face within which a particle may be held by that wall: the walls stop nodes within two cells
+#: of the face (magsoro.mpm.grid), and a particle's mass reaches nodes up to 1.5 cells from it
+WALL_REACH_CELLS = 3.5
+
 
 @dataclass
 class RunResult:
@@ -102,6 +106,11 @@ class Simulation:
         self._checkpoint = None  # the first state of the current check window
         self.steps = 0
         self.last_good_time = 0.0
+        # particles that start out of the domain walls' reach (check_wall_reach): a body that moves into it meets
+        # a wall the scene may not mean to have
+        self._wall_far = self._wall_distances(self.model.host["positions"]) > WALL_REACH_CELLS * self.model.dx
+        self._wall_far &= (self.model.host["clamped"] == 0)[:, None]
+        self._walls_reached: set = set()
 
     def set_sources(self, sources) -> None:
         """Replace the field sources (call between steps) and bound the time step anew for the largest field they
@@ -280,6 +289,45 @@ class Simulation:
                 self._window(t_end, eps, callback, heartbeat)
                 if heartbeat is not None:
                     heartbeat(self)
+
+    def _wall_distances(self, x: np.ndarray) -> np.ndarray:
+        """Distances (m) of the points ``x`` to the domain's faces, columns lo_0, hi_0, lo_1, hi_1, ..."""
+        dim = self.model.dim
+        lo = np.asarray(self.model.domain_lo, dtype=np.float64)[:dim]
+        hi = np.asarray(self.model.domain_hi, dtype=np.float64)[:dim]
+        x = np.asarray(x, dtype=np.float64)[:, :dim]
+        return np.stack([v for a in range(dim) for v in (x[:, a] - lo[a], hi[a] - x[:, a])], axis=1)
+
+    def check_wall_reach(self) -> list[str]:
+        """Note (run.json ``notes``, once per body and wall) each body whose particles moved from outside the
+        domain walls' reach into it: the walls stop nodes two cells inside the domain's edge, and a particle's mass
+        reaches nodes 1.5 cells from it, so a particle nearer than WALL_REACH_CELLS cells to a face may be held by
+        that wall. Bodies that start there (a robot on the domain's floor) are not noted. Returns the new notes."""
+        if not self._wall_far.any():
+            return []
+        near = self._wall_distances(self.state.x.numpy()) <= WALL_REACH_CELLS * self.model.dx
+        hit = near & self._wall_far
+        new = []
+        if not hit.any():
+            return new
+        body = self.model.host["body"]
+        names = self.built.body_names
+        axes = "xyz"
+        for face in np.flatnonzero(hit.any(axis=0)):
+            a, side = divmod(int(face), 2)
+            bound = (self.model.domain_hi if side else self.model.domain_lo)[a]
+            for b in np.unique(body[hit[:, face]]):
+                key = (int(b), int(face))
+                if key in self._walls_reached:
+                    continue
+                self._walls_reached.add(key)
+                text = (f"body '{names[int(b)]}' reached the domain wall at {axes[a]} = {float(bound):.6g} m "
+                        f"(simulation.domain_{'hi' if side else 'lo'}[{a}]) by t = {self.state.time:.6g} s: the walls "
+                        f"({self.scene.simulation.walls}) hold nodes two cells inside the domain's edge; enlarge the "
+                        f"domain unless the wall is part of the scene")
+                self._note(text)
+                new.append(text)
+        return new
 
     def _note(self, text: str) -> None:
         if text not in self.notes:
@@ -510,6 +558,7 @@ class Simulation:
             for target in targets:
                 self.advance_to(target, callback, heartbeat)
                 self.last_good_time = self.state.time
+                self.check_wall_reach()
                 if record is not None:
                     record(self)
                 if progress is not None:

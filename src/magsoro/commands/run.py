@@ -102,6 +102,9 @@ def run(args) -> int:
         if bar is not None:
             bar.close()
     writer.finish(result, time.perf_counter() - wall0)
+    for note in sim.notes:
+        if "reached the domain wall" in note:
+            print(f"magsoro run: note: {note}", file=sys.stderr)
     if result.status != "completed":
         print(f"magsoro run: {result.status}: {result.message}", file=sys.stderr)
         print(f"results so far in {args.out} (run.json status '{result.status}')", file=sys.stderr)
@@ -139,6 +142,8 @@ def _relax(args, sim, writer, t_loads: float, wall0: float) -> int:
         steps, wall = sim.steps, time.perf_counter() - wall0
     if relax is not None:
         writer.info["equilibrium"] = asdict(relax)
+        for note in sim.check_wall_reach():
+            print(f"magsoro run --equilibrium: note: {note}", file=sys.stderr)
         try:
             writer.record(sim)
         except OutputError as exc:
