@@ -289,6 +289,7 @@ class Simulation:
                 self._window(t_end, eps, callback, heartbeat)
                 if heartbeat is not None:
                     heartbeat(self)
+        self.check_wall_reach()
 
     def _wall_distances(self, x: np.ndarray) -> np.ndarray:
         """Distances (m) of the points ``x`` to the domain's faces, columns lo_0, hi_0, lo_1, hi_1, ..."""
@@ -558,7 +559,6 @@ class Simulation:
             for target in targets:
                 self.advance_to(target, callback, heartbeat)
                 self.last_good_time = self.state.time
-                self.check_wall_reach()
                 if record is not None:
                     record(self)
                 if progress is not None:

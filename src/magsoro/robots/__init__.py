@@ -15,7 +15,7 @@ import pkgutil
 import time
 from pathlib import Path
 
-from magsoro.robots.base import Context, ReproduceResult, Robot, RobotError, scenes_dir
+from magsoro.robots.base import Context, ReproduceResult, Robot, RobotError, scenes_dir, wall_notes
 
 _NOT_ROBOTS = {"base", "cli", "gallery"}
 
@@ -54,8 +54,12 @@ def reproduce(name: str, out=None, preview: bool = False, device: str | None = N
     if log is not None:
         ctx.log = log
     t0 = time.perf_counter()
+    wall_notes()  # forget earlier reproductions' runs
     res = robot.reproduce(ctx)
     wall = time.perf_counter() - t0
+    notes = wall_notes()
+    for note in notes:
+        ctx.log(f"{name}: note: {note}")
     from magsoro.io.files import atomic_write_json
 
     atomic_write_json(out / "result.json", {
@@ -64,7 +68,7 @@ def reproduce(name: str, out=None, preview: bool = False, device: str | None = N
         "files": {"csv": res.csv.name, "png": res.png.name, "animation": res.animation.name if res.animation else None,
                   "figures": [{"csv": Path(f["csv"]).name, "png": Path(f["png"]).name, "caption": f["caption"]}
                               for f in res.figures]},
-        "info": res.info, "checks": [r.as_dict() for r in res.rows], "passed": res.passed,
+        "info": res.info, "checks": [r.as_dict() for r in res.rows], "passed": res.passed, "notes": notes,
     })
     return res
 

@@ -89,6 +89,21 @@ def scenes_dir() -> Path:
 
 
 # -- scenes -----------------------------------------------------------------------------------------------
+#: the notes lists (Simulation.notes) of the simulations made by :func:`simulation` since the last
+#: :func:`wall_notes` call
+_run_notes: list = []
+
+
+def wall_notes() -> list[str]:
+    """The domain-wall notes (Simulation.check_wall_reach) of the simulations :func:`simulation` made since the last
+    call, without repeats; the record is then cleared."""
+    out = []
+    for notes in _run_notes:
+        out += [n for n in notes if "reached the domain wall" in n and n not in out]
+    _run_notes.clear()
+    return out
+
+
 def scene_data(name: str) -> dict:
     """The raw TOML dict of ``scenes/<name>.toml`` (edit it, then :func:`simulation`)."""
     from magsoro.scene.load import read_scene_toml
@@ -114,7 +129,9 @@ def simulation(name: str, data: dict | None = None, preview: bool = False, devic
     """A ready :class:`~magsoro.simulation.Simulation` of robot ``name`` (see :func:`scene`)."""
     from magsoro.simulation import Simulation
 
-    return Simulation(scene(name, data, preview), device=device, source=str(scenes_dir() / f"{name}.toml"))
+    sim = Simulation(scene(name, data, preview), device=device, source=str(scenes_dir() / f"{name}.toml"))
+    _run_notes.append(sim.notes)  # reproduce() reports the domain-wall notes of every run it made
+    return sim
 
 
 def run(sim, duration: float | None = None, every: float | None = None, frames: "FrameRecorder | None" = None,
