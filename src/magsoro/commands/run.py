@@ -102,9 +102,7 @@ def run(args) -> int:
         if bar is not None:
             bar.close()
     writer.finish(result, time.perf_counter() - wall0)
-    for note in sim.notes:
-        if "reached the domain wall" in note:
-            print(f"magsoro run: note: {note}", file=sys.stderr)
+    _print_notes(sim, "magsoro run")
     if result.status != "completed":
         print(f"magsoro run: {result.status}: {result.message}", file=sys.stderr)
         print(f"results so far in {args.out} (run.json status '{result.status}')", file=sys.stderr)
@@ -142,14 +140,14 @@ def _relax(args, sim, writer, t_loads: float, wall0: float) -> int:
         steps, wall = sim.steps, time.perf_counter() - wall0
     if relax is not None:
         writer.info["equilibrium"] = asdict(relax)
-        for note in sim.check_wall_reach():
-            print(f"magsoro run --equilibrium: note: {note}", file=sys.stderr)
+        sim.check_wall_reach()
         try:
             writer.record(sim)
         except OutputError as exc:
             status, message = "failed", f"{message}; the relaxed state could not be recorded: {exc}"
     result = RunResult(status, steps, sim.time, wall, message, signum)
     writer.finish(result, time.perf_counter() - wall0)
+    _print_notes(sim, "magsoro run --equilibrium")
     if status != "completed":
         print(f"magsoro run --equilibrium: {status}: {message}", file=sys.stderr)
         return 1 if status == "failed" else _interrupted_status(signum)
@@ -181,6 +179,7 @@ def _static(args, sim, writer, wall0: float) -> int:
                                 getattr(exc, "signum", None)), time.perf_counter() - wall0)
         return _interrupted_status(getattr(exc, "signum", None))
     writer.finish(RunResult(status, 0, sim.time, wall, message), time.perf_counter() - wall0)
+    _print_notes(sim, "magsoro run --static")
     if status != "completed":
         print(f"magsoro run --static: failed: {message}", file=sys.stderr)
         return 1
@@ -191,6 +190,14 @@ def _static(args, sim, writer, wall0: float) -> int:
             print(f"the equilibrium path turned back (limit points, a snap-through at the first) at field level(s) "
                   f"{', '.join(turns)}: run.json static.levels[].limit_levels")
     return 0
+
+
+def _print_notes(sim, prefix: str) -> None:
+    """The run's notes on what the scene may not mean (a body in the domain walls' reach, a body the particle
+    lattice rounds), one stderr line each; run.json's ``notes`` holds them with the others."""
+    for note in sim.notes:
+        if "reached the domain wall" in note or "than its shape's volume" in note:
+            print(f"{prefix}: note: {note}", file=sys.stderr)
 
 
 def _interrupted_status(signum: int | None) -> int:
