@@ -105,6 +105,9 @@ class Simulation:
         self.windows = self.reruns = 0  # check windows run, and those run again step by step
         # notes for run.json: why a window's steps run through the plain step loop, or are not captured as a graph
         self.notes: list[str] = []
+        # the notes on what the scene may not mean (a body in the domain walls' reach, a body the lattice rounds):
+        # also in ``notes``; magsoro run prints them, magsoro reproduce collects them
+        self.scene_notes: list[str] = []
         self._checkpoint = None  # the first state of the current check window
         self.steps = 0
         self.last_good_time = 0.0
@@ -329,7 +332,7 @@ class Simulation:
                         f"(simulation.domain_{'hi' if side else 'lo'}[{a}]) by t = {self.state.time:.6g} s: the walls "
                         f"({self.scene.simulation.walls}) hold nodes two cells inside the domain's edge; enlarge the "
                         f"domain unless the wall is part of the scene")
-                self._note(text)
+                self._note(text, scene=True)
                 new.append(text)
         return new
 
@@ -348,14 +351,16 @@ class Simulation:
             filled = r["filled_volume"] * (n + r.get("overlap_removed", 0)) / n
             change = filled / shape - 1.0
             if abs(change) > LATTICE_FILL_NOTE:
-                self._note(f"body '{r['body']}': its particles fill {100 * abs(change):.1f} % {'more' if change > 0 else 'less'} "
+                self._note(scene=True, text=f"body '{r['body']}': its particles fill {100 * abs(change):.1f} % {'more' if change > 0 else 'less'} "
                            f"than its shape's volume (particle spacing {h:g} m = simulation.dx / particles_per_cell): "
                            f"sizes that are not whole numbers of spacings are rounded, and the engine simulates the "
                            f"rounded body (make them whole numbers of spacings, or refine simulation.dx)")
 
-    def _note(self, text: str) -> None:
+    def _note(self, text: str, scene: bool = False) -> None:
         if text not in self.notes:
             self.notes.append(text)
+            if scene:
+                self.scene_notes.append(text)
 
     def _graph_window(self, callback: Callable | None) -> bool:
         """Whether this window's steps run from drive tables (Solver.run_window); notes why not, once per reason."""

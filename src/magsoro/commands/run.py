@@ -195,9 +195,8 @@ def _static(args, sim, writer, wall0: float) -> int:
 def _print_notes(sim, prefix: str) -> None:
     """The run's notes on what the scene may not mean (a body in the domain walls' reach, a body the particle
     lattice rounds), one stderr line each; run.json's ``notes`` holds them with the others."""
-    for note in sim.notes:
-        if "reached the domain wall" in note or "than its shape's volume" in note:
-            print(f"{prefix}: note: {note}", file=sys.stderr)
+    for note in sim.scene_notes:
+        print(f"{prefix}: note: {note}", file=sys.stderr)
 
 
 def _interrupted_status(signum: int | None) -> int:

@@ -15,7 +15,7 @@ import pkgutil
 import time
 from pathlib import Path
 
-from magsoro.robots.base import Context, ReproduceResult, Robot, RobotError, scenes_dir, wall_notes
+from magsoro.robots.base import Context, ReproduceResult, Robot, RobotError, scene_notes, scenes_dir
 
 _NOT_ROBOTS = {"base", "cli", "gallery"}
 
@@ -54,10 +54,10 @@ def reproduce(name: str, out=None, preview: bool = False, device: str | None = N
     if log is not None:
         ctx.log = log
     t0 = time.perf_counter()
-    wall_notes()  # forget earlier reproductions' runs
+    scene_notes()  # forget earlier reproductions' runs
     res = robot.reproduce(ctx)
     wall = time.perf_counter() - t0
-    notes = wall_notes()
+    notes = scene_notes()
     for note in notes:
         ctx.log(f"{name}: note: {note}")
     from magsoro.io.files import atomic_write_json

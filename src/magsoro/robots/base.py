@@ -89,17 +89,17 @@ def scenes_dir() -> Path:
 
 
 # -- scenes -----------------------------------------------------------------------------------------------
-#: the notes lists (Simulation.notes) of the simulations made by :func:`simulation` since the last
-#: :func:`wall_notes` call
+#: the scene-notes lists (Simulation.scene_notes) of the simulations made by :func:`simulation` since the last
+#: :func:`scene_notes` call
 _run_notes: list = []
 
 
-def wall_notes() -> list[str]:
-    """The domain-wall notes (Simulation.check_wall_reach) of the simulations :func:`simulation` made since the last
-    call, without repeats; the record is then cleared."""
+def scene_notes() -> list[str]:
+    """The scene notes (a body in the domain walls' reach, a body the particle lattice rounds; Simulation.scene_notes)
+    of the simulations :func:`simulation` made since the last call, without repeats; the record is then cleared."""
     out = []
     for notes in _run_notes:
-        out += [n for n in notes if "reached the domain wall" in n and n not in out]
+        out += [n for n in notes if n not in out]
     _run_notes.clear()
     return out
 
@@ -130,7 +130,7 @@ def simulation(name: str, data: dict | None = None, preview: bool = False, devic
     from magsoro.simulation import Simulation
 
     sim = Simulation(scene(name, data, preview), device=device, source=str(scenes_dir() / f"{name}.toml"))
-    _run_notes.append(sim.notes)  # reproduce() reports the domain-wall notes of every run it made
+    _run_notes.append(sim.scene_notes)  # reproduce() reports the scene notes of every run it made
     return sim
 
 
