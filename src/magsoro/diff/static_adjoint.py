@@ -99,6 +99,10 @@ class StaticProblem:
             check_supported(self.sim)
         except SimulationError as exc:
             raise MagsoroError(f"{self.scene_path}: --static: {exc}") from None
+        if self.sim.solver.interaction is not None:
+            # the adjoint solves with the assembled tangent, which leaves out the bodies' own field
+            raise MagsoroError(f"{self.scene_path}: simulation.magnetic_interaction: optimize --static has no adjoint of "
+                               f"the bodies' own field yet; set it to 'none', or optimize by the dynamics (without --static)")
         self.scene, self.built = scene, self.sim.built
         self.raw = _absolute_paths(read_toml_file(self.scene_path, MagsoroError, "scene file"), self.scene_path.parent.resolve())
         self.levels = [float(v) for v in (levels if levels is not None else scene.static.levels)]

@@ -30,6 +30,11 @@ a body that starts there is refused, and a level whose equilibrium reaches that 
 (:meth:`StaticSolver.wall_crossing`): the dynamics would have stopped the body at the wall, which the static
 solver does not model.
 
+The bodies' own field (simulation.magnetic_interaction = "dipole") enters the residual and ramps with gravity_level;
+its dense part of the Jacobian is not assembled: Newton's steps come from GMRES on finite-difference products of
+the residual, preconditioned by the assembled tangent (:meth:`StaticSolver._solve_linear`); no stability check or
+arc length with it.
+
 Limit points: with ``[static] arc_length = true`` (scenes without colliders), and wherever load increments fail,
 the path from one level to the next is followed by arc length (:meth:`StaticSolver._arc_length`): a snap-through
 is passed and the field levels where the path turned back are reported. The stability check above also reads
@@ -85,6 +90,11 @@ ARC_MIN = 1e-4
 LIGHT = {2: 0.0, 3: 1.0e-2}
 #: the tangent's diagonal shift (relative to its median diagonal) that regularises any null mode left
 NULL_SHIFT = 1.0e-12
+#: with the bodies' own field: the finite-difference step of the Jacobian's products (cells: the largest node
+#: displacement of the probe), the Krylov solver's relative tolerance and its restarts (_solve_linear)
+FD_CELLS = 1.0e-6
+KRYLOV_RTOL = 1.0e-4
+KRYLOV_RESTARTS = 4
 
 
 def _odd_negative_count(K, lu=None) -> bool:
@@ -300,9 +310,6 @@ def check_supported(sim) -> None:
     if solver._contact:
         raise SimulationError("the static solver has no contact between bodies yet; give the scene one body (or "
                               "contact.friction = 'sticky')")
-    if solver.interaction is not None:
-        raise SimulationError("the static solver has no magnetic interaction between bodies yet "
-                              "(simulation.magnetic_interaction = 'none', or use --equilibrium)")
     if np.any(sim.model.host["magnetization_follows"] != 0):
         # its tangent takes the magnetic stress and the moment as Zhao's law has them (F Br); the R law's dP/dF is not in it
         raise SimulationError("the static solver has no magnetization_follows = 'R' yet (its tangent carries the moment "
@@ -325,6 +332,9 @@ class StaticSolver:
         if self.arc_length and sim.control.colliders:
             raise SimulationError("static.arc_length = true follows the equilibrium path of scenes without colliders; "
                                   "remove the colliders or set static.arc_length = false")
+        if self.arc_length and sim.solver.interaction is not None:
+            raise SimulationError("static.arc_length = true follows the equilibrium path of scenes without the bodies' "
+                                  "own field; set simulation.magnetic_interaction = 'none' or static.arc_length = false")
         solver, model = sim.solver, sim.model
         st = solver.settings
         check_supported(sim)
@@ -411,9 +421,15 @@ class StaticSolver:
                     Bn, Gn = B.numpy(), G.numpy()
                     B.assign(Bn * field_level)
                     G.assign(Gn * field_level)
-            if solver.interaction is not None:  # the bodies' own field is not scaled: it is not a load
-                solver.interaction.refresh(self.x, self.F)
-                solver.interaction.add_to(B, G, keep=True)
+            if solver.interaction is not None:
+                # the bodies' own field is not scaled by the field level: it is on at every level, like gravity,
+                # and ramps with gravity_level from the unloaded state (so load increments can take it in steps)
+                inter = solver.interaction
+                inter.refresh(self.x, self.F)
+                if gravity_level != 1.0:
+                    inter.B.assign(inter.B.numpy() * gravity_level)
+                    inter.G.assign(inter.G.numpy() * gravity_level)
+                inter.add_to(B, G, keep=True)
         applied.B, applied.G = solver.B_particle, solver.G_particle
         solver.grid_p.zero_()
         solver.grid_m.zero_()
@@ -589,7 +605,7 @@ class StaticSolver:
         - with a non-uniform field, the magnetic stress's change with position, V0 / mu0 G_ab Br_c g_i^c w_j,
           and the gradient force f = G^T m (m = F Br V0 / mu0)'s change with F and with position, w_i (G_ba
           Br_c V0 / mu0 g_j^c + d(G_ba)/dx_e m_b w_j).
-        The bodies' own field is left out of the tangent (it enters the residual)."""
+        The bodies' own field is left out of the tangent (it enters the residual; :meth:`_solve_linear`)."""
         from scipy import sparse
 
         self._scatter(u_nodes, field_level, gravity_level)  # x and F at u
@@ -686,9 +702,10 @@ class StaticSolver:
             J = self.tangent(u_nodes, field_level, gravity_level)
             self._last_tangent = J  # the stability check after convergence reuses it (one step from the solution)
             try:
-                du = splu(J).solve(-r)
+                lu = splu(J)
             except RuntimeError as exc:  # singular tangent
                 return u_nodes, False, it, norm, f"singular tangent ({exc})"
+            du = lu.solve(-r) if self.solver.interaction is None else self._solve_linear(lu, u_nodes, r, field_level, gravity_level)
             step = self._expand(du)
             # Non-monotone line search: the full step may raise |R| for an iteration (the nodes at the bodies'
             # edges carry little stiffness, and their forces answer the first step nonlinearly), after which
@@ -729,6 +746,31 @@ class StaticSolver:
             else:
                 return u_nodes, False, it + 1, norm, "the line search found no step that lowers the residual"
         return u_nodes, False, self.max_iterations, norm, f"no convergence in {self.max_iterations} Newton iterations"
+
+    def _solve_linear(self, lu, u_nodes, r, field_level, gravity_level):
+        """The Newton step du with the bodies' own field: J du = -r for the whole Jacobian J, whose part from the
+        field of every particle on every other is dense and left out of the assembled tangent. GMRES on the
+        products J v = (R(u + h v) - R(u)) / h (a residual evaluation each, the interaction refreshed; h moves the
+        farthest node FD_CELLS cells), preconditioned by the assembled tangent's LU ``lu`` and started from its
+        step. Where the bodies' field is weak the preconditioned system is near the identity and GMRES takes a few
+        products."""
+        from scipy.sparse.linalg import LinearOperator, gmres
+
+        n = r.size
+
+        def product(v):
+            step = self._expand(v)
+            biggest = float(np.abs(step).max())
+            if biggest == 0.0:
+                return np.zeros(n)
+            h = FD_CELLS * self.model.dx / biggest
+            return (self._reduce(self._scatter(u_nodes + h * step, field_level, gravity_level)) - r) / h
+
+        A = LinearOperator((n, n), matvec=product, dtype=np.float64)
+        M = LinearOperator((n, n), matvec=lu.solve, dtype=np.float64)
+        du, _ = gmres(A, -r, x0=lu.solve(-r), M=M, rtol=KRYLOV_RTOL, atol=0.0, restart=20, maxiter=KRYLOV_RESTARTS)
+        self._scatter(u_nodes, field_level, gravity_level)  # the state at u again (the products moved it)
+        return du
 
     def _slope_search(self, u_nodes, step, du, g0, first, field_level, gravity_level):
         """Line search on the energy along a downhill Newton step (the loads are conservative, so R = -dPi/du):
@@ -971,7 +1013,7 @@ class StaticSolver:
             iterations, increments = iterations + its, increments + inc
             if status == "done":
                 break
-            if status == "failed" and self.contact is None:
+            if status == "failed" and self.contact is None and self.solver.interaction is None:
                 # a limit point: no equilibrium near the path past it under load control; follow the path by arc
                 # length until it reaches the level again (beyond a snap-through)
                 here = (self.field_level, self.gravity_level)
@@ -1016,6 +1058,8 @@ class StaticSolver:
         converged step away); (None, None) when the eigensolver does not converge."""
         from scipy.sparse.linalg import ArpackNoConvergence, LinearOperator, eigsh, splu
 
+        if self.solver.interaction is not None:
+            return None, None  # the bodies' own field's stiffness is not in the assembled tangent: not checked
         K = -(tangent if tangent is not None else self.tangent(self.u_nodes, self.field_level, self.gravity_level))
         K = (0.5 * (K + K.T)).tocsc()
         try:
