@@ -82,11 +82,12 @@ def test_a_body_the_lattice_rounds_is_noted(tmp_path):
 def test_reproduce_collects_the_scene_notes_of_its_runs():
     """magsoro reproduce writes the scene notes of the simulations a robot made into result.json: continuum_discrete's
     3 mm rods at particle spacing 0.5 mm fill 32 of the 36 sites of their section's square, 13.2 % more than the
-    circle (a documented coarse robot); the record is cleared once read."""
+    circle (a documented coarse robot), one note for the eight rods; the record is cleared once read."""
     from magsoro.robots.base import scene_notes, simulation
 
     scene_notes()
     simulation("continuum_discrete", preview=True)
     notes = scene_notes()
-    assert len(notes) == 8 and all("fill 13.2 % more than its shape's volume" in n for n in notes)
+    assert len(notes) == 1 and "their particles fill 13.2 % more than their shapes' volumes" in notes[0]
+    assert notes[0].startswith("bodies 'corrected_plain1', 'corrected_mag1', ") and "'theoretical_mag2'" in notes[0]
     assert scene_notes() == []

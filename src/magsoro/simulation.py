@@ -337,24 +337,28 @@ class Simulation:
         return new
 
     def _note_lattice_fill(self) -> None:
-        """Note each body whose particles fill a volume more than LATTICE_FILL_NOTE away from its shape's: the
+        """Note the bodies whose particles fill a volume more than LATTICE_FILL_NOTE away from their shape's: the
         particles sit on one lattice (spacing dx / particles_per_cell), so a size that is not a whole number of
-        spacings is rounded (the scene's 0.84 mm beam at spacing 0.1 mm is 8 rows, 0.8 mm), and the engine simulates
-        the rounded body (a beam's bending stiffness goes with the cube of its thickness). Particles given up to a
-        body of higher priority are counted as filled."""
+        spacings is rounded (a 0.84 mm beam at spacing 0.1 mm is 8 rows, 0.8 mm), and the engine simulates the
+        rounded body (a beam's bending stiffness goes with the cube of its thickness). Particles given up to a body
+        of higher priority are counted as filled. Bodies rounded by the same amount share one note."""
         sim = self.scene.simulation
         h = sim.dx / sim.particles_per_cell
+        groups: dict = {}
         for r in self.built.fill_report:
             shape, n = r.get("shape_volume") or 0.0, r["particles"]
             if shape <= 0.0 or n == 0:
                 continue
-            filled = r["filled_volume"] * (n + r.get("overlap_removed", 0)) / n
-            change = filled / shape - 1.0
+            change = r["filled_volume"] * (n + r.get("overlap_removed", 0)) / n / shape - 1.0
             if abs(change) > LATTICE_FILL_NOTE:
-                self._note(scene=True, text=f"body '{r['body']}': its particles fill {100 * abs(change):.1f} % {'more' if change > 0 else 'less'} "
-                           f"than its shape's volume (particle spacing {h:g} m = simulation.dx / particles_per_cell): "
-                           f"sizes that are not whole numbers of spacings are rounded, and the engine simulates the "
-                           f"rounded body (make them whole numbers of spacings, or refine simulation.dx)")
+                groups.setdefault(f"{100 * abs(change):.1f} % {'more' if change > 0 else 'less'}", []).append(r["body"])
+        for amount, names in groups.items():
+            who = (f"body '{names[0]}': its particles fill {amount} than its shape's volume" if len(names) == 1 else
+                   f"bodies {', '.join(repr(n) for n in names)}: their particles fill {amount} than their shapes' volumes")
+            self._note(scene=True, text=f"{who} (particle spacing {h:g} m = simulation.dx / particles_per_cell): sizes "
+                                        f"that are not whole numbers of spacings are rounded, and the engine simulates "
+                                        f"the rounded body (make them whole numbers of spacings, or refine "
+                                        f"simulation.dx)")
 
     def _note(self, text: str, scene: bool = False) -> None:
         if text not in self.notes:
