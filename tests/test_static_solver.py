@@ -89,7 +89,8 @@ def test_a_level_reaching_the_domain_walls_is_not_converged(tmp_path):
     equilibrium that reaches that band is not an answer of the dynamics. With the domain's top at 12 mm (where the
     scene had it until the bent tip was found resting on the wall, 15 % of the length from its free shape) level
     0.125 converges, level 1 is reported not converged with the wall and its key named, and the state stays the
-    last converged level's. A body that starts in the band is refused."""
+    last converged level's. A wall whose band a body starts in is modelled instead, as a half-space collider at
+    the band's edge with the walls' contact law."""
     from magsoro.errors import SimulationError
     from magsoro.mpm.static import StaticSolver
     from magsoro.scene import load_scene
@@ -106,9 +107,18 @@ def test_a_level_reaching_the_domain_walls_is_not_converged(tmp_path):
     assert "domain_hi[1]" in res.levels[1].wall_crossing and "y = 0.012 m" in res.message
     assert "static.max_iterations" not in res.message  # the generic advice does not apply
     assert len(seen) == 1 and sim.probe_values()["tip_y"] == pytest.approx(seen[0], abs=1e-12)  # 4.2 mm, not 13.2
-    scene.simulation.domain_hi = [0.0204, 0.012]  # the tip's nodes start within two cells of x = 20.4 mm
-    with pytest.raises(SimulationError, match=r"starts within two cells of the domain wall at x = 0.0204 m \(simulation.domain_hi\[0\]\)"):
-        StaticSolver(Simulation(scene), scene.simulation.duration)
+    scene.simulation.domain_hi = [0.0204, 0.022]  # the tip's nodes start within two cells of x = 20.4 mm
+    sim = Simulation(scene)
+    st = StaticSolver(sim, scene.simulation.duration)
+    assert [(c.wall, c.mode) for c in st.walls] == [((0, "hi"), "slip")]  # that wall is modelled, as a collider
+    assert st.contact is not None and st.wall_crossing(st.u_nodes) is None
+    # the beam bends away from that wall: the answer of the scene's own domain (static (12.0715, 13.1742) mm)
+    assert st.solve_level(1.0).converged
+    st.write_state()
+    tip = sim.probe_values()
+    assert tip["tip_x"] == pytest.approx(0.0120715, abs=2e-7) and tip["tip_y"] == pytest.approx(0.0131742, abs=2e-7)
+    with pytest.raises(SimulationError, match=r"static.arc_length = true .* starts within two cells of a domain wall"):
+        StaticSolver(Simulation(scene), scene.simulation.duration, arc_length=True)
 
 
 def test_quadratic_convergence():

@@ -24,11 +24,11 @@ along that mode (sized to move the level's stable start by BRANCH_KICKS cells, l
 leaves the body on the stable branch, and reports the level as buckled.
 
 Rigid colliders act at the nodes as the engine's total-Lagrangian form has them, by a penalty with stick and
-Coulomb slip (:mod:`magsoro.mpm.static_contact`; each level reports the penetration left). Not handled yet: domain
-walls, contact between bodies (refused). The engine's walls act on nodes within two cells of the domain's edge;
-a body that starts there is refused, and a level whose equilibrium reaches that band is reported as not converged
-(:meth:`StaticSolver.wall_crossing`): the dynamics would have stopped the body at the wall, which the static
-solver does not model.
+Coulomb slip (:mod:`magsoro.mpm.static_contact`; each level reports the penetration left). Not handled yet:
+contact between bodies (refused). The engine's walls act on nodes within two cells of the domain's edge: a
+wall whose band holds a node at the start acts here as a half-space collider at the band's edge with the walls'
+contact law (:meth:`StaticSolver._starting_walls`); for the others, a level whose equilibrium reaches the band is
+reported as not converged (:meth:`StaticSolver.wall_crossing`): the dynamics would have stopped the body there.
 
 The bodies' own field (simulation.magnetic_interaction = "dipole") enters the residual and ramps with gravity_level;
 its dense part of the Jacobian is not assembled: Newton's steps come from GMRES on finite-difference products of
@@ -387,14 +387,18 @@ class StaticSolver:
         self.u_nodes = np.zeros((self.n_nodes, self.dim))
         self.field_level = 0.0
         self.gravity_level = 0.0
-        if sim.control.colliders:
+        # the domain walls a body starts within reach of act as half-space colliders (the engine's walls stop nodes
+        # two cells inside the domain's edge); the others are watched (wall_crossing)
+        self.walls = self._starting_walls()
+        colliders = list(sim.control.colliders) + self.walls
+        if colliders:
             from magsoro.mpm.static_contact import ColliderPenalty
 
-            self.contact = ColliderPenalty(self, sim.control.colliders, self.t, st.plane_z, st.depth)
-        start = self.wall_crossing(self.u_nodes)
-        if start is not None:
-            raise SimulationError(f"the body starts {start}; the static solver has no domain walls: move the body "
-                                  f"away from the domain's edge or enlarge simulation.domain_lo / domain_hi")
+            self.contact = ColliderPenalty(self, colliders, self.t, st.plane_z, st.depth)
+        if self.arc_length and self.walls:
+            raise SimulationError("static.arc_length = true follows the equilibrium path of scenes without colliders, "
+                                  "and a body starts within two cells of a domain wall (which then acts as one); "
+                                  "enlarge simulation.domain_lo / domain_hi or set static.arc_length = false")
 
     # -- residual -----------------------------------------------------------------------------------------
     def _place(self, u_nodes: np.ndarray) -> None:
@@ -449,11 +453,9 @@ class StaticSolver:
         """Out-of-balance force on the unknowns (the free nodes' forces gathered by the slaving), flat."""
         return self._reduce(self._scatter(u_nodes, field_level, gravity_level))
 
-    def wall_crossing(self, u_nodes: np.ndarray) -> str | None:
-        """Where the displacement ``u_nodes`` puts a free node carrying mass into the band of the domain walls (the
-        engine's walls stop a node whose position, its reference plus the mass-weighted displacement of its
-        particles, is within two cells of the domain's edge; :mod:`magsoro.mpm.grid`), as a phrase naming the wall
-        and its scene key; None when no node is there."""
+    def _wall_positions(self, u_nodes: np.ndarray) -> np.ndarray:
+        """Where the engine's walls see the free nodes carrying mass at ``u_nodes``: reference position plus the
+        mass-weighted displacement of their particles (:mod:`magsoro.mpm.grid`), (n_free_with_mass, dim)."""
         model, dim, dx = self.model, self.dim, float(self.model.dx)
         nodes, w, _ = self._stencil()
         X = model.host["positions"]
@@ -467,15 +469,51 @@ class StaticSolver:
         held = self.solver._held.numpy()[: self.n_nodes] != 0
         free = np.flatnonzero((mass > 0) & ~held)
         ref = (model.domain_lo + self.solver.org * dx) + self.coords[free] * dx
-        pos = ref + moved[free] / mass[free, None]
-        lo = np.asarray(model.domain_lo, dtype=np.float64)[:dim] + 2.0 * dx
-        hi = np.asarray(model.domain_hi, dtype=np.float64)[:dim] - 2.0 * dx
+        return ref + moved[free] / mass[free, None]
+
+    def _wall_bands(self):
+        """(axis, side 'lo'/'hi', the band's inner edge, the domain's face) of each domain wall."""
+        dim, dx = self.dim, float(self.model.dx)
+        lo = np.asarray(self.model.domain_lo, dtype=np.float64)[:dim]
+        hi = np.asarray(self.model.domain_hi, dtype=np.float64)[:dim]
+        return [w for a in range(dim) for w in ((a, "lo", lo[a] + 2.0 * dx, lo[a]), (a, "hi", hi[a] - 2.0 * dx, hi[a]))]
+
+    def _starting_walls(self) -> list:
+        """Half-space colliders for the domain walls whose band holds a free node at the start: the plane at the
+        band's inner edge less the penalty's skin (so a node touches where the engine's wall stops it), with the
+        walls' contact law (simulation.walls, wall_friction); a node that starts deeper is held where it starts."""
+        from magsoro.mpm.colliders import Collider
+        from magsoro.mpm.static_contact import SKIN_CELLS
+
+        pos = self._wall_positions(self.u_nodes)
+        st = self.solver.settings
+        out = []
+        for a, side, edge, _ in self._wall_bands():
+            inside = pos[:, a] < edge if side == "lo" else pos[:, a] > edge
+            if np.any(inside):
+                normal = np.zeros(3)
+                normal[a] = 1.0 if side == "lo" else -1.0
+                point = np.zeros(3)
+                point[a] = edge - normal[a] * SKIN_CELLS * float(self.model.dx)
+                out.append(Collider.half_space(point, normal, mode=st.walls, friction=float(st.wall_friction)))
+                out[-1].wall = (a, side)
+        return out
+
+    def wall_crossing(self, u_nodes: np.ndarray) -> str | None:
+        """Where the displacement ``u_nodes`` puts a free node carrying mass into the band of a domain wall that the
+        solver does not model (the engine's walls stop a node within two cells of the domain's edge; walls a body
+        starts in are modelled, :meth:`_starting_walls`), as a phrase naming the wall and its scene key; None
+        when no node is there."""
+        pos = self._wall_positions(u_nodes)
+        modelled = {getattr(c, "wall", None) for c in self.walls}
         axes = "xyz"
-        for a in range(dim):
-            for side, bound, beyond in (("lo", lo[a], pos[:, a] < lo[a]), ("hi", hi[a], pos[:, a] > hi[a])):
-                if np.any(beyond):
-                    return (f"within two cells of the domain wall at {axes[a]} = {bound + (2.0 * dx if side == 'hi' else -2.0 * dx):.6g} m "
-                            f"(simulation.domain_{side}[{a}]), where the engine's walls act")
+        for a, side, edge, face in self._wall_bands():
+            if (a, side) in modelled:
+                continue
+            beyond = pos[:, a] < edge if side == "lo" else pos[:, a] > edge
+            if np.any(beyond):
+                return (f"within two cells of the domain wall at {axes[a]} = {face:.6g} m (simulation.domain_{side}[{a}]), "
+                        f"where the engine's walls act")
         return None
 
     # -- the unknowns -------------------------------------------------------------------------------------
