@@ -91,3 +91,14 @@ def test_reproduce_collects_the_scene_notes_of_its_runs():
     assert len(notes) == 1 and "their particles fill 13.2 % more than their shapes' volumes" in notes[0]
     assert notes[0].startswith("bodies 'corrected_plain1', 'corrected_mag1', ") and "'theoretical_mag2'" in notes[0]
     assert scene_notes() == []
+
+
+def test_run_quiet_keeps_warp_off_stdout(tmp_path):
+    """`magsoro run --quiet` prints nothing on stdout: Warp's start-up banner and its per-module load lines are
+    turned off before Warp starts (they went to stdout even with --quiet)."""
+    path = tmp_path / "b.toml"
+    path.write_text(SCENE.format(y=0.012).replace("duration = 0.03", "duration = 0.002").replace("every = 0.01", "every = 0.001"))
+    run = subprocess.run([sys.executable, "-m", "magsoro", "run", str(path), "--out", str(tmp_path / "o"), "--quiet"],
+                         capture_output=True, text=True)
+    assert run.returncode == 0, run.stderr[-2000:]
+    assert run.stdout == ""

@@ -25,7 +25,7 @@ def register(sub):
                    help="instead of the motion, solve the static equilibria by Newton's method (float64, total-Lagrangian "
                         "form) under the loads at t = duration, the fields scaled by each of [static] levels; writes one "
                         "metrics row and frame per level (first column 'level'); no colliders or contact yet")
-    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.add_argument("--quiet", action="store_true", help="no progress bar, and no Warp start-up banner or kernel-load lines")
     p.set_defaults(func=run)
 
 
@@ -36,6 +36,10 @@ def run(args) -> int:
     from magsoro.scene.load import read_scene_toml
     from magsoro.simulation import Simulation, check_run_length
 
+    if args.quiet:
+        from magsoro.warp_setup import quiet_warp
+
+        quiet_warp()  # before Warp starts: its banner and per-module load lines go to stdout
     if args.device is not None and not (args.device == "cpu" or args.device.startswith("cuda")):
         raise SceneError(f"--device: '{args.device}' is not allowed; use cpu, cuda or cuda:N")
     if args.duration is not None and not (args.duration > 0 and math.isfinite(args.duration)):
