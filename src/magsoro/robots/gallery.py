@@ -19,7 +19,8 @@ docs/robots/NAME`).
 - `magsoro reproduce --list` names them all; `magsoro reproduce NAME` (or `python scenes/NAME/reproduce.py`)
   runs one at full resolution and writes NAME.csv, NAME.png, NAME.gif and result.json.
 - `--preview` runs the coarse settings of the scene's `[preview]` table (each under 3 minutes on a 2-core
-  CPU, except the pentagram's: its crawl runs the whole 200 mm magnet pass, 230 s on one core on 2026-11-26);
+  CPU; the pentagram's crawl runs the whole 200 mm magnet pass, at 400 mm/s instead of 200: 169 s in all on
+  2026-11-26, with the test suite running beside it);
   `magsoro run scenes/NAME.toml --preview --out DIR` shows one run of the scene.
 - `magsoro validate --all` runs every robot's preview with its acceptance checks (cases `robot-NAME`).
 
