@@ -33,7 +33,9 @@ continuum_discrete, continuum_soft and tentacle were redone once their reproduct
 the static solver. Later on 2026-11-26 cross and triangle were re-run in full with their speeds under the moving
 magnet (commits d4e276a and f543fcc; their field sweeps came out as before), and hexahedron, whose result had
 predated "Engine 2.0", at commit d05a375 (974 s on one core; beta at 45 mT 45.9 deg against 46.8 deg with the old
-engine). Engine changes committed after a result was made are not in it.
+engine). Later still, pentagram was re-run once its domain was widened to x = -80 mm (commit 3bd8e1b: a strip had
+come within the walls' reach at -50 mm; crawl +54.45 mm against +54.4, the grip unchanged; 417 s beside the test
+suite). Engine changes committed after a result was made are not in it.
 
 The 3D robots' entries also show a picture and an animation drawn by `magsoro render` from one run of the robot's
 scene (`magsoro run scenes/NAME.toml`): `magsoro reproduce` keeps no particle frames, so that run is separate from
