@@ -124,6 +124,27 @@ def test_run_report_embeds_curves_and_frames(run_dir, tmp_path):
     assert "bodies.beam.material.shear_modulus" in text
 
 
+def test_run_report_lists_the_run_notes(run_dir, tmp_path):
+    """run.json's notes (a body that reached a domain wall, a body the lattice rounds, why steps left the check
+    windows) appear in the report's facts, one row each."""
+    import shutil
+
+    from magsoro.viz import build_report
+
+    copy = tmp_path / "run"
+    shutil.copytree(run_dir, copy)
+    info = json.loads((copy / "run.json").read_text())
+    assert info["notes"] == []
+    note = "body 'beam' reached the domain wall at y = 0.012 m (simulation.domain_hi[1]) by t = 0.04 s"
+    info["notes"] = [note]
+    (copy / "run.json").write_text(json.dumps(info))
+    import html
+
+    text = build_report(copy, tmp_path / "n.html").read_text()
+    assert "<th>note</th>" in text and html.escape(note) in text
+    assert "<th>note</th>" not in build_report(run_dir, tmp_path / "m.html").read_text()
+
+
 def test_run_report_subsamples_particles_and_frames(run_dir, tmp_path):
     from magsoro.viz import build_report
 

@@ -216,6 +216,9 @@ def run_content(run_dir, max_frames: int = MAX_FRAMES, max_particles: int = MAX_
     if isinstance(dt, dict):
         facts[6] = ("time step (s)", ("fixed " if dt.get("fixed") else "automatic, ") + ", ".join(
             f"{k} {_fmt(dt[k])}" for k in ("min", "max", "mean") if dt.get(k) is not None))
+    # what the run met that the scene may not mean (a body in the domain walls' reach, a body the lattice rounds)
+    # and why steps left the check windows: run.json's notes, one row each
+    facts += [("note", n) for n in info.get("notes") or []]
     sweep = info.get("sweep") or {}
     return {
         "kind": "run",
