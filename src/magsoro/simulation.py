@@ -15,6 +15,7 @@ from typing import Callable
 import numpy as np
 
 from magsoro.errors import OutputError, SceneError, SimulationError, Terminated
+from magsoro.mpm.colliders import WALL_CELLS
 from magsoro.mpm.interaction import MagneticInteraction
 from magsoro.mpm.solver import Solver
 from magsoro.mpm.timestep import cfl_time_step
@@ -22,9 +23,9 @@ from magsoro.scene import Scene, load_scene
 from magsoro.scene.build import Built, build
 from magsoro.scene.schema import MAX_RECORDS
 
-#: cells from a domain face within which a particle may be held by that wall: the walls stop nodes within two cells
-#: of the face (magsoro.mpm.grid), and a particle's mass reaches nodes up to 1.5 cells from it
-WALL_REACH_CELLS = 3.5
+#: cells from a domain face within which a particle may be held by that wall: the walls stop nodes within
+#: WALL_CELLS of the face (magsoro.mpm.grid), and a particle's mass reaches nodes up to 1.5 cells from it
+WALL_REACH_CELLS = WALL_CELLS + 1.5
 #: a body whose particles fill more than this fraction more or less than its shape's volume is noted in run.json
 LATTICE_FILL_NOTE = 0.02
 

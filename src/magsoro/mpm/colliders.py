@@ -18,6 +18,10 @@ COLLIDER_STRIDE = wp.constant(24)
 HALF_SPACE, BOX, SPHERE, CYLINDER = 0, 1, 2, 3
 KINDS = {"half_space": HALF_SPACE, "box": BOX, "sphere": SPHERE, "cylinder": CYLINDER}
 MODES = {"sticky": 0, "slip": 1, "friction": 2}
+#: the domain walls act on the nodes within this many cells of the domain's edge (:mod:`magsoro.mpm.grid`'s
+#: ``walls``, which writes it as its literal): the builder keeps bodies out of that band, the static solver models
+#: or watches it, runs note a body that comes within its reach
+WALL_CELLS = 2
 
 
 @wp.func

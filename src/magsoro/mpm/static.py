@@ -52,6 +52,7 @@ import warp as wp
 
 from magsoro.errors import SimulationError
 from magsoro.constants import MU0
+from magsoro.mpm.colliders import WALL_CELLS, Collider
 from magsoro.mpm.p2g import P2G_TOTAL
 from magsoro.mpm.solver import block_struct, bodies_array, contact_grid
 from magsoro.mpm.stencil import host_bspline, make_stencil
@@ -471,32 +472,37 @@ class StaticSolver:
         ref = (model.domain_lo + self.solver.org * dx) + self.coords[free] * dx
         return ref + moved[free] / mass[free, None]
 
-    def _wall_bands(self):
-        """(axis, side 'lo'/'hi', the band's inner edge, the domain's face) of each domain wall."""
+    def _walls_reached(self, u_nodes: np.ndarray) -> list:
+        """The domain walls whose band (WALL_CELLS from the domain's edge, where the engine's walls stop a node)
+        holds a free node carrying mass at ``u_nodes``: (axis, side 'lo'/'hi', the band's inner edge, the domain's
+        face) each."""
         dim, dx = self.dim, float(self.model.dx)
+        pos = self._wall_positions(u_nodes)
         lo = np.asarray(self.model.domain_lo, dtype=np.float64)[:dim]
         hi = np.asarray(self.model.domain_hi, dtype=np.float64)[:dim]
-        return [w for a in range(dim) for w in ((a, "lo", lo[a] + 2.0 * dx, lo[a]), (a, "hi", hi[a] - 2.0 * dx, hi[a]))]
+        out = []
+        for a in range(dim):
+            if np.any(pos[:, a] < lo[a] + WALL_CELLS * dx):
+                out.append((a, "lo", lo[a] + WALL_CELLS * dx, lo[a]))
+            if np.any(pos[:, a] > hi[a] - WALL_CELLS * dx):
+                out.append((a, "hi", hi[a] - WALL_CELLS * dx, hi[a]))
+        return out
 
     def _starting_walls(self) -> list:
         """Half-space colliders for the domain walls whose band holds a free node at the start: the plane at the
         band's inner edge less the penalty's skin (so a node touches where the engine's wall stops it), with the
         walls' contact law (simulation.walls, wall_friction); a node that starts deeper is held where it starts."""
-        from magsoro.mpm.colliders import Collider
         from magsoro.mpm.static_contact import SKIN_CELLS
 
-        pos = self._wall_positions(self.u_nodes)
         st = self.solver.settings
         out = []
-        for a, side, edge, _ in self._wall_bands():
-            inside = pos[:, a] < edge if side == "lo" else pos[:, a] > edge
-            if np.any(inside):
-                normal = np.zeros(3)
-                normal[a] = 1.0 if side == "lo" else -1.0
-                point = np.zeros(3)
-                point[a] = edge - normal[a] * SKIN_CELLS * float(self.model.dx)
-                out.append(Collider.half_space(point, normal, mode=st.walls, friction=float(st.wall_friction)))
-                out[-1].wall = (a, side)
+        for a, side, edge, _ in self._walls_reached(self.u_nodes):
+            normal = np.zeros(3)
+            normal[a] = 1.0 if side == "lo" else -1.0
+            point = np.zeros(3)
+            point[a] = edge - normal[a] * SKIN_CELLS * float(self.model.dx)
+            out.append(Collider.half_space(point, normal, mode=st.walls, friction=float(st.wall_friction)))
+            out[-1].wall = (a, side)
         return out
 
     def wall_crossing(self, u_nodes: np.ndarray) -> str | None:
@@ -504,15 +510,10 @@ class StaticSolver:
         solver does not model (the engine's walls stop a node within two cells of the domain's edge; walls a body
         starts in are modelled, :meth:`_starting_walls`), as a phrase naming the wall and its scene key; None
         when no node is there."""
-        pos = self._wall_positions(u_nodes)
-        modelled = {getattr(c, "wall", None) for c in self.walls}
-        axes = "xyz"
-        for a, side, edge, face in self._wall_bands():
-            if (a, side) in modelled:
-                continue
-            beyond = pos[:, a] < edge if side == "lo" else pos[:, a] > edge
-            if np.any(beyond):
-                return (f"within two cells of the domain wall at {axes[a]} = {face:.6g} m (simulation.domain_{side}[{a}]), "
+        modelled = {c.wall for c in self.walls}
+        for a, side, _, face in self._walls_reached(u_nodes):
+            if (a, side) not in modelled:
+                return (f"within two cells of the domain wall at {'xyz'[a]} = {face:.6g} m (simulation.domain_{side}[{a}]), "
                         f"where the engine's walls act")
         return None
 

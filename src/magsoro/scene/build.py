@@ -39,7 +39,7 @@ from magsoro.geometry.primitives import (
 )
 from magsoro.materials.library import MaterialLibraryError, get_material, load_library
 from magsoro.mpm.materials import DEFAULT_LAW, FIT_MODEL_LAWS, LAWS, PARAMETER_KEYS, law_of_file_model
-from magsoro.mpm.colliders import Collider
+from magsoro.mpm.colliders import WALL_CELLS, Collider
 from magsoro.mpm.eigenstrain import KeyframeStimulus, SineStimulus, Stimulus
 from magsoro.mpm.prony import prony_problem
 from magsoro.mpm.stencil import MAGNETIZATION_FOLLOWS
@@ -395,7 +395,7 @@ def fill_bodies(scene: Scene, source: str = "scene", magnetization=None) -> Part
             # otherwise allocate terabytes before any check
             blo, bhi = shape.bounds()
             blo, bhi = np.asarray(blo, dtype=np.float64)[:dim], np.asarray(bhi, dtype=np.float64)[:dim]
-            margin = 2 * dx  # walls act on the outer two cells
+            margin = WALL_CELLS * dx  # walls act on the outer two cells
             if np.any(blo < lo + margin) or np.any(bhi > hi - margin):
                 raise SceneError(
                     f"{bsrc}: {bkey}.shape: body '{b.name}' spans {blo.tolist()} to {bhi.tolist()} m, outside the domain "
