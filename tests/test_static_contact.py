@@ -84,14 +84,21 @@ def _sim(tmp_path, text, name="scene.toml"):
     return Simulation(load_scene(path), source=str(path))
 
 
+NODES = """
+[static]
+collider_contact = "nodes"
+"""
+
+
 def test_propped_cantilever_matches_the_engine_settling(tmp_path):
     """A 22 x 2 mm cantilever sags under gravity (free tip 1.50 mm) onto a slip floor 1.2 mm below its underside.
     Static: converges, the tip rests at 0.646 mm; the engine's dynamic settling (Simulation.relax) of the same
     scene: 0.664 mm. The difference is the dynamic contact's leak: the engine stops a node's inward velocity once
     it is within the skin (0.1 cells), but the node's position, the mass-weighted displacement of its particles,
     still creeps in through its neighbours' velocities (measured: 0.037 cells below the skin at rest), while the
-    static solver holds it at the skin. Required: within 0.05 cells at the tip, penetration below 1e-4 cells."""
-    sim = _sim(tmp_path, BEAM)
+    static solver holds it at the skin. Required: within 0.05 cells at the tip, penetration below 1e-4 cells.
+    (static.collider_contact = "nodes": the engine's law; the default, "surface", is checked below.)"""
+    sim = _sim(tmp_path, BEAM + NODES)
     res = sim.solve_static(levels=[1.0])
     assert res.converged, res.message
     level = res.levels[0]
@@ -99,15 +106,39 @@ def test_propped_cantilever_matches_the_engine_settling(tmp_path):
     assert level.penetration is not None and level.penetration < 1e-4 * dx
     static_tip = sim.probe_values()["tip_y"]
     assert -0.7e-3 < static_tip < -0.6e-3  # resting on the floor: the free tip would be at -1.50 mm
-    dyn = _sim(tmp_path, BEAM, "dynamic.toml")
+    dyn = _sim(tmp_path, BEAM + NODES, "dynamic.toml")
     dyn.state.time = 0.5
     for _ in range(2):
         dyn.relax(cfl=0.8)
     assert abs(dyn.probe_values()["tip_y"] - static_tip) < 0.05 * dx
 
 
+@pytest.mark.parametrize("floor_cells", [0.0, 0.4])
+def test_surface_contact_rests_the_body_on_the_collider(tmp_path, floor_cells):
+    """The default law (static.collider_contact = "surface"): each particle is a ball of half its lattice spacing
+    (0.125 mm here), so the same beam sags until its lowest particles' centres are that far above the floor,
+    wherever the floor cuts the grid (moved down 0.4 cells: the beam follows it). Measured: the tip rests at
+    -1.193 mm, 0.53 mm (1.06 cells) below the node law's -0.646 mm: the offset with which the engine's node contact
+    holds a body that moves onto a collider (docs/engine.md)."""
+    dx, r = 5e-4, 1.25e-4
+    floor = -0.0022 - floor_cells * dx
+    sim = _sim(tmp_path, BEAM.replace("point = [0.0, -0.0022]", f"point = [0.0, {floor!r}]"))
+    assert sim.scene.static.collider_contact == "surface"
+    res = sim.solve_static(levels=[1.0])
+    assert res.converged, res.message
+    assert res.levels[0].penetration < 1e-4 * dx
+    lowest = float(sim.state.x.numpy()[:, 1].min())
+    assert lowest - floor == pytest.approx(r, abs=1e-3 * dx)
+    tip = sim.probe_values()["tip_y"]
+    if floor_cells == 0.0:
+        assert -1.25e-3 < tip < -1.15e-3  # the node law: -0.646 mm
+    else:  # still on the floor, not yet at the free tip's -1.50 mm
+        assert -1.45e-3 < tip < -1.2e-3
+
+
+@pytest.mark.parametrize("law", ["surface", "nodes"])
 @pytest.mark.parametrize("angle", [0.0, 25.0])
-def test_block_rests_inside_the_friction_cone(tmp_path, angle):
+def test_block_rests_inside_the_friction_cone(tmp_path, angle, law):
     """A free 4 x 2 mm block on a friction floor (mu = 0.7) under gravity tilted by ``angle``: an equilibrium,
     the floor's force equal and opposite to the weight (to the solver's tolerance, 1e-8), its tangential part
     tan(angle) of the normal one (inside the cone: tan 25 = 0.47 < 0.7)."""
@@ -116,7 +147,7 @@ def test_block_rests_inside_the_friction_cone(tmp_path, angle):
     sim = _sim(tmp_path, BLOCK.format(gx=gx, gy=gy, mu=0.7))
     from magsoro.mpm.static import StaticSolver
 
-    st = StaticSolver(sim, 0.1)
+    st = StaticSolver(sim, 0.1, collider_contact=law)
     level = st.solve_level(1.0)
     assert level.converged, level.message
     reaction = st.contact.forces(st.u_nodes).sum(axis=0)

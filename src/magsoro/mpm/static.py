@@ -326,8 +326,11 @@ class StaticSolver:
     """Newton solver for the equilibria of a :class:`magsoro.simulation.Simulation` built in the total-Lagrangian
     form without contact or colliders. Loads: the fields at time ``t`` scaled by a level, gravity in full."""
 
-    def __init__(self, sim, t: float, tolerance: float = 1e-8, max_iterations: int = 40, arc_length: bool = False):
+    def __init__(self, sim, t: float, tolerance: float = 1e-8, max_iterations: int = 40, arc_length: bool = False,
+                 collider_contact: str | None = None):
         self.sim, self.t = sim, float(t)
+        # where the scene's colliders meet the bodies (static.collider_contact): 'surface' (the particles) or 'nodes'
+        self.collider_contact = sim.scene.static.collider_contact if collider_contact is None else collider_contact
         self.tolerance, self.max_iterations = float(tolerance), int(max_iterations)
         self.arc_length = bool(arc_length)
         if self.arc_length and sim.control.colliders:
@@ -391,11 +394,15 @@ class StaticSolver:
         # the domain walls a body starts within reach of act as half-space colliders (the engine's walls stop nodes
         # two cells inside the domain's edge); the others are watched (wall_crossing)
         self.walls = self._starting_walls()
-        colliders = list(sim.control.colliders) + self.walls
-        if colliders:
-            from magsoro.mpm.static_contact import ColliderPenalty
+        if list(sim.control.colliders) or self.walls:
+            from magsoro.mpm.static_contact import ColliderPenalty, Contacts
 
-            self.contact = ColliderPenalty(self, colliders, self.t, st.plane_z, st.depth)
+            # the scene's colliders meet the bodies' surface (the particles) unless static.collider_contact = 'nodes';
+            # the walls act where the engine's do (the nodes)
+            points = {"surface": "particles", "nodes": "nodes"}[self.collider_contact]
+            sets = [(list(sim.control.colliders), points), (self.walls, "nodes")]
+            self.contact = Contacts([ColliderPenalty(self, cs, self.t, st.plane_z, st.depth, points=kind)
+                                     for cs, kind in sets if cs])
         if self.arc_length and self.walls:
             raise SimulationError("static.arc_length = true follows the equilibrium path of scenes without colliders, "
                                   "and a body starts within two cells of a domain wall (which then acts as one); "

@@ -1,14 +1,26 @@
-"""Rigid colliders in the quasi-static solver (:mod:`magsoro.mpm.static`): node penalty with stick and Coulomb slip.
+"""Rigid colliders in the quasi-static solver (:mod:`magsoro.mpm.static`): penalty with stick and Coulomb slip.
 
-Where the engine's total-Lagrangian form meets a collider (:mod:`magsoro.mpm.grid`) the static solver does too: at
-the grid nodes, each at its reference position plus the mass-weighted displacement of its particles,
-x~_i = X_i + sum_p m_p w_ip (x_p - X_p) / m_i, which is linear in the node unknowns, x~ = X + W u with
-W_ij = sum_p m_p w_ip w_jp / m_i. A node is in contact when its signed distance phi(x~_i) to the collider (at
-the solve's time) is below the engine's skin s (0.1 cells).
+Two sets of contact points, both linear in the node unknowns u (x = X + W u):
+
+- ``"particles"`` (scene key static.collider_contact = "surface", the default): the bodies' surface. Each particle,
+  at x_p = X_p + sum_i w_ip u_i as the total form places it, is a ball of half its lattice spacing h_p
+  (h_p^dim = its volume; 2D: its area), and touches a collider when its centre comes within h_p / 2 of it, so a
+  body rests with its surface on the collider's wherever the collider cuts the grid.
+- ``"nodes"`` (static.collider_contact = "nodes"; always for the domain walls): where the engine's
+  total-Lagrangian form meets a collider (:mod:`magsoro.mpm.grid`): the grid nodes, each at its reference position
+  plus the mass-weighted displacement of its particles, x~_i = X_i + sum_p m_p w_ip (x_p - X_p) / m_i, so
+  W_ij = sum_p m_p w_ip w_jp / m_i, in contact below the engine's skin (0.1 cells). A node carrying mass lies up to
+  about a cell outside its body, so a body that moves onto a collider stops about a cell off it, as it does in a
+  dynamic run (and a pin a cell or two across acts fatter by about that much; docs/engine.md).
+
+A point's level is its reach (h_p / 2, or the skin), or its signed distance at the start when it starts closer (the
+engine stops a node's inward motion there; it does not push it out). In what follows "node" stands for either kind
+of point.
 
 The constraint phi >= s is imposed by a penalty: a node in contact is pushed out along the collider's normal n with
-f_n = k (s - phi) n, k = PENALTY x (K + 4G/3)_max x dx^(dim-2) (2D: times the scene's depth, the node forces'
-thickness): per cell, PENALTY times the stiffest material's P-wave modulus. The penetration left at equilibrium is
+f_n = k (s - phi) n (s the level), k = PENALTY x (K + 4G/3)_max x dx^(dim-2) (2D: times the scene's depth, the node
+forces' thickness): per cell, PENALTY times the stiffest material's P-wave modulus; a particle's k is the same per
+unit area, k (h_p / dx)^(dim-1). The penetration left at equilibrium is
 f_n / k, so about p / (PENALTY (K + 4G/3)) cells for a contact pressure p: 1e-3 cells for p = 1 % of the P-wave
 modulus. Every level reports the largest penetration (m) it left.
 
@@ -37,6 +49,9 @@ SKIN_CELLS = 0.1
 SLIP_CELLS = 5e-3
 #: a Newton step is cut so that no node ends deeper than this (cells) past its contact level
 STEP_DEPTH = 0.25
+#: a point touches from this far (cells) above its level: a body placed on a collider (its lowest particles half a
+#: spacing above it, as the builder puts them) touches it despite rounding in its positions
+TOUCH_CELLS = 1e-9
 #: a held node pulling by more than this (cells out of its level) at a converged state leaves the active set
 RELEASE = 1e-6
 
@@ -44,29 +59,46 @@ RELEASE = 1e-6
 class ColliderPenalty:
     """The colliders' node forces and their tangent for a :class:`~magsoro.mpm.static.StaticSolver`."""
 
-    def __init__(self, static, colliders, t: float, plane_z: float = 0.0, depth: float = 1.0):
+    def __init__(self, static, colliders, t: float, plane_z: float = 0.0, depth: float = 1.0, points: str = "nodes"):
         model = static.model
         self.static, self.colliders, self.t = static, list(colliders), float(t)
         self.dim, self.dx = model.dim, float(model.dx)
         self.plane_z = float(plane_z)
-        self.skin = SKIN_CELLS * self.dx
+        self.points = points
         self.slip = SLIP_CELLS * self.dx
+        self.touch = TOUCH_CELLS * self.dx
         h = model.host
         p_wave = float(np.max(h["bulk_modulus"] + 4.0 / 3.0 * h["shear_modulus"]))
-        self.k = PENALTY * p_wave * self.dx ** (self.dim - 2) * (depth if self.dim == 2 else 1.0)
+        thickness = depth if self.dim == 2 else 1.0
         nodes, w, _ = static._stencil()
         n_nodes, n = static.n_nodes, model.n_particles
         P = sparse.csr_matrix((w.ravel(), (np.repeat(np.arange(n), nodes.shape[1]), nodes.ravel())), shape=(n, n_nodes))
-        mass = np.bincount(nodes.ravel(), weights=(w * h["mass"][:, None]).ravel(), minlength=n_nodes)
-        self.touchable = np.flatnonzero(mass > 0)
-        inv = np.zeros(n_nodes)
-        inv[self.touchable] = 1.0 / mass[self.touchable]
-        self.W = (sparse.diags(inv) @ P.T @ sparse.diags(h["mass"]) @ P).tocsr()  # x~ = X + W u
-        self.X = (model.domain_lo + static.solver.org * self.dx) + static.coords * self.dx  # node reference positions
-        # the level each node is held at: the skin, or where it starts when it starts closer (the engine stops a
+        if points == "nodes":
+            # the engine's law: nodes at X + W u touch from the skin down
+            mass = np.bincount(nodes.ravel(), weights=(w * h["mass"][:, None]).ravel(), minlength=n_nodes)
+            self.touchable = np.flatnonzero(mass > 0)
+            inv = np.zeros(n_nodes)
+            inv[self.touchable] = 1.0 / mass[self.touchable]
+            self.W = (sparse.diags(inv) @ P.T @ sparse.diags(h["mass"]) @ P).tocsr()  # x~ = X + W u
+            self.X = (model.domain_lo + static.solver.org * self.dx) + static.coords * self.dx  # node reference positions
+            reach = np.full(len(self.touchable), SKIN_CELLS * self.dx)
+            self.k = np.full(n_nodes, PENALTY * p_wave * self.dx ** (self.dim - 2) * thickness)
+        elif points == "particles":
+            # the body's surface: each particle (x = X + P u, as the total form places it) is a ball of half its
+            # lattice spacing, touching when its centre comes within that of the collider; the penalty per particle is
+            # the nodes' per unit area (PENALTY (K + 4G/3) / dx) times the particle's share of the surface
+            spacing = (h["volumes"] / thickness) ** (1.0 / self.dim)
+            self.touchable = np.flatnonzero(h["clamped"] == 0)
+            self.W = P.tocsr()
+            self.X = np.asarray(h["positions"], dtype=np.float64)
+            reach = 0.5 * spacing[self.touchable]
+            self.k = PENALTY * p_wave / self.dx * spacing ** (self.dim - 1) * thickness
+        else:
+            raise ValueError(f"points must be 'nodes' or 'particles', not {points!r}")
+        # the level each point is held at: its reach, or where it starts when it starts closer (the engine stops a
         # node's inward motion there; it does not push it out)
         X_touch = self.X[self.touchable]
-        self.level = [np.minimum(self.skin, self._sdf(c, X_touch)[0]) for c in self.colliders]
+        self.level = [np.minimum(reach, self._sdf(c, X_touch)[0]) for c in self.colliders]
         self.anchor = [dict() for _ in self.colliders]  # node -> anchor point relative to the collider's position
         self.sticking = [dict() for _ in self.colliders]  # node -> whether it stuck in the last evaluation
         self._active = []  # per collider: nodes, normals, stiffness blocks of the last evaluation
@@ -119,7 +151,7 @@ class ColliderPenalty:
             phi, nrm = self._sdf(c, xt[nodes])
             mode = MODES[c.mode]
             tied = np.array(list(self.anchor[ci]), dtype=np.int64) if mode != MODES["slip"] else np.zeros(0, np.int64)
-            touching = nodes[phi <= self.level[ci]]
+            touching = nodes[phi <= self.level[ci] + self.touch]
             act = np.union1d(touching, self.held[ci])
             if mode == MODES["sticky"]:
                 act = np.union1d(act, tied)
@@ -133,11 +165,12 @@ class ColliderPenalty:
             gap = self.level[ci][sel] - ph  # > 0: in contact; < 0 on a held node: it pulls until released
             self.penetration = max(self.penetration, float(np.max(gap, initial=0.0)))
             self._gaps[ci] = (act, gap)
-            fn_mag = self.k * gap
+            kc = self.k[act]
+            fn_mag = kc * gap
             force = fn_mag[:, None] * n
-            blocks = self.k * np.einsum("pi,pj->pij", n, n)
+            blocks = kc[:, None, None] * np.einsum("pi,pj->pij", n, n)
             fn_mag = np.maximum(fn_mag, 0.0)
-            inside = gap >= 0.0
+            inside = gap >= -self.touch  # touching (a body placed on the collider: to rounding)
             if mode != MODES["slip"]:
                 origin = self._origin(c)
                 last = self._last_x[act]
@@ -151,8 +184,8 @@ class ColliderPenalty:
                         a = last[j] - (phl[0] - self.level[ci][sel[j]]) * nl[0] - origin
                     d = xt[node] - (a + origin)
                     if mode == MODES["sticky"]:
-                        force[j] = -self.k * d
-                        blocks[j] = self.k * np.eye(self.dim)
+                        force[j] = -kc[j] * d
+                        blocks[j] = kc[j] * np.eye(self.dim)
                         stuck[j] = True
                         continue
                     # regularised Coulomb (module docstring): f_t = -mu f_n P_t d / max(|P_t d|, slip)
@@ -160,13 +193,13 @@ class ColliderPenalty:
                     dt = Pt @ d
                     length = float(np.linalg.norm(dt))
                     mu, fn = c.friction, fn_mag[j]
-                    dfn = self.k * n[j] if gap[j] > 0.0 else np.zeros(self.dim)  # -d f_n / dx
+                    dfn = kc[j] * n[j] if gap[j] > 0.0 else np.zeros(self.dim)  # -d f_n / dx
                     if length <= self.slip:  # sticking: a spring of stiffness mu f_n / slip
                         force[j] -= (mu * fn / self.slip) * dt
                         if fn > 0.0:
                             blocks[j] += (mu * fn / self.slip) * Pt - (mu / self.slip) * np.outer(dt, dfn)
                         else:  # not pressed yet (a node just reaching its level): the tangent takes mu k, so a
-                            blocks[j] += mu * self.k * Pt  # step that will press it is not free to slide
+                            blocks[j] += mu * kc[j] * Pt  # step that will press it is not free to slide
                         stuck[j] = True
                     else:  # sliding: mu f_n against the offset's direction; the cap grows with f_n, the direction turns
                         t_hat = dt / length
@@ -255,7 +288,7 @@ class ColliderPenalty:
                 continue
             origin = self._origin(c)
             phi, nrm = self._sdf(c, xt[self.touchable])
-            touching = set(int(v) for v in self.touchable[phi <= self.level[ci]])
+            touching = set(int(v) for v in self.touchable[phi <= self.level[ci] + self.touch])
             last = self._last_x
             new = {}
             for node in touching | set(self.anchor[ci]):
@@ -280,3 +313,42 @@ class ColliderPenalty:
             self.anchor[ci] = new
         self._last_x = xt
         self._held_accepted = [h.copy() for h in self.held]
+
+
+class Contacts:
+    """Several :class:`ColliderPenalty` sets (the scene's colliders at the particles, the modelled domain walls at
+    the nodes) seen by the static solver as one: forces and tangents add, the active sets move together."""
+
+    def __init__(self, parts):
+        self.parts = list(parts)
+
+    @property
+    def penetration(self) -> float:
+        return max((p.penetration for p in self.parts), default=0.0)
+
+    def forces(self, u_nodes):
+        return sum(p.forces(u_nodes) for p in self.parts)
+
+    def tangent(self, free):
+        return sum(p.tangent(free) for p in self.parts)
+
+    def begin(self) -> None:
+        for p in self.parts:
+            p.begin()
+
+    def commit(self) -> None:
+        for p in self.parts:
+            p.commit()
+
+    def release(self) -> bool:
+        return any([p.release() for p in self.parts])  # a list: every part releases, not only the first that does
+
+    def step_limit(self, u_nodes, step) -> float:
+        return min(p.step_limit(u_nodes, step) for p in self.parts)
+
+    def signature(self) -> tuple:
+        return tuple(s for p in self.parts for s in p.signature())
+
+    def accept(self, u_nodes) -> None:
+        for p in self.parts:
+            p.accept(u_nodes)

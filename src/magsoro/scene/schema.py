@@ -847,6 +847,7 @@ class Static(Strict):
     tolerance: float = Field(default=1e-8, gt=0, lt=1, description="Newton tolerance: largest node force over the out-of-balance force of the undeformed body under the level's load.")
     max_iterations: int = Field(default=40, ge=1, le=1000, description="Newton iterations per load increment before the increment is halved.")
     arc_length: bool = Field(default=False, description="Follow the equilibrium path from each level to the next by arc length (the load factor an unknown) instead of load increments: passes limit points (a snap-through) and reports the field levels where the path turned back (run.json static.levels[].limit_levels). Scenes without colliders. Where load increments fail, the solver takes it anyway.")
+    collider_contact: Literal["surface", "nodes"] = Field(default="surface", description="Where rigid colliders meet the bodies in the static solve: 'surface' (default): each particle is a ball of half its lattice spacing, so the bodies' surface rests on the collider's; 'nodes': the grid nodes at the engine's contact skin, the law of a dynamic run, which holds a body that moves onto a collider about one cell off it (docs/engine.md). Domain walls always act at the nodes.")
 
 
 class Output(Strict):
