@@ -93,7 +93,10 @@ def _check(res):
 
 def test_obstacle_beam_preview(tmp_path):
     """CI robot: the preview passes its checks; the pin stops the obstacle twin well short of the free twin, and
-    the free twin's delta_max / L is within 15 % of the Kirchhoff rod at 2 cells through the thickness."""
+    the free twin's delta_max / L is within 15 % of the Kirchhoff rod at 2 cells through the thickness. The curve
+    is the static solver's, which must match the dynamics' settled shape at 10 mT within 2 % (issue "Quasi-static
+    solver"; measured 0.42 % for the pressed twin: 0.4310 static, 0.4328 dynamic), the beam's surface on the pin
+    (its particles' centres their radius, 0.375 mm, from it; measured 0.374 mm)."""
     from magsoro.robots import reproduce
     from magsoro.robots.base import read_csv
 
@@ -102,7 +105,9 @@ def test_obstacle_beam_preview(tmp_path):
     c = read_csv(res.csv)
     assert c["dmax_over_L_obstacle"][-1] < 0.8 * c["dmax_over_L_free"][-1]
     assert c["dmax_over_L_free"][-1] == pytest.approx(c["rod_dmax_over_L_free"][-1], rel=0.15)
-    assert c["pin_gap_mm"][-1] < 1.5  # it does press on the pin (particle centres within a cell of it)
+    assert 0.3 < c["pin_gap_mm"][-1] < 0.376  # pressed on the pin: the surface law's particle radius, 0.375 mm
+    for s in ("free", "obstacle"):
+        assert c[f"dmax_over_L_{s}"][-1] == pytest.approx(c[f"dynamic_dmax_over_L_{s}"][-1], rel=0.02)
 
 
 @pytest.mark.slow

@@ -176,10 +176,11 @@ def read_csv(path: Path) -> dict[str, np.ndarray]:
 
 def plot_curve(path: Path, x, series: dict[str, np.ndarray], xlabel: str, ylabel: str, title: str,
                paper: dict[str, tuple] | None = None, note: str = "", hlines: dict[str, float] | None = None,
-               legend_loc: str = "best") -> Path:
+               legend_loc: str = "best", points: dict[str, tuple] | None = None) -> Path:
     """PNG of simulated ``series`` (label -> y over ``x``, lines with markers) and the ``paper``'s values
     (label -> (x, y), open markers; ``hlines``: label -> y, dashed lines, for values the paper gives without an
-    x). ``note`` goes under the title."""
+    x). ``points``: label -> (x, y), further simulated values drawn as large diamonds (a check at a few levels).
+    ``note`` goes under the title."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -188,6 +189,8 @@ def plot_curve(path: Path, x, series: dict[str, np.ndarray], xlabel: str, ylabel
     fig, ax = plt.subplots(figsize=(5.2, 3.8), dpi=120)
     for label, y in series.items():
         ax.plot(x, y, "o-", ms=4, label=f"magsoro: {label}")
+    for label, (px, py) in (points or {}).items():
+        ax.plot(px, py, "D", ms=8, mfc="none", mew=1.5, label=f"magsoro: {label}")
     for label, (px, py) in (paper or {}).items():
         ax.plot(px, py, "s", mfc="none", ms=7, mew=1.5, label=f"paper: {label}")
     for k, (label, y) in enumerate((hlines or {}).items()):
