@@ -92,6 +92,11 @@ class Simulation:
         self.probes = self.built.probes
         self._probe_interaction = None  # the bodies' field for field probes (the solver's when it has one)
         self.field_scale = 1.0  # the applied fields' scale in field_at and the field probes: a static solve's level
+        # the colliders' forces (collider_forces): the solver's impulse since _impulse_time, the last value read,
+        # and a static solve's reactions (until the next step)
+        self._impulse_time = self.state.time
+        self._collider_force = np.zeros((len(self.control.colliders), 3))
+        self._static_forces = None
         sim = scene.simulation
         self.fixed_dt = sim.dt
         self._field_peak = self.solver.field_magnitude(self.control)
@@ -150,15 +155,42 @@ class Simulation:
         return cols
 
     def probe_values(self) -> dict[str, float]:
-        """Current value of every probe column (m; field probes: T)."""
+        """Current value of every probe column (m; field probes: T; collider_force probes: N, see
+        :meth:`collider_forces`)."""
         x = self.state.x.numpy()
         sensors = [p for p in self.probes if p.kind == "field"]
         # every field probe from one solve of the bodies' field
         fields = dict(zip((p.name for p in sensors), self.field_at(np.array([p.where(x) for p in sensors])))) if sensors else {}
+        forces = self.collider_forces() if any(p.kind == "collider_force" for p in self.probes) else None
         out = {}
         for p in self.probes:
-            value = fields[p.name] if p.kind == "field" else p.evaluate(x)
+            if p.kind == "collider_force":
+                value = forces[p.collider, : self.dim]
+            else:
+                value = fields[p.name] if p.kind == "field" else p.evaluate(x)
             out.update(zip(p.columns(self.dim), value.tolist()))
+        return out
+
+    def collider_forces(self) -> np.ndarray:
+        """The force (N, (n_colliders, 3); 2D: z = 0, for the scene's depth) the bodies exert on each rigid collider.
+        After steps: the momentum each collider took from the grid nodes it touched since the last call, per unit
+        of simulated time (a mean over the interval; the value of the last call when no time has passed). After
+        :meth:`relax`: the same over its last kinetic-energy cycle. After :meth:`solve_static`: the contact's
+        reaction at the last level solved."""
+        if self._static_forces is not None:
+            return self._static_forces.copy()
+        n = len(self.control.colliders)
+        elapsed = self.state.time - self._impulse_time
+        if n and elapsed > 0.0:
+            self._collider_force = self._take_impulse(n) / elapsed
+            self._impulse_time = self.state.time
+        return self._collider_force.copy()
+
+    def _take_impulse(self, n: int) -> np.ndarray:
+        """The impulse (N s, (n, 3)) the colliders took since it was last taken, and zero it."""
+        imp = self.solver.collider_impulse
+        out = imp.numpy()[: 3 * n].astype(np.float64).reshape(n, 3)
+        imp.zero_()
         return out
 
     def field_at(self, points) -> np.ndarray:
@@ -222,6 +254,7 @@ class Simulation:
             res = solver.solve_level(level)
             out.levels.append(res)
             solver.write_state()
+            self._static_forces = solver.collider_reactions()
             self.field_scale = solver.field_level  # field probes read the applied field of the level solved
             if not res.converged:
                 out.converged = False
@@ -268,6 +301,7 @@ class Simulation:
         previous step reached is outside the domain or not finite: checked at the start of a step), the state
         before it, still in the spare buffer, becomes current again: the state kept after a failure (written as
         last_good.npz) is always one that passed the checks."""
+        self._static_forces = None
         try:
             self.solver.step(self.state, self._spare, self.control, dt)
         except SimulationError as exc:
@@ -511,16 +545,25 @@ class Simulation:
         peak = (0.0, 0.0)
         converged = stalled = levelled = False
         lowest, since_lowest = math.inf, 0
+        n_colliders = len(self.control.colliders)
+        if n_colliders:  # the colliders' forces are measured over the last cycle (collider_forces)
+            self.collider_forces()
+            self._take_impulse(n_colliders)
+        cycle = 0.0  # pseudo-time of the current kinetic-energy cycle, s
         try:
             while steps < max_steps:
                 dt = self._next_dt(math.inf)
                 self._step(dt)
                 self.state.time = t_freeze
                 steps += 1
+                cycle += dt
                 e, v = self.kinetic_energy()
                 if e < prev_e:  # the previous step was a kinetic-energy peak
                     self.state.v.zero_()
                     self.state.C.zero_()
+                    if n_colliders and cycle > 0.0:
+                        self._collider_force = self._take_impulse(n_colliders) / cycle
+                        cycle = 0.0
                     resets += 1
                     peak = (prev_e, prev_v)
                     e_max, v_max = max(e_max, prev_e), max(v_max, prev_v)
@@ -545,6 +588,9 @@ class Simulation:
                     callback(self)
         finally:
             settings.damping, settings.cfl = damping, cfl0
+            if n_colliders:
+                self._take_impulse(n_colliders)  # the cycle's forces were read at its peak
+                self._impulse_time = self.state.time
         wall = _time.perf_counter() - wall0
         if converged:
             msg = f"equilibrium after {steps} steps and {resets} kinetic-energy resets"

@@ -28,7 +28,9 @@ def grid_settings_struct(dim: int, scalar):
         ``node_shift`` = 1 (total Lagrangian): walls and colliders act at the nodes' current positions, the
         reference node plus the mass-weighted displacement of its particles (``node_displacement`` in
         :mod:`magsoro.mpm.p2g`), and a node is in contact with a collider from signed distance
-        ``collider_skin`` (m) down."""
+        ``collider_skin`` (m) down. With ``record_impulse`` = 1 each collider adds the momentum it takes from
+        the nodes it touches, -m dv (N s; three components per collider, 2D z = 0), to ``collider_impulse``: over
+        an interval, the impulse the bodies give it (its force times the interval)."""
 
         dt: scalar
         damping_factor: scalar
@@ -45,6 +47,8 @@ def grid_settings_struct(dim: int, scalar):
         collider_skin: wp.float64
         step: wp.array(dtype=Step)  # with stepped = 1, dt and the damping factor come from step[0] (stencil Step)
         stepped: int
+        collider_impulse: wp.array(dtype=wp.float64)
+        record_impulse: int
 
     return GridSettings
 
@@ -92,8 +96,9 @@ def make_grid(dim: int, scalar, two_fields: bool = False) -> dict:
         return vel
 
     @wp.func
-    def colliders(vel: vec, pos: vec, gs: GridSettings):
-        """Rigid colliders: a node with signed distance <= collider_skin is in contact."""
+    def colliders(vel: vec, pos: vec, m: scalar, gs: GridSettings):
+        """Rigid colliders: a node with signed distance <= collider_skin is in contact (its momentum change
+        recorded with ``gs.record_impulse``)."""
         p3 = wp.vec3d(wp.float64(pos[0]), wp.float64(pos[1]), gs.plane_z)
         if wp.static(dim == 3):
             p3 = wp.vec3d(wp.float64(pos[0]), wp.float64(pos[1]), wp.float64(pos[2]))
@@ -103,7 +108,11 @@ def make_grid(dim: int, scalar, two_fields: bool = False) -> dict:
                 row = c * COLLIDER_STRIDE
                 mode = int(gs.colliders[row + 1])
                 mu = scalar(gs.colliders[row + 2])
+                before = vel
                 vel = project(vel, inplane(v3(cvel)), inplane(v3(nrm)), mode, mu)
+                if gs.record_impulse != 0:
+                    for a in range(dim):
+                        wp.atomic_add(gs.collider_impulse, 3 * c + a, wp.float64(m * (before[a] - vel[a])))
         return vel
 
     @wp.func
@@ -121,7 +130,7 @@ def make_grid(dim: int, scalar, two_fields: bool = False) -> dict:
         # from the approaching normal velocity, which a slip wall applied first would have removed (a block on
         # such a floor slid as if frictionless)
         if gs.n_colliders > 0:
-            vel = colliders(vel, pos, gs)
+            vel = colliders(vel, pos, m, gs)
         vel = walls(vel, pos, gs)
         return vel
 

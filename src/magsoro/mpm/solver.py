@@ -92,11 +92,12 @@ COLLIDER_SKIN = 0.1  # cells: total-Lagrangian nodes touch a collider from this 
 
 
 def grid_settings(model: "Model", settings: "SolverSettings", gravity, colliders, n_colliders: int, dt: float,
-                  step: wp.array | None = None):
+                  step: wp.array | None = None, impulse: wp.array | None = None):
     """The grid update's :class:`GridSettings` struct (kernels.py): step, damping factor exp(-c dt), gravity (the
     kernels' vector), domain walls, grid spacing and the collider table ``colliders`` with ``n_colliders`` rows.
     ``step``: the solver's one-element Step array (:mod:`magsoro.mpm.stencil`); the kernel then takes dt and the
-    damping factor from it instead of from ``dt``."""
+    damping factor from it instead of from ``dt``. ``impulse``: float64 array of 3 per collider, to which the
+    grid update adds the momentum each collider takes from the nodes (None: not recorded)."""
     sc = model.scalar
     vec = model.kernels["vec"]
     gs = model.kernels["GridSettings"]()
@@ -125,6 +126,13 @@ def grid_settings(model: "Model", settings: "SolverSettings", gravity, colliders
     else:
         gs.stepped = 1
     gs.step = step
+    if impulse is None:  # as for step: an array all the same, not written
+        impulse = getattr(model, "_unused_impulse", None)
+        if impulse is None:
+            impulse = model._unused_impulse = wp.zeros(3, dtype=wp.float64, device=model.device)
+    else:
+        gs.record_impulse = 1
+    gs.collider_impulse = impulse
     return gs
 
 
@@ -667,6 +675,9 @@ class Solver:
         self._interaction_step = None  # the step the bodies' field was last refreshed at
         self._collider_array = None
         self._collider_host = None
+        # the momentum each rigid collider took from the grid since the last read (N s, 3 per collider):
+        # Simulation.collider_forces
+        self.collider_impulse = wp.zeros(3, dtype=wp.float64, device=dev)
         self._launch_sets = {}
         self._grid_version = 0
         # what a step takes from the host (stencil Step: dt, damping factor, uniform field), one element on the
@@ -866,7 +877,10 @@ class Solver:
         grid_p = [self.grid_p] + [gp for gp, _ in self._thread_grids]
         grid_m = [self.grid_m] + [gm for _, gm in self._thread_grids]
         x_grid = self._X0 if self._total else state_in.x  # the positions the grid weights are taken at
-        gs = grid_settings(m, st, self.gravity, self._collider_array, len(control.colliders), 0.0, step=self._step_values)
+        if self.collider_impulse.shape[0] < 3 * len(control.colliders):
+            self.collider_impulse = wp.zeros(3 * len(control.colliders), dtype=wp.float64, device=dev)
+        gs = grid_settings(m, st, self.gravity, self._collider_array, len(control.colliders), 0.0, step=self._step_values,
+                           impulse=self.collider_impulse)
         ct = contact_grid(m)
         if self._contact:  # the total form's reference grid keeps the fields apart but never resolves (gap 0)
             ct = self._contact_grid(self._ct, n_act, 0.0 if self._total else st.contact.gap)

@@ -375,6 +375,7 @@ class StaticSolver:
         self.residual_evaluations = 0
         self.extra_force = None  # (n_nodes, dim) N: the imperfection force of a branch switch
         self.contact = None  # the colliders' penalty (magsoro.mpm.static_contact), set up below
+        self._scene_contact = None  # its part for the scene's colliders (the rest: the domain walls)
         self._last_tangent = None
         # free nodes: carrying mass, not held
         self._scatter(np.zeros((self.n_nodes, self.dim)), 0.0, 0.0)
@@ -401,8 +402,9 @@ class StaticSolver:
             # the walls act where the engine's do (the nodes)
             points = {"surface": "particles", "nodes": "nodes"}[self.collider_contact]
             sets = [(list(sim.control.colliders), points), (self.walls, "nodes")]
-            self.contact = Contacts([ColliderPenalty(self, cs, self.t, st.plane_z, st.depth, points=kind)
-                                     for cs, kind in sets if cs])
+            parts = [ColliderPenalty(self, cs, self.t, st.plane_z, st.depth, points=kind) for cs, kind in sets if cs]
+            self.contact = Contacts(parts)
+            self._scene_contact = parts[0] if sim.control.colliders else None
         if self.arc_length and self.walls:
             raise SimulationError("static.arc_length = true follows the equilibrium path of scenes without colliders, "
                                   "and a body starts within two cells of a domain wall (which then acts as one); "
@@ -1125,6 +1127,13 @@ class StaticSolver:
             return None, None
         mode = vecs[:, 0]
         return float(vals[0]), mode if mode[np.argmax(np.abs(mode))] > 0 else -mode  # a reproducible sign
+
+    def collider_reactions(self) -> np.ndarray:
+        """The force (N, (n_colliders, 3), 2D z = 0) each of the scene's colliders carries at the state of the last
+        residual evaluation (after :meth:`write_state`: the equilibrium): minus the contact forces on the bodies."""
+        if self._scene_contact is None:
+            return np.zeros((len(self.sim.control.colliders), 3))
+        return self._scene_contact.reaction.copy()
 
     def write_state(self) -> None:
         """Put the equilibrium into the simulation's state: x and F of the last residual, v = C = 0."""

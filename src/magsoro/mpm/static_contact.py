@@ -110,6 +110,7 @@ class ColliderPenalty:
         self._gaps = [None for _ in self.colliders]
         self.penetration = 0.0
         self._last_x = self.X.copy()  # the nodes' contact positions at the last accepted increment
+        self.reaction = np.zeros((len(self.colliders), 3))  # of the last forces() evaluation
 
     # -- geometry ---------------------------------------------------------------------------------------------
     def positions(self, u_nodes: np.ndarray) -> np.ndarray:
@@ -146,6 +147,7 @@ class ColliderPenalty:
         f = np.zeros_like(xt)
         self._active = []
         self.penetration = 0.0
+        self.reaction = np.zeros((len(self.colliders), 3))  # N: the force on each collider (minus the points')
         for ci, c in enumerate(self.colliders):
             nodes = self.touchable
             phi, nrm = self._sdf(c, xt[nodes])
@@ -207,6 +209,7 @@ class ColliderPenalty:
                         blocks[j] += (mu * fn / length) * (Pt - np.outer(t_hat, t_hat)) - mu * np.outer(t_hat, dfn)
                 self.sticking[ci] = {int(node): bool(s) for node, s in zip(act, stuck)}
             f[act] += force
+            self.reaction[ci, : self.dim] = -force.sum(axis=0)
             self._active.append((act, blocks))
         return self.W.T @ f
 

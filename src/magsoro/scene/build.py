@@ -547,13 +547,16 @@ class ProbeSpec:
     """A probe resolved to particle indices."""
 
     name: str
-    kind: str  # centroid | point | bbox | field
+    kind: str  # centroid | point | bbox | field | collider_force
     indices: np.ndarray
     weights: np.ndarray | None = None
     position: np.ndarray | None = None  # field probe at a fixed point (m); else at the mean of ``indices``
+    collider: int | None = None  # collider_force: the collider's index in [[colliders]]
 
     def columns(self, dim: int) -> list[str]:
         axes = "xyz"[:dim]
+        if self.kind == "collider_force":
+            return [f"{self.name}_F{a}" for a in axes]
         if self.kind == "field":
             return [f"{self.name}_B{a}" for a in "xyz"]
         if self.kind == "bbox":
@@ -732,6 +735,9 @@ def build(scene: Scene, device: str | None = None, source: str = "scene", magnet
     probes = []
     masses = model.host["mass"]
     for i, p in enumerate(scene.probes):
+        if p.type == "collider_force":  # its index is checked with the scene (load.check_scene)
+            probes.append(ProbeSpec(p.name, "collider_force", np.zeros(0, dtype=np.int64), collider=p.collider))
+            continue
         if p.type == "field" and p.position is not None:
             probes.append(ProbeSpec(p.name, "field", np.zeros(0, dtype=np.int64), position=np.asarray(p.position[:dim], dtype=np.float64)))
             continue

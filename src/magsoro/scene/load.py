@@ -305,6 +305,12 @@ def check_scene(scene: Scene, source: str, base_dir: Path | None) -> None:
         if c.body is not None and c.body not in names:
             raise SceneError(f"{source}: clamps[{i}].body: no body named '{c.body}'; bodies: {', '.join(names)}")
     for i, p in enumerate(scene.probes):
+        if p.type == "collider_force":
+            if p.collider >= len(scene.colliders):
+                raise SceneError(f"{source}: probes[{i}].collider: {p.collider} is not a collider of the scene (it has "
+                                 f"{len(scene.colliders)}: indices 0 to {len(scene.colliders) - 1} of [[colliders]])"
+                                 if scene.colliders else f"{source}: probes[{i}].collider: the scene has no [[colliders]]")
+            continue
         if p.type == "field" and p.position is not None:
             _vec_len(p.position, dim, f"probes[{i}].position", source)
             lo, hi = scene.simulation.domain_lo, scene.simulation.domain_hi

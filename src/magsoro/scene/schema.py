@@ -739,7 +739,18 @@ class FieldProbe(Strict):
         return self
 
 
-AnyProbe = Annotated[Union[CentroidProbe, PointProbe, BoundsProbe, FieldProbe], Field(discriminator="type")]
+class ColliderForceProbe(Strict):
+    """The force the bodies exert on a rigid collider (columns NAME_Fx, NAME_Fy[, NAME_Fz], N; in 2D for the
+    scene's depth): in a run, the momentum the collider takes from the grid nodes it touches, per unit time, averaged
+    over each output interval (at rest: the load it carries); with --static, the reaction of the contact at each
+    level's equilibrium."""
+
+    type: Literal["collider_force"]
+    name: Identifier = Field(description="Column prefix in metrics.csv (letters, digits, '_', '-').")
+    collider: int = Field(ge=0, description="The collider: its index in [[colliders]], from 0.")
+
+
+AnyProbe = Annotated[Union[CentroidProbe, PointProbe, BoundsProbe, FieldProbe, ColliderForceProbe], Field(discriminator="type")]
 
 
 # ---------------------------------------------------------------- settings
