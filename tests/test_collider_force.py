@@ -102,6 +102,26 @@ def test_static_and_relaxed_reactions_are_the_weight(tmp_path):
     assert np.allclose([v["floor_Fx"], v["floor_Fy"]], weight, rtol=0.0, atol=1e-2 * np.linalg.norm(weight))
 
 
+def test_relaxation_before_any_step_with_two_colliders(tmp_path):
+    """The colliders' accumulator is sized at the first step: a relaxation as the first thing a scene with two
+    colliders does reads them (a regression: the read assumed one collider's size) and reports the floor's load."""
+    text = BLOCK.format(gx=0.0, gy=-9.81, form="total") + """
+[[colliders]]
+type = "half_space"
+point = [0.0035, 0.0]
+normal = [-1.0, 0.0]
+mode = "slip"
+"""
+    sim = _sim(tmp_path, text)
+    out = sim.relax()
+    assert out.converged or out.stalled, out.message
+    forces = sim.collider_forces()
+    weight = _weight(sim, (0.0, -9.81))
+    assert forces.shape == (2, 3)
+    assert np.allclose(forces[0, :2], weight, rtol=0.0, atol=1e-2 * np.linalg.norm(weight))
+    assert np.allclose(forces[1], 0.0)  # the wall is not touched
+
+
 PLATE = """
 name = "squeeze"
 [simulation]

@@ -189,6 +189,8 @@ class Simulation:
     def _take_impulse(self, n: int) -> np.ndarray:
         """The impulse (N s, (n, 3)) the colliders took since it was last taken, and zero it."""
         imp = self.solver.collider_impulse
+        if imp.shape[0] < 3 * n:  # no step has run yet: the solver sizes it for the colliders at the first one
+            return np.zeros((n, 3))
         out = imp.numpy()[: 3 * n].astype(np.float64).reshape(n, 3)
         imp.zero_()
         return out
