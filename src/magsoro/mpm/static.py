@@ -465,21 +465,16 @@ class StaticSolver:
 
     def _wall_positions(self, u_nodes: np.ndarray) -> np.ndarray:
         """Where the engine's walls see the free nodes carrying mass at ``u_nodes``: reference position plus the
-        mass-weighted displacement of their particles (:mod:`magsoro.mpm.grid`), (n_free_with_mass, dim)."""
-        model, dim, dx = self.model, self.dim, float(self.model.dx)
-        nodes, w, _ = self._stencil()
-        X = model.host["positions"]
-        mw = w * model.host["mass"][:, None]  # (N, S)
-        mass = np.bincount(nodes.ravel(), weights=mw.ravel(), minlength=self.n_nodes)
-        xp = X + np.einsum("ps,psd->pd", w, np.asarray(u_nodes)[nodes])  # the particles at u, as place_particles puts
-        clamped = model.host["clamped"] != 0
-        xp[clamped] = X[clamped]  # them: clamped ones stay
-        moved = np.stack([np.bincount(nodes.ravel(), weights=(mw * (xp - X)[:, a : a + 1]).ravel(), minlength=self.n_nodes)
-                          for a in range(dim)], axis=1)
+        mass-weighted displacement of their particles, clamped ones held (:func:`~magsoro.mpm.static_contact.
+        node_positions_map`, the map the node law of the colliders uses), (n_free_with_mass, dim)."""
+        from magsoro.mpm.static_contact import node_positions_map
+
+        if getattr(self, "_node_map", None) is None:
+            self._node_map = node_positions_map(self)
+        carrying, W, X = self._node_map
         held = self.solver._held.numpy()[: self.n_nodes] != 0
-        free = np.flatnonzero((mass > 0) & ~held)
-        ref = (model.domain_lo + self.solver.org * dx) + self.coords[free] * dx
-        return ref + moved[free] / mass[free, None]
+        free = np.setdiff1d(carrying, np.flatnonzero(held))
+        return X[free] + W[free] @ np.asarray(u_nodes)
 
     def _walls_reached(self, u_nodes: np.ndarray) -> list:
         """The domain walls whose band (WALL_CELLS from the domain's edge, where the engine's walls stop a node)

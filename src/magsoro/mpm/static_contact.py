@@ -56,6 +56,25 @@ TOUCH_CELLS = 1e-9
 RELEASE = 1e-6
 
 
+def node_positions_map(static):
+    """Where the engine's total form puts the grid nodes of a :class:`~magsoro.mpm.static.StaticSolver`: node i at
+    X_i + sum_p m_p w_ip (x_p - X_p) / m_i, the mass-weighted displacement of its particles, with clamped particles
+    held at X_p (their mass counts in m_i, their displacement is zero). Linear in the node unknowns: x~ = X + W u.
+    Returns (the nodes carrying mass, W (n_nodes x n_nodes, sparse), X (n_nodes, dim))."""
+    model, h = static.model, static.model.host
+    nodes, w, _ = static._stencil()
+    n_nodes, n = static.n_nodes, model.n_particles
+    P = sparse.csr_matrix((w.ravel(), (np.repeat(np.arange(n), nodes.shape[1]), nodes.ravel())), shape=(n, n_nodes))
+    mass = np.bincount(nodes.ravel(), weights=(w * h["mass"][:, None]).ravel(), minlength=n_nodes)
+    carrying = np.flatnonzero(mass > 0)
+    inv = np.zeros(n_nodes)
+    inv[carrying] = 1.0 / mass[carrying]
+    moving = np.where(h["clamped"] != 0, 0.0, h["mass"])
+    W = (sparse.diags(inv) @ P.T @ sparse.diags(moving) @ P).tocsr()
+    X = (model.domain_lo + static.solver.org * model.dx) + static.coords * model.dx
+    return carrying, W, X
+
+
 class ColliderPenalty:
     """The colliders' node forces and their tangent for a :class:`~magsoro.mpm.static.StaticSolver`."""
 
@@ -75,12 +94,7 @@ class ColliderPenalty:
         P = sparse.csr_matrix((w.ravel(), (np.repeat(np.arange(n), nodes.shape[1]), nodes.ravel())), shape=(n, n_nodes))
         if points == "nodes":
             # the engine's law: nodes at X + W u touch from the skin down
-            mass = np.bincount(nodes.ravel(), weights=(w * h["mass"][:, None]).ravel(), minlength=n_nodes)
-            self.touchable = np.flatnonzero(mass > 0)
-            inv = np.zeros(n_nodes)
-            inv[self.touchable] = 1.0 / mass[self.touchable]
-            self.W = (sparse.diags(inv) @ P.T @ sparse.diags(h["mass"]) @ P).tocsr()  # x~ = X + W u
-            self.X = (model.domain_lo + static.solver.org * self.dx) + static.coords * self.dx  # node reference positions
+            self.touchable, self.W, self.X = node_positions_map(static)
             reach = np.full(len(self.touchable), SKIN_CELLS * self.dx)
             self.k = np.full(n_nodes, PENALTY * p_wave * self.dx ** (self.dim - 2) * thickness)
         elif points == "particles":
