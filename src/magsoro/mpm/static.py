@@ -76,6 +76,11 @@ SLOPE_RATIO = 0.5
 SLOPE_TRIALS = 8
 #: the largest move of a node in one Newton step, cells
 MAX_STEP = 10.0
+#: with colliders, a Newton solve whose lowest |R| has not fallen to STALL_FACTOR of what it was STALL_ITERATIONS
+#: iterations before gives up (its load increment is then halved): at a contact's onset such solves went on to the
+#: iteration limit at a level |R| (the obstacle beam from straight to 3 mT: six attempts of 40 iterations)
+STALL_ITERATIONS = 10
+STALL_FACTOR = 0.5
 #: arc-length continuation (StaticSolver._arc_length), taken where load increments fail (a limit point): at most
 #: ARC_STEPS steps along the equilibrium path; the first step's load change is ARC_FIRST of the way left; a step
 #: grows by ARC_GROW (up to ARC_LONGEST times the first) after a corrector that converged within 4 iterations
@@ -731,6 +736,7 @@ class StaticSolver:
         r = self._reduce(r_full)
         norm = float(np.abs(r).max()) if r.size else 0.0
         best = norm
+        bests = []  # the lowest |R| so far, after each iteration (STALL_ITERATIONS)
         for it in range(self.max_iterations + 1):
             if norm <= self.tolerance * scale:
                 if self.contact is None or not self.contact.release():
@@ -739,9 +745,13 @@ class StaticSolver:
                 r_full = self._scatter(u_nodes, field_level, gravity_level)
                 r = self._reduce(r_full)
                 norm = best = float(np.abs(r).max())
+                bests = []
                 continue
             if it == self.max_iterations:
                 break
+            bests.append(best)
+            if self.contact is not None and len(bests) > STALL_ITERATIONS and best > STALL_FACTOR * bests[-1 - STALL_ITERATIONS]:
+                return u_nodes, False, it, norm, f"|R| stalled over {STALL_ITERATIONS} Newton iterations"
             J = self.tangent(u_nodes, field_level, gravity_level)
             self._last_tangent = J  # the stability check after convergence reuses it (one step from the solution)
             try:
