@@ -36,7 +36,7 @@ predated "Engine 2.0", at commit d05a375 (974 s on one core; beta at 45 mT 45.9 
 engine). Later still, pentagram was re-run once its domain was widened to x = -80 mm (commit 3bd8e1b: a strip had
 come within the walls' reach at -50 mm; crawl +54.45 mm against +54.4, the grip unchanged; 417 s beside the test
 suite). obstacle_beam was redone once its reproduction solved the field levels with the static solver, whose
-colliders now meet the beam's surface (63 s against 174 s; one level, 10 mT, also settled by the dynamics as a
+colliders now meet the beam's surface (49 s against 174 s; one level, 10 mT, also settled by the dynamics as a
 check: 0.4 % apart). Against the gallery's earlier dynamic sweep of the same scene, the pressed twin differs by
 +10.4 % at 3 mT, +2.4 % at 6 mT, +0.75 % at 10 mT and within 0.5 % above: at first touch the engine's node contact
 holds the beam about a cell (1.5 mm) off the pin, and it comes to the surface only as the contact is pressed

@@ -17,9 +17,9 @@ from magsoro.robots.continuum_soft import (HANGING, Row, body_mask, body_materia
 NAME = "obstacle_beam"
 
 #: field levels (T) along +x; seed 000 does not list them. 1 mT stays clear of the pin, the rest press on it.
-#: The static sweep of all six takes about 40 s against 165 s for the dynamics of the same levels (measured
-#: 2026-11-26, 2-core CPU); the preview stops at the dynamic check's level (from straight to 10 mT in one level the
-#: load increments with the contact's onset took minutes: the sweep's intermediate levels are the cheaper path).
+#: The static sweep of all six takes about 25-40 s against 165 s for the dynamics of the same levels (measured
+#: 2026-11-26, 2-core CPU); the preview stops at the dynamic check's level (its four levels take 22 s, one level
+#: from straight to 10 mT 43 s: the intermediate levels are the cheaper path through the contact's onset).
 LEVELS = (0.001, 0.003, 0.006, 0.01, 0.015, 0.02)
 PREVIEW_LEVELS = (0.001, 0.003, 0.006, 0.01)
 #: the level also settled by the dynamics (the static answer must match it within CHECK_TOLERANCE of delta_max / L)
