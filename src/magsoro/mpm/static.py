@@ -380,6 +380,7 @@ class StaticSolver:
         self.residual_evaluations = 0
         self.extra_force = None  # (n_nodes, dim) N: the imperfection force of a branch switch
         self.contact = None  # the colliders' penalty (magsoro.mpm.static_contact), set up below
+        self.collider_time = self.t  # the time the colliders stand at (their paths), s: ramped from 0 to t
         self._scene_contact = None  # its part for the scene's colliders (the rest: the domain walls)
         self._last_tangent = None
         # free nodes: carrying mass, not held
@@ -410,6 +411,9 @@ class StaticSolver:
             parts = [ColliderPenalty(self, cs, self.t, st.plane_z, st.depth, points=kind) for cs, kind in sets if cs]
             self.contact = Contacts(parts)
             self._scene_contact = parts[0] if sim.control.colliders else None
+            # the colliders start where they are at the scene's start; the first level's load increments move them
+            # along their paths to the solve's time with the loads (a plate pressed into a body: a crushing test)
+            self._set_collider_time(0.0)
         if self.arc_length and self.walls:
             raise SimulationError("static.arc_length = true follows the equilibrium path of scenes without colliders, "
                                   "and a body starts within two cells of a domain wall (which then acts as one); "
@@ -864,6 +868,13 @@ class StaticSolver:
             return best[1]
         return None
 
+    def _set_collider_time(self, tau: float) -> None:
+        """Put the colliders where their paths have them at time ``tau`` (s)."""
+        self.collider_time = float(tau)
+        if self.contact is not None:
+            for part in self.contact.parts:
+                part.t = float(tau)
+
     def _increments(self, start, target, scale, watch: bool = False):
         """Load increments from the current state at load ``start`` to ``target`` (field, gravity levels):
         halved when Newton fails, doubled after a quick convergence. With ``watch``, the lowest stiffness is
@@ -874,10 +885,12 @@ class StaticSolver:
         iterations = increments = 0
         u = self.u_nodes.copy()
         norm, message = 0.0, ""
+        tau0 = self.collider_time  # the colliders move along their paths to the solve's time with the loads
         while s < 1.0 - 1e-12:
             ds = min(ds, 1.0 - s)
             s_try = s + ds
             load = tuple(a + s_try * (b - a) for a, b in zip(start, target))
+            self._set_collider_time(tau0 + s_try * (self.t - tau0))
             u_new, ok, its, norm, message = self._newton(u.copy(), load[0], load[1], scale)
             iterations += its
             if not ok and self.contact is None and self.dim == 3:
@@ -908,6 +921,7 @@ class StaticSolver:
                 if its <= 4:
                     ds *= 2.0
             else:
+                self._set_collider_time(tau0 + s * (self.t - tau0))
                 ds *= 0.5
                 if ds < 1e-4:
                     return "failed", iterations, increments, norm, s, message, None, None, None
@@ -1047,8 +1061,12 @@ class StaticSolver:
         t0 = time.perf_counter()
         target = (float(level), float(gravity_level))
         before = (self.u_nodes.copy(), self.field_level, self.gravity_level)
-        # the force scale of the tolerance: the out-of-balance force of the undeformed body under the target load
+        # the force scale of the tolerance: the out-of-balance force of the undeformed body under the target load,
+        # the colliders at the solve's time (a plate moved into the body loads it through the penalty)
+        tau = self.collider_time
+        self._set_collider_time(self.t)
         r_ref = self._reduce(self._scatter(np.zeros_like(self.u_nodes), *target))
+        self._set_collider_time(tau)
         scale = max(float(np.abs(r_ref).max()), 1e-30)
         iterations = increments = arc_steps = 0
         buckled, lam, limits = False, None, []

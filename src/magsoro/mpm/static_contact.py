@@ -110,9 +110,12 @@ class ColliderPenalty:
         else:
             raise ValueError(f"points must be 'nodes' or 'particles', not {points!r}")
         # the level each point is held at: its reach, or where it starts when it starts closer (the engine stops a
-        # node's inward motion there; it does not push it out)
+        # node's inward motion there; it does not push it out), with the colliders where they are at the scene's
+        # start (a collider that a path moves into a body later pushes it)
         X_touch = self.X[self.touchable]
+        self.t = 0.0
         self.level = [np.minimum(reach, self._sdf(c, X_touch)[0]) for c in self.colliders]
+        self.t = float(t)
         self.anchor = [dict() for _ in self.colliders]  # node -> anchor point relative to the collider's position
         self.sticking = [dict() for _ in self.colliders]  # node -> whether it stuck in the last evaluation
         self._active = []  # per collider: nodes, normals, stiffness blocks of the last evaluation
