@@ -591,7 +591,10 @@ class Simulation:
         finally:
             settings.damping, settings.cfl = damping, cfl0
             if n_colliders:
-                self._take_impulse(n_colliders)  # the cycle's forces were read at its peak
+                # the last complete cycle's forces were read at its peak; without one, those of the steps taken
+                rest = self._take_impulse(n_colliders)
+                if resets == 0 and cycle > 0.0:
+                    self._collider_force = rest / cycle
                 self._impulse_time = self.state.time
         wall = _time.perf_counter() - wall0
         if converged:
