@@ -329,7 +329,9 @@ def check_supported(sim) -> None:
 
 class StaticSolver:
     """Newton solver for the equilibria of a :class:`magsoro.simulation.Simulation` built in the total-Lagrangian
-    form without contact or colliders. Loads: the fields at time ``t`` scaled by a level, gravity in full."""
+    form without contact between bodies (rigid colliders and the domain walls a body starts at: penalty, see
+    :mod:`magsoro.mpm.static_contact`). Loads: the fields at time ``t`` scaled by a level, gravity in full, the
+    colliders where their paths have them at ``t`` (reached with the first level's load increments)."""
 
     def __init__(self, sim, t: float, tolerance: float = 1e-8, max_iterations: int = 40, arc_length: bool = False,
                  collider_contact: str | None = None):
