@@ -122,70 +122,8 @@ mode = "slip"
     assert np.allclose(forces[1], 0.0)  # the wall is not touched
 
 
-PLATE = """
-name = "squeeze"
-[simulation]
-dim = 2
-dx = 2.5e-4
-particles_per_cell = 2
-domain_lo = [-0.004, -0.001]
-domain_hi = [0.004, 0.006]
-duration = 0.11
-damping = 300.0
-gravity = [0.0, 0.0]
-depth = 1.0e-3
-formulation = "{form}"
-precision = "float64"
-
-[[bodies]]
-name = "layer"
-shape = {{ type = "rectangle", center = [0.0, 0.002], size = [0.004, 0.004] }}
-material = {{ density = 1000.0, shear_modulus = 2.0e4 }}
-
-[[colliders]]
-type = "half_space"
-point = [0.0, 0.0]
-normal = [0.0, 1.0]
-mode = "slip"
-
-[[colliders]]
-type = "half_space"
-point = [0.0, {top}]
-normal = [0.0, -1.0]
-mode = "slip"
-path = {{ times = [0.0, 0.01, 0.03, 0.06, 0.08, 0.11], positions = [[0.0, {top}], [0.0, {top}], [0.0, {p1}], [0.0, {p1}], [0.0, {p2}], [0.0, {p2}]] }}
-
-[[probes]]
-type = "collider_force"
-name = "plate"
-collider = 1
-
-[[probes]]
-type = "collider_force"
-name = "floor"
-collider = 0
-"""
-
-
-def plane_strain_force(stretch: float, shear: float, bulk: float, width: float, depth: float) -> float:
-    """Compressive force (N) on a layer of the engine's Neo-Hookean law (W = G/2 (J^-2/3 I1 - 3) + K/2 (J - 1)^2)
-    stretched by ``stretch`` through its height between frictionless plates: plane strain (lambda_z = 1), the width
-    free (lambda_x from sigma_xx = 0), the nominal stress dW/dlambda_y times the reference width and depth. At
-    small strain its slope is E / (1 - nu^2) w depth / h; at 5 % compression the secant is 8 % stiffer."""
-    from scipy.optimize import brentq
-
-    G, K = shear, bulk
-
-    def dW(lx, ly):
-        J, I1 = lx * ly, lx * lx + ly * ly + 1.0
-        return (G / 2 * (J ** (-2 / 3) * 2 * lx - 2 / 3 * J ** (-5 / 3) * ly * I1) + K * (J - 1) * ly,
-                G / 2 * (J ** (-2 / 3) * 2 * ly - 2 / 3 * J ** (-5 / 3) * lx * I1) + K * (J - 1) * lx)
-
-    lx = brentq(lambda v: dW(v, stretch)[0], 0.5, 2.0)
-    return -dW(lx, stretch)[1] * width * depth
-
-
 def test_plane_strain_reference_has_the_small_strain_modulus():
+    from magsoro.validation.collider_force import plane_strain_force
     from magsoro.validation.hertz import elastic_moduli
 
     G = 2.0e4
@@ -194,56 +132,46 @@ def test_plane_strain_reference_has_the_small_strain_modulus():
 
 
 @pytest.mark.parametrize("form", ["updated", "total"])
-def test_squeezed_layer_force_against_its_stretch(tmp_path, form):
-    """A 4 x 4 mm layer (G = 20 kPa, K = 20 G) between slip plates, the top one lowered in two steps and held:
-    at each hold the plate's force against :func:`plane_strain_force` at the layer's stretch (the distance between
-    its top and bottom particle rows over the reference one), within 5 %; the floor carries the same force.
-    Measured: updated -0.4 % and -1.2 % at 3.6 % and 5.0 % compression, total +3.4 % and +1.9 % at 4.2 % and 6.7 %
-    (the stretch read from the outer particle rows, next to the plates' node contact, is the larger error)."""
-    top = 0.00415  # the plate starts above the layer (touching its outer node layer after the first lowering)
-    d1, d2 = 0.0003, 0.0004
-    sim = _sim(tmp_path, PLATE.format(form=form, top=top, p1=top - d1, p2=top - d2))
-    X = sim.model.host["positions"]
-    h0 = X[:, 1].max() - X[:, 1].min()
-    G = 2.0e4
-    for t_settled, t_end in ((0.05, 0.06), (0.10, 0.11)):
-        sim.advance_to(t_settled)
-        sim.probe_values()
-        sim.advance_to(t_end)
-        v = sim.probe_values()
-        x = sim.state.x.numpy()
-        stretch = (x[:, 1].max() - x[:, 1].min()) / h0
-        assert 0.92 < stretch < 0.98
-        expected = plane_strain_force(stretch, G, 20.0 * G, 0.004, 1.0e-3)
-        assert v["plate_Fy"] == pytest.approx(expected, rel=0.05), f"{form}: {v['plate_Fy']:.5g} N at stretch {stretch:.5f}"
-        assert v["floor_Fy"] == pytest.approx(-v["plate_Fy"], rel=1e-3)
+def test_squeezed_layer_force_against_its_stretch(form):
+    """A 4 x 4 mm layer (G = 20 kPa, K = 20 G) between slip plates, the top one lowered in two steps and held
+    (magsoro.validation.collider_force): at each hold the plate's force against the plane-strain law at the layer's
+    stretch (the distance between its top and bottom particle rows over the reference one), within 5 %; the floor
+    carries the same force. Measured: updated -0.2 % and -1.2 % at 3.6 % and 5.0 % compression, total +2.8 % and
+    +1.5 % at 4.2 % and 6.7 % (the stretch read from the outer particle rows, next to the plates' node contact, is
+    the larger error)."""
+    from magsoro.validation.collider_force import squeeze_dynamic
+
+    for r in squeeze_dynamic(form):
+        assert 0.92 < r["stretch"] < 0.98
+        assert r["plate"] == pytest.approx(r["reference"], rel=0.05), f"{form}: {r['plate']:.5g} N at {r['stretch']:.5f}"
+        assert r["floor"] == pytest.approx(-r["plate"], rel=1e-3)
 
 
-def test_static_squeeze_moves_the_plate_along_its_path(tmp_path):
+def test_static_squeeze_moves_the_plate_along_its_path():
     """--static at a time when the plate has been lowered: the colliders start where they are at the scene's start
     and the load increments move them along their paths to the solve's time, so the plate presses the layer (points
     that start clear of a collider are not held where it will be). The layer's top particle row rests one particle
     radius below the plate (the surface law), the floor carries the plate's force to the solver's tolerance, and
     the force is the plane-strain law's at the layer's stretch within 5 % (measured +2.6 % at 3.9 % and 6.4 %
     compression: the same discretisation error as the dynamics)."""
-    top = 0.00415
-    d1, d2 = 0.0003, 0.0004
-    sim = _sim(tmp_path, PLATE.format(form="total", top=top, p1=top - d1, p2=top - d2))
-    X = sim.model.host["positions"]
-    h0 = X[:, 1].max() - X[:, 1].min()
-    r = 0.25 * 2.5e-4  # half the particle spacing
-    G = 2.0e4
-    for t, plate in ((0.06, top - d1), (0.11, top - d2)):
-        res = sim.solve_static(levels=[1.0], t=t)
-        assert res.converged, res.message
-        x = sim.state.x.numpy()
+    from magsoro.validation.collider_force import DX, LAYER_TOP, LOWERS, squeeze_static
+
+    r_particle = 0.25 * DX  # half the particle spacing
+    for r, lowered in zip(squeeze_static(), LOWERS):
         # one radius below the plate, less the penalty's overlap (about p / (10 (K + 4G/3)) cells: 1e-3 cells here)
-        assert x[:, 1].max() == pytest.approx(plate - r, abs=5e-3 * 2.5e-4)
-        v = sim.probe_values()
-        assert v["floor_Fy"] == pytest.approx(-v["plate_Fy"], rel=1e-6)
-        stretch = (x[:, 1].max() - x[:, 1].min()) / h0
-        expected = plane_strain_force(stretch, G, 20.0 * G, 0.004, 1.0e-3)
-        assert v["plate_Fy"] == pytest.approx(expected, rel=0.05), f"static: {v['plate_Fy']:.5g} N at stretch {stretch:.5f}"
+        assert r["top"] == pytest.approx(LAYER_TOP - lowered - r_particle, abs=5e-3 * DX)
+        assert r["floor"] == pytest.approx(-r["plate"], rel=1e-6)
+        assert r["plate"] == pytest.approx(r["reference"], rel=0.05), f"static: {r['plate']:.5g} N at {r['stretch']:.5f}"
+
+
+def test_validation_case_rows_pass():
+    """`magsoro validate collider_force`: every row passes (the weight on the tilted friction floor in both forms,
+    the squeezed layer in both forms' dynamics and by the static solver)."""
+    from magsoro.validation import run_validation
+
+    (res,) = run_validation(["collider_force"])
+    assert len(res.rows) == 8
+    assert all(r.passed for r in res.rows), [(r.inputs, r.error) for r in res.rows if not r.passed]
 
 
 def test_collider_force_probe_names_a_collider(tmp_path):
