@@ -24,7 +24,7 @@ def register(sub):
     p.add_argument("--static", action="store_true",
                    help="instead of the motion, solve the static equilibria by Newton's method (float64, total-Lagrangian "
                         "form) under the loads at t = duration, the fields scaled by each of [static] levels; writes one "
-                        "metrics row and frame per level (first column 'level'); no colliders or contact yet")
+                        "metrics row and frame per level (first column 'level'); rigid colliders, no contact between bodies yet")
     p.add_argument("--quiet", action="store_true", help="no progress bar, and no Warp start-up banner or kernel-load lines")
     p.set_defaults(func=run)
 

@@ -23,8 +23,9 @@ Newton keeps straight, as it converges to saddles as readily as to minima): the 
 along that mode (sized to move the level's stable start by BRANCH_KICKS cells, larger in turn until the result is stable), follows it up and takes it away again, which
 leaves the body on the stable branch, and reports the level as buckled.
 
-Rigid colliders act at the nodes as the engine's total-Lagrangian form has them, by a penalty with stick and
-Coulomb slip (:mod:`magsoro.mpm.static_contact`; each level reports the penetration left). Not handled yet:
+Rigid colliders meet the bodies' surface (static.collider_contact = "surface": the particles as balls of half their
+spacing) or the nodes as the engine's total-Lagrangian form has them ("nodes"), by a penalty with stick and Coulomb
+slip (:mod:`magsoro.mpm.static_contact`; each level reports the penetration left). Not handled yet:
 contact between bodies (refused). The engine's walls act on nodes within two cells of the domain's edge: a
 wall whose band holds a node at the start acts here as a half-space collider at the band's edge with the walls'
 contact law (:meth:`StaticSolver._starting_walls`); for the others, a level whose equilibrium reaches the band is
@@ -474,15 +475,32 @@ class StaticSolver:
         """Out-of-balance force on the unknowns (the free nodes' forces gathered by the slaving), flat."""
         return self._reduce(self._scatter(u_nodes, field_level, gravity_level))
 
+    def interpolation(self):
+        """P (n_particles x n_nodes, sparse CSR): the particles' B-spline weights on the reference grid block, so
+        that the particles sit at X + P u (computed once)."""
+        if getattr(self, "_interpolation_cache", None) is None:
+            from scipy import sparse
+
+            nodes, w, _ = self._stencil()
+            n = self.model.n_particles
+            rows = np.repeat(np.arange(n), nodes.shape[1])
+            self._interpolation_cache = sparse.csr_matrix((w.ravel(), (rows, nodes.ravel())), shape=(n, self.n_nodes))
+        return self._interpolation_cache
+
+    def node_positions(self):
+        """(nodes carrying mass, W, X) of :func:`~magsoro.mpm.static_contact.node_positions_map` (computed once):
+        where the engine puts the grid nodes, X + W u, for the node contact law and the walls' check."""
+        if getattr(self, "_node_map", None) is None:
+            from magsoro.mpm.static_contact import node_positions_map
+
+            self._node_map = node_positions_map(self)
+        return self._node_map
+
     def _wall_positions(self, u_nodes: np.ndarray) -> np.ndarray:
         """Where the engine's walls see the free nodes carrying mass at ``u_nodes``: reference position plus the
-        mass-weighted displacement of their particles, clamped ones held (:func:`~magsoro.mpm.static_contact.
-        node_positions_map`, the map the node law of the colliders uses), (n_free_with_mass, dim)."""
-        from magsoro.mpm.static_contact import node_positions_map
-
-        if getattr(self, "_node_map", None) is None:
-            self._node_map = node_positions_map(self)
-        carrying, W, X = self._node_map
+        mass-weighted displacement of their particles, clamped ones held (:meth:`node_positions`, the map the node
+        law of the colliders uses), (n_free_with_mass, dim)."""
+        carrying, W, X = self.node_positions()
         held = self.solver._held.numpy()[: self.n_nodes] != 0
         free = np.setdiff1d(carrying, np.flatnonzero(held))
         return X[free] + W[free] @ np.asarray(u_nodes)

@@ -62,10 +62,9 @@ def node_positions_map(static):
     held at X_p (their mass counts in m_i, their displacement is zero). Linear in the node unknowns: x~ = X + W u.
     Returns (the nodes carrying mass, W (n_nodes x n_nodes, sparse), X (n_nodes, dim))."""
     model, h = static.model, static.model.host
-    nodes, w, _ = static._stencil()
-    n_nodes, n = static.n_nodes, model.n_particles
-    P = sparse.csr_matrix((w.ravel(), (np.repeat(np.arange(n), nodes.shape[1]), nodes.ravel())), shape=(n, n_nodes))
-    mass = np.bincount(nodes.ravel(), weights=(w * h["mass"][:, None]).ravel(), minlength=n_nodes)
+    n_nodes = static.n_nodes
+    P = static.interpolation()
+    mass = P.T @ h["mass"]
     carrying = np.flatnonzero(mass > 0)
     inv = np.zeros(n_nodes)
     inv[carrying] = 1.0 / mass[carrying]
@@ -83,18 +82,15 @@ class ColliderPenalty:
         self.static, self.colliders, self.t = static, list(colliders), float(t)
         self.dim, self.dx = model.dim, float(model.dx)
         self.plane_z = float(plane_z)
-        self.points = points
         self.slip = SLIP_CELLS * self.dx
         self.touch = TOUCH_CELLS * self.dx
         h = model.host
         p_wave = float(np.max(h["bulk_modulus"] + 4.0 / 3.0 * h["shear_modulus"]))
         thickness = depth if self.dim == 2 else 1.0
-        nodes, w, _ = static._stencil()
-        n_nodes, n = static.n_nodes, model.n_particles
-        P = sparse.csr_matrix((w.ravel(), (np.repeat(np.arange(n), nodes.shape[1]), nodes.ravel())), shape=(n, n_nodes))
+        n_nodes = static.n_nodes
         if points == "nodes":
             # the engine's law: nodes at X + W u touch from the skin down
-            self.touchable, self.W, self.X = node_positions_map(static)
+            self.touchable, self.W, self.X = static.node_positions()
             reach = np.full(len(self.touchable), SKIN_CELLS * self.dx)
             self.k = np.full(n_nodes, PENALTY * p_wave * self.dx ** (self.dim - 2) * thickness)
         elif points == "particles":
@@ -103,7 +99,7 @@ class ColliderPenalty:
             # the nodes' per unit area (PENALTY (K + 4G/3) / dx) times the particle's share of the surface
             spacing = (h["volumes"] / thickness) ** (1.0 / self.dim)
             self.touchable = np.flatnonzero(h["clamped"] == 0)
-            self.W = P.tocsr()
+            self.W = static.interpolation()
             self.X = np.asarray(h["positions"], dtype=np.float64)
             reach = 0.5 * spacing[self.touchable]
             self.k = PENALTY * p_wave / self.dx * spacing ** (self.dim - 1) * thickness
@@ -113,9 +109,7 @@ class ColliderPenalty:
         # node's inward motion there; it does not push it out), with the colliders where they are at the scene's
         # start (a collider that a path moves into a body later pushes it)
         X_touch = self.X[self.touchable]
-        self.t = 0.0
-        self.level = [np.minimum(reach, self._sdf(c, X_touch)[0]) for c in self.colliders]
-        self.t = float(t)
+        self.level = [np.minimum(reach, self._sdf(c, X_touch, 0.0)[0]) for c in self.colliders]
         self.anchor = [dict() for _ in self.colliders]  # node -> anchor point relative to the collider's position
         self.sticking = [dict() for _ in self.colliders]  # node -> whether it stuck in the last evaluation
         self._active = []  # per collider: nodes, normals, stiffness blocks of the last evaluation
@@ -134,9 +128,11 @@ class ColliderPenalty:
         """x~ (n_nodes, dim): the nodes where the colliders act."""
         return self.X + self.W @ u_nodes
 
-    def _sdf(self, c, pts: np.ndarray):
-        """Signed distance (m) and outward unit normal (in-plane) of collider ``c`` at ``pts`` (P, dim): the
-        distance exactly, the normal by central differences of it (1e-6 cells)."""
+    def _sdf(self, c, pts: np.ndarray, t: float | None = None):
+        """Signed distance (m) and outward unit normal (in-plane) of collider ``c`` at ``pts`` (P, dim), the collider
+        where its path has it at ``t`` (default: the current time): the distance exactly, the normal by central
+        differences of it (1e-6 cells)."""
+        t = self.t if t is None else t
         def lift(p):
             q = np.zeros((len(p), 3))
             q[:, : self.dim] = p
@@ -144,13 +140,13 @@ class ColliderPenalty:
                 q[:, 2] = self.plane_z
             return q
 
-        phi = c.signed_distance(lift(pts), self.t)
+        phi = c.signed_distance(lift(pts), t)
         e = 1e-6 * self.dx
         grad = np.zeros((len(pts), self.dim))
         for a in range(self.dim):
             step = np.zeros(self.dim)
             step[a] = e
-            grad[:, a] = (c.signed_distance(lift(pts + step), self.t) - c.signed_distance(lift(pts - step), self.t)) / (2 * e)
+            grad[:, a] = (c.signed_distance(lift(pts + step), t) - c.signed_distance(lift(pts - step), t)) / (2 * e)
         norm = np.linalg.norm(grad, axis=1)
         return phi, grad / np.where(norm > 0, norm, 1.0)[:, None]
 
