@@ -12,113 +12,73 @@ the last read. Checked against two closed forms:
   closed form up to one root-finding; its small-strain slope is E / (1 - nu^2) w depth / h).
 """
 
-import math
-
 import numpy as np
 import pytest
 
-BLOCK = """
-name = "block"
-[simulation]
-dim = 2
-dx = 2.5e-4
-particles_per_cell = 2
-domain_lo = [-0.004, -0.001]
-domain_hi = [0.004, 0.004]
-duration = 0.06
-damping = 300.0
-gravity = [{gx}, {gy}]
-depth = 1.0e-3
-formulation = "{form}"
-precision = "float64"
-
-[[bodies]]
-name = "block"
-shape = {{ type = "rectangle", center = [0.0, 0.001], size = [0.004, 0.002] }}
-material = {{ density = 1000.0, shear_modulus = 2.0e4 }}
-
-[[colliders]]
-type = "half_space"
-point = [0.0, 0.0]
-normal = [0.0, 1.0]
-mode = "friction"
-friction = 0.7
-
-[[probes]]
-type = "collider_force"
-name = "floor"
-collider = 0
-"""
-
-
-def _sim(tmp_path, text, name="scene.toml"):
-    from magsoro.scene import load_scene
+def _sim(scene: dict, source: str = "scene"):
+    from magsoro.scene import parse_scene
     from magsoro.simulation import Simulation
 
-    path = tmp_path / name
-    path.write_text(text)
-    return Simulation(load_scene(path), source=str(path))
+    return Simulation(parse_scene(scene, source))
 
 
-def _weight(sim, g):
-    return sim.model.host["mass"].sum() * np.asarray(g)
+def _weight(sim):
+    return sim.model.host["mass"].sum() * np.asarray(sim.scene.simulation.gravity, dtype=np.float64)
 
 
 @pytest.mark.parametrize("form", ["updated", "total"])
 @pytest.mark.parametrize("angle", [0.0, 25.0])
-def test_floor_carries_the_weight_of_a_resting_block(tmp_path, form, angle):
-    """Settled 40 ms (damping 300/s, about 12 times the slowest decay time), then read over 20 ms: the floor's
-    force is minus the weight within 0.5 % of its size in each component (measured: below 0.1 %)."""
-    g = 9.81
-    gravity = (g * math.sin(math.radians(angle)), -g * math.cos(math.radians(angle)))
-    sim = _sim(tmp_path, BLOCK.format(gx=gravity[0], gy=gravity[1], form=form))
+def test_floor_carries_the_weight_of_a_resting_block(form, angle):
+    """The block of magsoro.validation.collider_force on its friction floor (mu 0.7), gravity tilted by ``angle``:
+    settled 40 ms (damping 300/s, about 12 times the slowest decay time), then read over 20 ms: the floor's force
+    is minus the weight within 0.5 % of its size in each component (measured: below 0.1 %)."""
+    from magsoro.validation.collider_force import block_scene
+
+    sim = _sim(block_scene(form, angle))
     assert sim.probe_values() == {"floor_Fx": 0.0, "floor_Fy": 0.0}  # no time has passed
     sim.advance_to(0.04)
     sim.probe_values()  # the settling's mean
     sim.advance_to(0.06)
     v = sim.probe_values()
-    weight = _weight(sim, gravity)
+    weight = _weight(sim)
     force = np.array([v["floor_Fx"], v["floor_Fy"]])
-    assert np.allclose(force, weight, rtol=0.0, atol=5e-3 * np.linalg.norm(weight))
+    assert np.allclose(force, weight[:2], rtol=0.0, atol=5e-3 * np.linalg.norm(weight))
     # a second read at the same time repeats the value
     assert sim.probe_values() == v
 
 
-def test_static_and_relaxed_reactions_are_the_weight(tmp_path):
+def test_static_and_relaxed_reactions_are_the_weight():
     """The static solver's contact reaction equals the weight to its tolerance; the dynamic relaxation's force
     over its last kinetic-energy cycle within 1 %."""
-    gravity = (0.0, -9.81)
-    text = BLOCK.format(gx=0.0, gy=-9.81, form="total")
-    sim = _sim(tmp_path, text)
+    from magsoro.validation.collider_force import block_scene
+
+    sim = _sim(block_scene("total", 0.0))
     res = sim.solve_static(levels=[1.0])
     assert res.converged, res.message
     v = sim.probe_values()
-    weight = _weight(sim, gravity)
-    assert np.allclose([v["floor_Fx"], v["floor_Fy"]], weight, rtol=0.0, atol=1e-6 * np.linalg.norm(weight))
-    rel = _sim(tmp_path, text, "relax.toml")
+    weight = _weight(sim)
+    assert np.allclose([v["floor_Fx"], v["floor_Fy"]], weight[:2], rtol=0.0, atol=1e-6 * np.linalg.norm(weight))
+    rel = _sim(block_scene("total", 0.0))
     out = rel.relax()
     assert out.converged or out.stalled, out.message
     v = rel.probe_values()
-    assert np.allclose([v["floor_Fx"], v["floor_Fy"]], weight, rtol=0.0, atol=1e-2 * np.linalg.norm(weight))
+    assert np.allclose([v["floor_Fx"], v["floor_Fy"]], weight[:2], rtol=0.0, atol=1e-2 * np.linalg.norm(weight))
 
 
-def test_relaxation_before_any_step_with_two_colliders(tmp_path):
+def test_relaxation_before_any_step_with_two_colliders():
     """The colliders' accumulator is sized at the first step: a relaxation as the first thing a scene with two
     colliders does reads them (a regression: the read assumed one collider's size) and reports the floor's load."""
-    text = BLOCK.format(gx=0.0, gy=-9.81, form="total") + """
-[[colliders]]
-type = "half_space"
-point = [0.0035, 0.0]
-normal = [-1.0, 0.0]
-mode = "slip"
-"""
-    sim = _sim(tmp_path, text)
+    from magsoro.validation.collider_force import block_scene
+
+    scene = block_scene("total", 0.0)
+    scene["colliders"].append({"type": "half_space", "point": [0.0035, 0.0], "normal": [-1.0, 0.0], "mode": "slip"})
+    sim = _sim(scene)
     out = sim.relax()
     assert out.converged or out.stalled, out.message
     forces = sim.collider_forces()
-    weight = _weight(sim, (0.0, -9.81))
+    weight = _weight(sim)
     assert forces.shape == (2, 3)
-    assert np.allclose(forces[0, :2], weight, rtol=0.0, atol=1e-2 * np.linalg.norm(weight))
+    assert np.allclose(forces[0, :2], weight[:2], rtol=0.0, atol=1e-2 * np.linalg.norm(weight))
     assert np.allclose(forces[1], 0.0)  # the wall is not touched
 
 
@@ -174,10 +134,13 @@ def test_validation_case_rows_pass():
     assert all(r.passed for r in res.rows), [(r.inputs, r.error) for r in res.rows if not r.passed]
 
 
-def test_collider_force_probe_names_a_collider(tmp_path):
-    """A probe of a collider the scene does not have: one line naming the key and the indices allowed."""
+def test_collider_force_probe_names_a_collider():
+    """A probe of a collider the scene does not have: one line naming the file, the key and the indices allowed."""
     from magsoro.errors import SceneError
+    from magsoro.validation.collider_force import block_scene
 
-    text = BLOCK.format(gx=0.0, gy=-9.81, form="total").replace("collider = 0", "collider = 3")
-    with pytest.raises(SceneError, match=r"probes\[0\]\.collider: 3 is not a collider of the scene \(it has 1: indices 0 to 0"):
-        _sim(tmp_path, text)
+    scene = block_scene("total", 0.0)
+    scene["probes"][0]["collider"] = 3
+    with pytest.raises(SceneError, match=r"^block\.toml: probes\[0\]\.collider: 3 is not a collider of the scene "
+                                         r"\(it has 1: indices 0 to 0"):
+        _sim(scene, "block.toml")
