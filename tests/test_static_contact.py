@@ -166,3 +166,39 @@ def test_block_on_a_slippery_incline_has_no_equilibrium(tmp_path):
     res = sim.solve_static(levels=[1.0])
     assert not res.converged
     assert "did not converge" in res.message
+    # and says why: the net load along the floor (m g sin 30) beyond friction's limit (mu m g cos 30), as printed
+    import re
+
+    found = re.search(r"with ([0-9.e+-]+) N against a friction limit of ([0-9.e+-]+) N", res.message)
+    assert found and "no equilibrium lies near" in res.message and "colliders[0]" in res.message, res.message
+    weight = sim.model.host["mass"].sum() * g
+    assert float(found.group(1)) == pytest.approx(weight * 0.5, rel=5e-3)  # three digits printed
+    assert float(found.group(2)) == pytest.approx(0.4 * weight * math.sqrt(3) / 2, rel=5e-3)
+
+
+def test_block_that_rests_inside_the_cone_gets_no_sliding_note(tmp_path):
+    """The diagnostic of the test above is not given where friction holds the net load: a block under gravity
+    tilted 25 degrees (tan 25 = 0.47) on a floor with mu = 0.5 has its equilibrium, so a level that fails there
+    (one Newton iteration allowed) does not blame friction."""
+    g = 9.81
+    sim = _sim(tmp_path, BLOCK.format(gx=g * math.sin(math.radians(25)), gy=-g * math.cos(math.radians(25)), mu=0.5))
+    sim.scene.static.max_iterations = 1
+    res = sim.solve_static(levels=[1.0])
+    assert not res.converged and "friction limit" not in res.message
+
+
+def test_a_free_body_is_refused_at_once(tmp_path):
+    """A block 1 mm above its floor, no clamp: nothing holds it at the start, its rigid motions leave the tangent
+    singular, and the solver says so at once, naming the body and how far it is from the nearest collider (1 mm:
+    the lowest particle centres 1.125 mm above the floor, touching from their radius, 0.125 mm), instead of
+    failing its load increments after minutes (scenes/cube_dipole_3d.toml's cube took 6.5 minutes)."""
+    from magsoro.errors import SimulationError
+    from magsoro.mpm.static import StaticSolver
+
+    text = BLOCK.format(gx=0.0, gy=-9.81, mu=0.7).replace("center = [0.0, 0.001]", "center = [0.0, 0.002]")
+    sim = _sim(tmp_path, text)
+    with pytest.raises(SimulationError) as err:
+        StaticSolver(sim, 0.1)
+    message = str(err.value)
+    assert "body 'block' is free at the start" in message and "colliders[0] (half_space)" in message, message
+    assert "1 mm (2 cells) clear" in message and "\n" not in message

@@ -417,10 +417,59 @@ class StaticSolver:
             # the colliders start where they are at the scene's start; the first level's load increments move them
             # along their paths to the solve's time with the loads (a plate pressed into a body: a crushing test)
             self._set_collider_time(0.0)
+        self._check_held()
         if self.arc_length and self.walls:
             raise SimulationError("static.arc_length = true follows the equilibrium path of scenes without colliders, "
                                   "and a body starts within two cells of a domain wall (which then acts as one); "
                                   "enlarge simulation.domain_lo / domain_hi or set static.arc_length = false")
+
+    def _check_held(self) -> None:
+        """Refuse a scene with a free part: particles joined through shared grid nodes (bodies without contact
+        between them share the grid, so they act as one) that no clamp holds and no collider or modelled domain
+        wall touches at the start. Its rigid motions cost no energy, so the tangent is singular and Newton cannot
+        start (scenes/cube_dipole_3d.toml's cube, 0.2 cells above its floor, took minutes to fail)."""
+        from scipy.sparse.csgraph import connected_components
+
+        P = self.interpolation()
+        mass = self.node_mass
+        carrying = mass > 0
+        _, label = connected_components((P.T @ P).tocsr(), directed=False)
+        held_nodes = (self.solver._held.numpy()[: self.n_nodes] != 0) & carrying
+        supported = set(np.unique(label[held_nodes]).tolist())
+        supported |= set(np.unique(label[P[np.flatnonzero(self.model.host["clamped"] != 0)].indices]).tolist())
+        gaps = {}  # part label -> (smallest clearance above a collider's touching level, m; the collider's index)
+        if self.contact is not None:
+            for part in self.contact.parts:
+                pts = part.X[part.touchable]
+                point_labels = (label[part.touchable] if part.W is not P
+                                else label[np.asarray(P[part.touchable].argmax(axis=1)).ravel()])
+                for ci, (c, lvl) in enumerate(zip(part.colliders, part.level)):
+                    clearance = part._sdf(c, pts, 0.0)[0] - lvl - part.touch
+                    supported |= set(np.unique(point_labels[clearance <= 0.0]).tolist())
+                    if part is self._scene_contact:
+                        for lab in np.unique(point_labels):
+                            gap = float(np.min(clearance[point_labels == lab]))
+                            if lab not in gaps or gap < gaps[lab][0]:
+                                gaps[lab] = (gap, ci)
+        particle_label = label[np.asarray(P.argmax(axis=1)).ravel()]
+        free = [lab for lab in np.unique(particle_label) if lab not in supported]
+        if not free:
+            return
+        names = self.sim.built.body_names
+        body = np.asarray(self.model.host["body"])
+        lab = free[0]
+        parts = [names[int(b)] for b in np.unique(body[particle_label == lab])]
+        what = f"body '{parts[0]}'" if len(parts) == 1 else "bodies " + ", ".join(f"'{n}'" for n in parts)
+        where = "no collider in the scene"
+        if lab in gaps:
+            gap, ci = gaps[lab]
+            where = (f"it lies {gap * 1e3:.3g} mm ({gap / float(self.model.dx):.2g} cells) clear of colliders[{ci}] "
+                     f"({self.sim.control.colliders[ci].kind}), the nearest")
+        raise SimulationError(
+            f"{what} is free at the start: no clamp holds it and no collider touches it ({where}); its rigid motions "
+            f"leave the equilibrium undetermined. Place it on the collider meant to carry it (static.collider_contact "
+            f"= '{self.collider_contact}': {'its surface on the collider' if self.collider_contact == 'surface' else 'within 0.1 cells of a node'}), "
+            f"add a clamp, or run the dynamics (magsoro run without --static, or --equilibrium)")
 
     # -- residual -----------------------------------------------------------------------------------------
     def _place(self, u_nodes: np.ndarray) -> None:
@@ -895,6 +944,36 @@ class StaticSolver:
             for part in self.contact.parts:
                 part.t = float(tau)
 
+    def _sliding(self, load) -> str:
+        """After a failed load increment towards ``load`` (field, gravity levels: the level's), in a scene whose bodies
+        no clamp holds and which rest on one friction collider: a phrase saying so when the net applied force (fields
+        and gravity at ``load``, at the last converged state) pulls along that collider's surface harder than friction
+        holds
+        (|F_t| > mu F_n): a rigid body cannot rest there, there is no equilibrium near the state, and the bodies
+        move until something stops them. '' otherwise."""
+        part = self._scene_contact
+        held = self.solver._held.numpy()[: self.n_nodes] != 0
+        if part is None or np.any(self.model.host["clamped"] != 0) or np.any(held):
+            return ""
+        u = self.u_nodes
+        f = self._scatter(u, *load) - self.contact.forces(u)  # the contacts' part out: fields, gravity, stresses
+        net = f.sum(axis=0)  # the stresses' node forces sum to zero
+        touched = [(ci, c) for ci, c in enumerate(part.colliders) if len(part._touching[ci])]
+        if len(touched) != 1 or touched[0][1].mode != "friction":
+            return ""
+        ci, c = touched[0]
+        pts = part.positions(u)[part._touching[ci]]
+        n = part._sdf(c, pts)[1].mean(axis=0)
+        n /= np.linalg.norm(n)
+        f_n = -float(net @ n)  # pressing the bodies onto the collider
+        f_t = float(np.linalg.norm(net + f_n * n))
+        if f_t <= c.friction * max(f_n, 0.0):
+            return ""
+        return (f"at the level's load the fields and gravity pull the bodies along colliders[{ci}] ({c.kind}, friction {c.friction:g}) with "
+                f"{f_t:.3g} N against a friction limit of {c.friction * max(f_n, 0.0):.3g} N (mu times the {f_n:.3g} N "
+                f"pressing them on it): no equilibrium lies near this state, the bodies slide until something stops "
+                f"them; run the dynamics to see where they come to rest (magsoro run without --static, or --equilibrium)")
+
     def _increments(self, start, target, scale, watch: bool = False):
         """Load increments from the current state at load ``start`` to ``target`` (field, gravity levels):
         halved when Newton fails, doubled after a quick convergence. With ``watch``, the lowest stiffness is
@@ -944,6 +1023,9 @@ class StaticSolver:
                 self._set_collider_time(tau0 + s * (self.t - tau0))
                 ds *= 0.5
                 if ds < 1e-4:
+                    sliding = self._sliding(target)
+                    if sliding:
+                        message = f"{message}; {sliding}"
                     return "failed", iterations, increments, norm, s, message, None, None, None
         return "done", iterations, increments, norm, 1.0, "", None, None, None
 
