@@ -416,8 +416,8 @@ def test_strip_over_the_disc_magnet_matches_its_dynamic_settling():
     """Issue acceptance (non-uniform field): scenes/strip_magnet.toml at its preview grid (dx = 2 mm, 7584
     particles, 3D), the strip hanging with the magnet far (t = 0.05 s) and at a 40 mm gap (t = 0.5 s), the
     magnet also a rigid collider: strain 5.483 % against 5.436 % from the engine's dynamic settling of the same
-    grid (`magsoro validate`, docs/validation/robot-strip_magnet/strip_magnet.csv; 0.9 % apart) and a hanging
-    length of 100.53 mm against 100.51 mm. About 50 s."""
+    grid (the reproduction's preview when it still ran the dynamics: docs/validation/robot-strip_magnet at commit
+    63f691e; 0.9 % apart) and a hanging length of 100.53 mm against 100.51 mm. About 50 s."""
     from magsoro.scene import load_scene
     from magsoro.simulation import Simulation
 
