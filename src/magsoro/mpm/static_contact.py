@@ -213,8 +213,11 @@ class ColliderPenalty:
                         force[j] -= (mu * fn / self.slip) * dt
                         if fn > 0.0:
                             blocks[j] += (mu * fn / self.slip) * Pt - (mu / self.slip) * np.outer(dt, dfn)
-                        else:  # not pressed yet (a node just reaching its level): the tangent takes mu k, so a
-                            blocks[j] += mu * kc[j] * Pt  # step that will press it is not free to slide
+                        elif inside[j]:  # not pressed yet (a node just reaching its level): the tangent takes mu k,
+                            blocks[j] += mu * kc[j] * Pt  # so a step that will press it is not free to slide
+                        # a held node that pulls (it lifts off, and leaves at a converged state) has no friction
+                        # force, and none in the tangent either: a stiffness there that its force lacks leaves
+                        # Newton converging linearly where a light body lifts off along most of its contact
                         stuck[j] = True
                     else:  # sliding: mu f_n against the offset's direction; the cap grows with f_n, the direction turns
                         t_hat = dt / length
