@@ -189,8 +189,9 @@ def test_block_that_rests_inside_the_cone_gets_no_sliding_note(tmp_path):
 
 
 def test_a_free_body_is_refused_at_once(tmp_path):
-    """A block 1 mm above its floor, no clamp: nothing holds it at the start, its rigid motions leave the tangent
-    singular, and the solver says so at once, naming the body and how far it is from the nearest collider (1 mm:
+    """A block 1 mm above its floor, no clamp, under gravity: nothing holds it at the start and its weight is not
+    balanced, so it has no equilibrium there; the solver says so at once, naming the body and how far it is from
+    the nearest collider (1 mm:
     the lowest particle centres 1.125 mm above the floor, touching from their radius, 0.125 mm), instead of
     failing its load increments after minutes (scenes/cube_dipole_3d.toml's cube took 6.5 minutes)."""
     from magsoro.errors import SimulationError

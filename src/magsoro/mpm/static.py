@@ -424,10 +424,12 @@ class StaticSolver:
                                   "enlarge simulation.domain_lo / domain_hi or set static.arc_length = false")
 
     def _check_held(self) -> None:
-        """Refuse a scene with a free part: particles joined through shared grid nodes (bodies without contact
-        between them share the grid, so they act as one) that no clamp holds and no collider or modelled domain
-        wall touches at the start. Its rigid motions cost no energy, so the tangent is singular and Newton cannot
-        start (scenes/cube_dipole_3d.toml's cube, 0.2 cells above its floor, took minutes to fail)."""
+        """Refuse a scene with a free, loaded part: particles joined through shared grid nodes (bodies without
+        contact between them share the grid, so they act as one) that no clamp holds and no collider or modelled
+        domain wall touches at the start, on which the loads at the solve's time (fields at level 1, gravity) leave
+        a net force or couple: it has no equilibrium where it is (a body 1 mm above its floor under gravity failed
+        its load increments after minutes). A free part whose loads balance (a ring under internal pressure) is
+        solved."""
         from scipy.sparse.csgraph import connected_components
 
         P = self.interpolation()
@@ -455,6 +457,28 @@ class StaticSolver:
         free = [lab for lab in np.unique(particle_label) if lab not in supported]
         if not free:
             return
+        # the loads' net force and couple (about the part's centroid) on each free part: the stresses' node forces
+        # sum to zero, with their moments (at u = 0: no stress anyway, as the body starts unstressed)
+        f = self._scatter(np.zeros((self.n_nodes, self.dim)), 1.0, 1.0)
+        if self.contact is not None:
+            f = f - self.contact.forces(np.zeros((self.n_nodes, self.dim)))
+        X = (self.model.domain_lo + self.solver.org * self.model.dx) + self.coords * self.model.dx
+        loaded = []
+        for lab in free:
+            nodes = np.flatnonzero((label == lab) & carrying)
+            fn, xn = f[nodes], X[nodes]
+            centre = np.average(xn, axis=0, weights=mass[nodes])
+            net = fn.sum(axis=0)
+            arm = xn - centre
+            couple = (arm[:, 0] * fn[:, 1] - arm[:, 1] * fn[:, 0]).sum() if self.dim == 2 else np.cross(arm, fn).sum(axis=0)
+            size = float(np.max(np.linalg.norm(arm, axis=1))) + float(self.model.dx)
+            gross = float(np.abs(fn).sum()) + 1e-300
+            if np.linalg.norm(net) > 1e-6 * gross or np.linalg.norm(couple) > 1e-6 * gross * size:
+                loaded.append(lab)
+        self._scatter(np.zeros((self.n_nodes, self.dim)), 0.0, 0.0)  # the unloaded state's evaluation again
+        free = loaded
+        if not free:
+            return
         names = self.sim.built.body_names
         body = np.asarray(self.model.host["body"])
         lab = free[0]
@@ -466,8 +490,8 @@ class StaticSolver:
             where = (f"it lies {gap * 1e3:.3g} mm ({gap / float(self.model.dx):.2g} cells) clear of colliders[{ci}] "
                      f"({self.sim.control.colliders[ci].kind}), the nearest")
         raise SimulationError(
-            f"{what} is free at the start: no clamp holds it and no collider touches it ({where}); its rigid motions "
-            f"leave the equilibrium undetermined. Place it on the collider meant to carry it (static.collider_contact "
+            f"{what} is free at the start: no clamp holds it and no collider touches it ({where}), and its loads "
+            f"(fields, gravity) do not balance, so it has no equilibrium there. Place it on the collider meant to carry it (static.collider_contact "
             f"= '{self.collider_contact}': {'its surface on the collider' if self.collider_contact == 'surface' else 'within 0.1 cells of a node'}), "
             f"add a clamp, or run the dynamics (magsoro run without --static, or --equilibrium)")
 
