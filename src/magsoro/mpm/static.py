@@ -968,13 +968,17 @@ class StaticSolver:
             for part in self.contact.parts:
                 part.t = float(tau)
 
-    def _sliding(self, load) -> str:
+    def _colliders_move(self) -> bool:
+        """Whether a scene collider has a path (it moves with the first level's load increments)."""
+        return any(c.path is not None for c in self.sim.control.colliders)
+
+    def _sliding(self, load, flat_only: bool = False) -> str:
         """After a failed load increment towards ``load`` (field, gravity levels: the level's), in a scene whose bodies
         no clamp holds and which rest on one friction collider: a phrase saying so when the net applied force (fields
         and gravity at ``load``, at the last converged state) pulls along that collider's surface harder than friction
-        holds
-        (|F_t| > mu F_n): a rigid body cannot rest there, there is no equilibrium near the state, and the bodies
-        move until something stops them. '' otherwise."""
+        holds (|F_t| > mu F_n): a rigid body cannot rest there, there is no equilibrium near the state, and the
+        bodies move until something stops them. '' otherwise. ``flat_only``: only for a half-space collider, whose
+        one normal makes this a strict bound (the sum of the points' Coulomb cones)."""
         part = self._scene_contact
         held = self.solver._held.numpy()[: self.n_nodes] != 0
         if part is None or np.any(self.model.host["clamped"] != 0) or np.any(held):
@@ -983,7 +987,7 @@ class StaticSolver:
         f = self._scatter(u, *load) - self.contact.forces(u)  # the contacts' part out: fields, gravity, stresses
         net = f.sum(axis=0)  # the stresses' node forces sum to zero
         touched = [(ci, c) for ci, c in enumerate(part.colliders) if len(part._touching[ci])]
-        if len(touched) != 1 or touched[0][1].mode != "friction":
+        if len(touched) != 1 or touched[0][1].mode != "friction" or (flat_only and touched[0][1].kind != "half_space"):
             return ""
         ci, c = touched[0]
         pts = part.positions(u)[part._touching[ci]]
@@ -1046,11 +1050,17 @@ class StaticSolver:
             else:
                 self._set_collider_time(tau0 + s * (self.t - tau0))
                 ds *= 0.5
-                if ds < 1e-4:
-                    sliding = self._sliding(target)
+                # From the unloaded state with the colliders still, the loads grow in proportion: where they pull
+                # the free bodies along the one flat friction collider that carries them harder than friction
+                # holds at the level, they do so at every fraction of it, and smaller increments cannot help
+                # (scenes/cube_dipole_3d.toml halved its first increment 14 times, 6.5 minutes, before this).
+                proportional = s == 0.0 and not any(start) and not self._colliders_move()
+                if ds < 1e-4 or proportional:
+                    sliding = self._sliding(target, flat_only=proportional and ds >= 1e-4)
                     if sliding:
                         message = f"{message}; {sliding}"
-                    return "failed", iterations, increments, norm, s, message, None, None, None
+                    if ds < 1e-4 or sliding:
+                        return "failed", iterations, increments, norm, s, message, None, None, None
         return "done", iterations, increments, norm, 1.0, "", None, None, None
 
     def _arc_length(self, start, target, scale):
@@ -1223,7 +1233,8 @@ class StaticSolver:
             if status == "failed":
                 self._scatter(self.u_nodes, self.field_level, self.gravity_level)
                 return LevelResult(level, False, iterations, increments, norm, norm / scale, time.perf_counter() - t0,
-                                   f"load increment below 1e-4 of the level at {reached:.4g} of the way: {message}", lam, buckled,
+                                   (f"no equilibrium from {reached:.4g} of the way: {message}" if "no equilibrium lies near" in message
+                                    else f"load increment below 1e-4 of the level at {reached:.4g} of the way: {message}"), lam, buckled,
                                    limit_levels=limits, arc_length_steps=arc_steps)
             buckled = True
             ok, its, inc, norm, message = self._switch_branch(load, lam, mode, scale)
