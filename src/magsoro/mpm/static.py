@@ -489,11 +489,12 @@ class StaticSolver:
             gap, ci = gaps[lab]
             where = (f"it lies {gap * 1e3:.3g} mm ({gap / float(self.model.dx):.2g} cells) clear of colliders[{ci}] "
                      f"({self.sim.control.colliders[ci].kind}), the nearest")
+        touching = "its surface on the collider" if self.collider_contact == "surface" else "within 0.1 cells of a node"
         raise SimulationError(
             f"{what} is free at the start: no clamp holds it and no collider touches it ({where}), and its loads "
-            f"(fields, gravity) do not balance, so it has no equilibrium there. Place it on the collider meant to carry it (static.collider_contact "
-            f"= '{self.collider_contact}': {'its surface on the collider' if self.collider_contact == 'surface' else 'within 0.1 cells of a node'}), "
-            f"add a clamp, or run the dynamics (magsoro run without --static, or --equilibrium)")
+            f"(fields, gravity) do not balance, so it has no equilibrium there. Place it on the collider meant to "
+            f"carry it (static.collider_contact = '{self.collider_contact}': {touching}), add a clamp, or run the "
+            f"dynamics (magsoro run without --static, or --equilibrium)")
 
     # -- residual -----------------------------------------------------------------------------------------
     def _place(self, u_nodes: np.ndarray) -> None:
@@ -987,7 +988,9 @@ class StaticSolver:
         f = self._scatter(u, *load) - self.contact.forces(u)  # the contacts' part out: fields, gravity, stresses
         net = f.sum(axis=0)  # the stresses' node forces sum to zero
         touched = [(ci, c) for ci, c in enumerate(part.colliders) if len(part._touching[ci])]
-        if len(touched) != 1 or touched[0][1].mode != "friction" or (flat_only and touched[0][1].kind != "half_space"):
+        if len(touched) != 1 or touched[0][1].mode != "friction":
+            return ""
+        if flat_only and touched[0][1].kind != "half_space":
             return ""
         ci, c = touched[0]
         pts = part.positions(u)[part._touching[ci]]
@@ -997,10 +1000,11 @@ class StaticSolver:
         f_t = float(np.linalg.norm(net + f_n * n))
         if f_t <= c.friction * max(f_n, 0.0):
             return ""
-        return (f"at the level's load the fields and gravity pull the bodies along colliders[{ci}] ({c.kind}, friction {c.friction:g}) with "
-                f"{f_t:.3g} N against a friction limit of {c.friction * max(f_n, 0.0):.3g} N (mu times the {f_n:.3g} N "
-                f"pressing them on it): no equilibrium lies near this state, the bodies slide until something stops "
-                f"them; run the dynamics to see where they come to rest (magsoro run without --static, or --equilibrium)")
+        return (f"at the level's load the fields and gravity pull the bodies along colliders[{ci}] ({c.kind}, friction "
+                f"{c.friction:g}) with {f_t:.3g} N against a friction limit of {c.friction * max(f_n, 0.0):.3g} N (mu "
+                f"times the {f_n:.3g} N pressing them on it): no equilibrium lies near this state, the bodies slide "
+                f"until something stops them; run the dynamics to see where they come to rest (magsoro run without "
+                f"--static, or --equilibrium)")
 
     def _increments(self, start, target, scale, watch: bool = False):
         """Load increments from the current state at load ``start`` to ``target`` (field, gravity levels):
@@ -1232,10 +1236,10 @@ class StaticSolver:
                 message = f"{message}; arc length: {arc_message}"
             if status == "failed":
                 self._scatter(self.u_nodes, self.field_level, self.gravity_level)
+                why = (f"no equilibrium from {reached:.4g} of the way" if "no equilibrium lies near" in message
+                       else f"load increment below 1e-4 of the level at {reached:.4g} of the way")
                 return LevelResult(level, False, iterations, increments, norm, norm / scale, time.perf_counter() - t0,
-                                   (f"no equilibrium from {reached:.4g} of the way: {message}" if "no equilibrium lies near" in message
-                                    else f"load increment below 1e-4 of the level at {reached:.4g} of the way: {message}"), lam, buckled,
-                                   limit_levels=limits, arc_length_steps=arc_steps)
+                                   f"{why}: {message}", lam, buckled, limit_levels=limits, arc_length_steps=arc_steps)
             buckled = True
             ok, its, inc, norm, message = self._switch_branch(load, lam, mode, scale)
             iterations, increments = iterations + its, increments + inc
