@@ -226,7 +226,9 @@ def _dynamic_sweep(ctx: Context, data: dict, gaps, centre, half: float, diameter
 
 
 def reproduce(ctx: Context) -> ReproduceResult:
+    from magsoro.errors import SimulationError
     from magsoro.fields import CylinderMagnet
+    from magsoro.mpm.static import check_supported
 
     gaps = PREVIEW_GAPS if ctx.preview else GAPS
     data = scene_data(NAME)
@@ -270,9 +272,6 @@ def reproduce(ctx: Context) -> ReproduceResult:
         return out
 
     all_gaps = [FAR] + list(gaps)
-    from magsoro.errors import SimulationError
-    from magsoro.mpm.static import check_supported
-
     try:
         check_supported(sim)
         refused = None
