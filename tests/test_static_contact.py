@@ -175,6 +175,7 @@ def test_block_on_a_slippery_incline_has_no_equilibrium(tmp_path):
     # from the unloaded state the loads grow in proportion, so no smaller increment can hold: it stops after the
     # first failed one (it used to halve it 14 times)
     assert res.levels[-1].iterations <= 2 * 8 and "no equilibrium from 0 of the way" in res.message
+    assert res.levels[-1].no_equilibrium  # run.json's static.levels[].no_equilibrium
     weight = sim.model.host["mass"].sum() * g
     assert float(found.group(1)) == pytest.approx(weight * 0.5, rel=5e-3)  # three digits printed
     assert float(found.group(2)) == pytest.approx(0.4 * weight * math.sqrt(3) / 2, rel=5e-3)
@@ -188,7 +189,7 @@ def test_block_that_rests_inside_the_cone_gets_no_sliding_note(tmp_path):
     sim = _sim(tmp_path, BLOCK.format(gx=g * math.sin(math.radians(25)), gy=-g * math.cos(math.radians(25)), mu=0.5))
     sim.scene.static.max_iterations = 1
     res = sim.solve_static(levels=[1.0])
-    assert not res.converged and "friction limit" not in res.message
+    assert not res.converged and "friction limit" not in res.message and not res.levels[-1].no_equilibrium
 
 
 def test_a_free_body_is_refused_at_once(tmp_path):

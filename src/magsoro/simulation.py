@@ -261,7 +261,7 @@ class Simulation:
             if not res.converged:
                 out.converged = False
                 out.message = f"level {level:g} did not converge ({res.message}); the state is the last converged level's"
-                if res.wall_crossing is None and "no equilibrium lies near" not in res.message:
+                if res.wall_crossing is None and not res.no_equilibrium:
                     out.message += ": insert intermediate levels, raise static.max_iterations, or check the loads"
                 break
             if on_level is not None:

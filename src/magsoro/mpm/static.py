@@ -295,6 +295,9 @@ class LevelResult:
     # where the equilibrium reached the band of the domain walls (StaticSolver.wall_crossing); the level is then
     # not converged and the state stays at the previous level's
     wall_crossing: str | None = None
+    # the loads pull free bodies along the friction collider that carries them harder than friction holds
+    # (StaticSolver._sliding): no equilibrium near the state, smaller load increments cannot help
+    no_equilibrium: bool = False
 
 
 @dataclass
@@ -462,7 +465,7 @@ class StaticSolver:
         f = self._scatter(np.zeros((self.n_nodes, self.dim)), 1.0, 1.0)
         if self.contact is not None:
             f = f - self.contact.forces(np.zeros((self.n_nodes, self.dim)))
-        X = (self.model.domain_lo + self.solver.org * self.model.dx) + self.coords * self.model.dx
+        X = self.node_positions()[2]  # the nodes' reference positions
         loaded = []
         for lab in free:
             nodes = np.flatnonzero((label == lab) & carrying)
@@ -1011,7 +1014,8 @@ class StaticSolver:
         halved when Newton fails, doubled after a quick convergence. With ``watch``, the lowest stiffness is
         checked after every increment and the walk stops at the first unstable one, the solver keeping the
         stable state before it. Returns (status, iterations, increments, |R|, fraction reached, message,
-        unstable load, its eigenvalue, its mode) with status 'done', 'failed' or 'unstable'."""
+        unstable load, its eigenvalue, its mode) with status 'done', 'failed', 'sliding' (failed, and the loads pull
+        the free bodies off their friction collider: :meth:`_sliding`, in the message) or 'unstable'."""
         s, ds = 0.0, 1.0
         iterations = increments = 0
         u = self.u_nodes.copy()
@@ -1062,8 +1066,8 @@ class StaticSolver:
                 if ds < 1e-4 or proportional:
                     sliding = self._sliding(target, flat_only=proportional and ds >= 1e-4)
                     if sliding:
-                        message = f"{message}; {sliding}"
-                    if ds < 1e-4 or sliding:
+                        return "sliding", iterations, increments, norm, s, f"{message}; {sliding}", None, None, None
+                    if ds < 1e-4:
                         return "failed", iterations, increments, norm, s, message, None, None, None
         return "done", iterations, increments, norm, 1.0, "", None, None, None
 
@@ -1234,12 +1238,13 @@ class StaticSolver:
                 if ok:
                     break
                 message = f"{message}; arc length: {arc_message}"
-            if status == "failed":
+            if status in ("failed", "sliding"):
                 self._scatter(self.u_nodes, self.field_level, self.gravity_level)
-                why = (f"no equilibrium from {reached:.4g} of the way" if "no equilibrium lies near" in message
+                why = (f"no equilibrium from {reached:.4g} of the way" if status == "sliding"
                        else f"load increment below 1e-4 of the level at {reached:.4g} of the way")
                 return LevelResult(level, False, iterations, increments, norm, norm / scale, time.perf_counter() - t0,
-                                   f"{why}: {message}", lam, buckled, limit_levels=limits, arc_length_steps=arc_steps)
+                                   f"{why}: {message}", lam, buckled, limit_levels=limits, arc_length_steps=arc_steps,
+                                   no_equilibrium=status == "sliding")
             buckled = True
             ok, its, inc, norm, message = self._switch_branch(load, lam, mode, scale)
             iterations, increments = iterations + its, increments + inc
