@@ -165,9 +165,8 @@ def _static_sweep(ctx: Context, sim, placed, gaps, centre, half: float, diameter
     """One equilibrium per gap (the static solver), each from the straight, unloaded strip with the magnet held at
     its gap (nothing here depends on the path: no friction, no contact). ``sim`` is the scene at gaps[0];
     ``placed(gap)`` gives the scene data at a gap. Returns (StaticSweep, FrameRecorder, the GIF's magnet patch)."""
-    shown = {"gap": gaps[0]}
-    frames = FrameRecorder(axes=(0, 2), label=lambda s: f"magnet gap {shown['gap'] * 1e3:.0f} mm (equilibrium)")
-    frame_gaps = [gaps[0]]
+    frame_gaps = [gaps[0]]  # the magnet's gap in each frame, the one being recorded last
+    frames = FrameRecorder(axes=(0, 2), label=lambda s: f"magnet gap {frame_gaps[-1] * 1e3:.0f} mm (equilibrium)")
     sim.field_scale = 0.0
     frames.record(sim)  # the straight strip before gravity
     ctx.log(f"{NAME}: {sim.model.n_particles} particles, dx = {sim.scene.simulation.dx * 1e3:.3g} mm, "
@@ -182,7 +181,6 @@ def _static_sweep(ctx: Context, sim, placed, gaps, centre, half: float, diameter
             raise RobotError(f"{NAME}: static solve at a {g * 1e3:g} mm gap failed: {res.message}")
         values.append(measure(sim))
         levels.extend(res.levels)
-        shown["gap"] = g
         frame_gaps.append(g)
         frames.record(sim)
         ctx.log(f"  {NAME}: gap {g * 1e3:g} mm: length {values[-1]['length_mm']:.3f} mm "
