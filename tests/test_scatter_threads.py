@@ -54,7 +54,6 @@ def test_thread_per_node_scatter_equals_thread_per_particle(run):
     assert np.abs(per_particle["v"]).max() > 0.0  # the runs moved: the comparison is not of two rest states
 
 
-
 @pytest.mark.cuda
 @pytest.mark.parametrize("run", [_walker, _block_on_slab], ids=["walker_3d_remap", "block_on_slab_2d_contact"])
 def test_cuda_thread_per_node_scatter_follows_thread_per_particle_and_the_cpu(run):

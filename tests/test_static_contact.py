@@ -7,6 +7,7 @@ floor too slippery to hold it (no equilibrium: the solver says so).
 """
 
 import math
+import re
 
 import numpy as np
 import pytest
@@ -167,8 +168,6 @@ def test_block_on_a_slippery_incline_has_no_equilibrium(tmp_path):
     assert not res.converged
     assert "did not converge" in res.message
     # and says why: the net load along the floor (m g sin 30) beyond friction's limit (mu m g cos 30), as printed
-    import re
-
     found = re.search(r"with ([0-9.e+-]+) N against a friction limit of ([0-9.e+-]+) N", res.message)
     assert found and "no equilibrium lies near" in res.message and "colliders[0]" in res.message, res.message
     assert "insert intermediate levels" not in res.message  # the generic advice would contradict it
@@ -195,8 +194,8 @@ def test_block_that_rests_inside_the_cone_gets_no_sliding_note(tmp_path):
 def test_a_free_body_is_refused_at_once(tmp_path):
     """A block 1 mm above its floor, no clamp, under gravity: nothing holds it at the start and its weight is not
     balanced, so it has no equilibrium there; the solver says so at once, naming the body and how far it is from
-    the nearest collider (1 mm:
-    the lowest particle centres 1.125 mm above the floor, touching from their radius, 0.125 mm), instead of
+    the nearest collider (1 mm: the lowest particle centres 1.125 mm above the floor, touching from their radius,
+    0.125 mm), instead of
     failing its load increments after minutes (scenes/cube_dipole_3d.toml's cube took 6.5 minutes)."""
     from magsoro.errors import SimulationError
     from magsoro.mpm.static import StaticSolver

@@ -394,6 +394,7 @@ class StaticSolver:
         mass = solver.grid_m.numpy()[: self.n_nodes].astype(np.float64)
         held = solver._held.numpy()[: self.n_nodes] != 0
         self.node_mass = mass
+        self.held_nodes = held  # nodes the clamps hold (read once: the clamps do not change during a solve)
         self.free = np.flatnonzero((mass > 0) & ~held)
         shape = np.asarray(solver.shape, dtype=np.int64)
         self.shape = shape
@@ -439,15 +440,14 @@ class StaticSolver:
         mass = self.node_mass
         carrying = mass > 0
         _, label = connected_components((P.T @ P).tocsr(), directed=False)
-        held_nodes = (self.solver._held.numpy()[: self.n_nodes] != 0) & carrying
-        supported = set(np.unique(label[held_nodes]).tolist())
+        particle_label = label[np.asarray(P.argmax(axis=1)).ravel()]  # each particle's part: that of its largest weight's node
+        supported = set(np.unique(label[self.held_nodes & carrying]).tolist())
         supported |= set(np.unique(label[P[np.flatnonzero(self.model.host["clamped"] != 0)].indices]).tolist())
         gaps = {}  # part label -> (smallest clearance above a collider's touching level, m; the collider's index)
         if self.contact is not None:
             for part in self.contact.parts:
                 pts = part.X[part.touchable]
-                point_labels = (label[part.touchable] if part.W is not P
-                                else label[np.asarray(P[part.touchable].argmax(axis=1)).ravel()])
+                point_labels = label[part.touchable] if part.W is not P else particle_label[part.touchable]
                 for ci, (c, lvl) in enumerate(zip(part.colliders, part.level)):
                     clearance = part._sdf(c, pts, 0.0)[0] - lvl - part.touch
                     supported |= set(np.unique(point_labels[clearance <= 0.0]).tolist())
@@ -456,7 +456,6 @@ class StaticSolver:
                             gap = float(np.min(clearance[point_labels == lab]))
                             if lab not in gaps or gap < gaps[lab][0]:
                                 gaps[lab] = (gap, ci)
-        particle_label = label[np.asarray(P.argmax(axis=1)).ravel()]
         free = [lab for lab in np.unique(particle_label) if lab not in supported]
         if not free:
             return
@@ -578,8 +577,7 @@ class StaticSolver:
         mass-weighted displacement of their particles, clamped ones held (:meth:`node_positions`, the map the node
         law of the colliders uses), (n_free_with_mass, dim)."""
         carrying, W, X = self.node_positions()
-        held = self.solver._held.numpy()[: self.n_nodes] != 0
-        free = np.setdiff1d(carrying, np.flatnonzero(held))
+        free = np.setdiff1d(carrying, np.flatnonzero(self.held_nodes))
         return X[free] + W[free] @ np.asarray(u_nodes)
 
     def _walls_reached(self, u_nodes: np.ndarray) -> list:
@@ -984,8 +982,7 @@ class StaticSolver:
         bodies move until something stops them. '' otherwise. ``flat_only``: only for a half-space collider, whose
         one normal makes this a strict bound (the sum of the points' Coulomb cones)."""
         part = self._scene_contact
-        held = self.solver._held.numpy()[: self.n_nodes] != 0
-        if part is None or np.any(self.model.host["clamped"] != 0) or np.any(held):
+        if part is None or np.any(self.model.host["clamped"] != 0) or np.any(self.held_nodes):
             return ""
         u = self.u_nodes
         f = self._scatter(u, *load) - self.contact.forces(u)  # the contacts' part out: fields, gravity, stresses

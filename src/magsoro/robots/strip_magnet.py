@@ -7,8 +7,8 @@ gradient pulls the strip towards the magnet. The magnet comes closer in steps ("
 is a static curve: at each gap the strip's equilibrium comes from the static solver (Simulation.solve_static),
 from the straight strip with the magnet held at that gap. Measured 2026-11-26 at the full grid (25596
 particles): about 33 s per gap on this CPU, against 579 s for the dynamic sweep of the same gaps (ramps and
-holds); at the preview grid the static strain at a 40 mm gap is 0.9 % from the engine's dynamic settling
-(tests/test_static_solver.py).
+holds); at the preview grid the static strain at a 40 mm gap is 1.6 % below the engine's dynamic settling in
+the scene's (total-Lagrangian) form and 0.9 % above the updated form's (tests/test_static_solver.py).
 """
 
 from __future__ import annotations
