@@ -11,7 +11,7 @@ import time
 import numpy as np
 import warp as wp
 
-wp.set_module_options({"max_unroll": 32})
+wp.set_module_options({"max_unroll": 32, "enable_backward": False})  # never under wp.Tape
 
 
 @functools.cache

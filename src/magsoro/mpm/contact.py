@@ -143,7 +143,7 @@ def make_contact(dim: int, scalar):
             v = w / lw
         return wp.dot(v, cov * v), v
 
-    @wp.kernel
+    @wp.kernel(enable_backward=False)
     def contact_classify(
         gmin: wp.array(dtype=wp.int32),
         gmax: wp.array(dtype=wp.int32),

@@ -20,6 +20,10 @@ F_REMAP_APART = wp.constant(3)  # F from the remap, whose scatter runs in remap_
 @functools.cache
 def make_g2p(dim: int, scalar, two_fields: bool = False) -> dict:
     """Gather kernels for ``dim``, ``scalar``; ``two_fields``: the contact variant (:mod:`magsoro.mpm.contact`)."""
+    # Only the differentiable rollout (magsoro.diff) runs kernels under wp.Tape: p2g, grid_update, g2p,
+    # remap_node_velocity and remap_F of the one-field variant. Every other kernel is built without the adjoint
+    # Warp otherwise generates and compiles for each (docs/engine.md, "Compile time").
+    differentiable = not two_fields
     s = make_stencil(dim, scalar, two_fields)
     t = s.types
     vec, mat, v3, ivec = t.vec, t.mat, t.v3, t.ivec
@@ -55,7 +59,7 @@ def make_g2p(dim: int, scalar, two_fields: bool = False) -> dict:
         weight, of, idx = stencil_node(q, w0, w1, w2, first, shape)
         wp.atomic_add(grid_r, slot_of(ct, p, idx), (weight * mp) * (new_v + (Cd * of - Cfx)))  # new_v per node, as in p2g
 
-    @wp.kernel
+    @wp.kernel(enable_backward=differentiable)
     def g2p(
         grid_v: wp.array(dtype=vec),
         bodies: wp.array(dtype=Bodies),
@@ -143,7 +147,7 @@ def make_g2p(dim: int, scalar, two_fields: bool = False) -> dict:
             wp.atomic_min(checks[0].bounds, a, xp[a])
             wp.atomic_max(checks[0].bounds, dim + a, xp[a])
 
-    @wp.kernel
+    @wp.kernel(enable_backward=False)
     def remap_scatter(
         x: wp.array(dtype=vec),
         bodies: wp.array(dtype=Bodies),
@@ -182,14 +186,14 @@ def make_g2p(dim: int, scalar, two_fields: bool = False) -> dict:
             for q in range(NS):
                 remap_node(grid_r, ct, p, q, w0, w1, w2, first, block.shape, mp, new_v, Cd, Cfx)
 
-    @wp.kernel
+    @wp.kernel(enable_backward=False)
     def reset_reductions(bounds: wp.array(dtype=scalar), max_speed: wp.array(dtype=scalar), big: scalar):
         for a in range(dim):
             bounds[a] = big
             bounds[dim + a] = -big
         max_speed[0] = scalar(0.0)
 
-    @wp.kernel
+    @wp.kernel(enable_backward=False)
     def load_step(
         table: wp.array(dtype=wp.float64),
         width: int,
@@ -213,7 +217,7 @@ def make_g2p(dim: int, scalar, two_fields: bool = False) -> dict:
             colliders[i] = table[base + 5 + i]
         cursor[0] = row + 1
 
-    @wp.kernel
+    @wp.kernel(enable_backward=False)
     def load_params(table: wp.array(dtype=wp.float64), width: int, cursor: wp.array(dtype=wp.int32), offset: int,
                     params: wp.array(dtype=wp.float64)):
         """After ``load_step``: a field source's parameters at the step's time, from the row ``load_step`` took
@@ -221,7 +225,7 @@ def make_g2p(dim: int, scalar, two_fields: bool = False) -> dict:
         i = wp.tid()
         params[i] = table[(cursor[0] - 1) * width + offset + i]
 
-    @wp.kernel
+    @wp.kernel(enable_backward=differentiable)
     def remap_node_velocity(
         grid_r: wp.array(dtype=vec),
         grid_m: wp.array(dtype=scalar),
@@ -242,7 +246,7 @@ def make_g2p(dim: int, scalar, two_fields: bool = False) -> dict:
         else:
             grid_w[idx] = vec()
 
-    @wp.kernel
+    @wp.kernel(enable_backward=differentiable)
     def remap_F(
         x: wp.array(dtype=vec),
         bodies: wp.array(dtype=Bodies),
@@ -282,7 +286,7 @@ def make_g2p(dim: int, scalar, two_fields: bool = False) -> dict:
         if not update_F(F_in, F_out, p, (dts * scalar(4.0) * inv_dx) * (S - wp.outer(sv, fx))):
             wp.atomic_max(error, 1, 1)
 
-    @wp.kernel
+    @wp.kernel(enable_backward=False)
     def contact_gather(
         x: wp.array(dtype=vec),
         clamped: wp.array(dtype=wp.int32),

@@ -56,6 +56,10 @@ def grid_settings_struct(dim: int, scalar):
 @functools.cache
 def make_grid(dim: int, scalar, two_fields: bool = False) -> dict:
     """Node kernels for ``dim``, ``scalar``; ``two_fields``: the contact variant (:mod:`magsoro.mpm.contact`)."""
+    # Only the differentiable rollout (magsoro.diff) runs kernels under wp.Tape: p2g, grid_update, g2p,
+    # remap_node_velocity and remap_F of the one-field variant. Every other kernel is built without the adjoint
+    # Warp otherwise generates and compiles for each (docs/engine.md, "Compile time").
+    differentiable = not two_fields
     s = make_stencil(dim, scalar, two_fields)
     t = s.types
     vec, ivec, v3 = t.vec, t.ivec, t.v3
@@ -134,7 +138,7 @@ def make_grid(dim: int, scalar, two_fields: bool = False) -> dict:
         vel = walls(vel, pos, gs)
         return vel
 
-    @wp.kernel
+    @wp.kernel(enable_backward=differentiable)
     def grid_update(
         grid_p: wp.array(dtype=vec),
         grid_m: wp.array(dtype=scalar),
@@ -182,7 +186,7 @@ def make_grid(dim: int, scalar, two_fields: bool = False) -> dict:
             grid_v[slot] = vel1
         grid_v[idx] = vel
 
-    @wp.kernel
+    @wp.kernel(enable_backward=False)
     def add_grid(dst_p: wp.array(dtype=vec), src_p: wp.array(dtype=vec), dst_m: wp.array(dtype=scalar), src_m: wp.array(dtype=scalar), with_mass: int):
         """Sum a worker thread's private grid into the shared one (CPU threads: Warp's CPU atomics are plain adds,
         so each thread scatters into its own copy)."""
@@ -191,7 +195,7 @@ def make_grid(dim: int, scalar, two_fields: bool = False) -> dict:
         if with_mass != 0:
             dst_m[i] = dst_m[i] + src_m[i]
 
-    @wp.kernel
+    @wp.kernel(enable_backward=False)
     def contact_resolve(
         grid_p: wp.array(dtype=vec),
         grid_m: wp.array(dtype=scalar),

@@ -27,6 +27,9 @@ import warp as wp
 from magsoro.constants import MU0
 from magsoro.mpm.stencil import host_bspline, make_stencil
 
+# No kernel here runs under wp.Tape (only magsoro.diff's rollout does): Warp need not build their adjoints.
+wp.set_module_options({"enable_backward": False})
+
 MODES = ("none", "dipole")
 MARGIN = 2  # nodes kept between the magnetised particles' box and the grid's edge (the stencil's reach)
 

@@ -20,6 +20,10 @@ wp.set_module_options({"max_unroll": 32})
 @functools.cache
 def make_p2g(dim: int, scalar, two_fields: bool = False) -> dict:
     """Scatter kernels for ``dim``, ``scalar``; ``two_fields``: the contact variant (:mod:`magsoro.mpm.contact`)."""
+    # Only the differentiable rollout (magsoro.diff) runs kernels under wp.Tape: p2g, grid_update, g2p,
+    # remap_node_velocity and remap_F of the one-field variant. Every other kernel is built without the adjoint
+    # Warp otherwise generates and compiles for each (docs/engine.md, "Compile time").
+    differentiable = not two_fields
     s = make_stencil(dim, scalar, two_fields)
     t = s.types
     vec, mat, v3, m3, ivec = t.vec, t.mat, t.v3, t.m3, t.ivec
@@ -118,7 +122,7 @@ def make_p2g(dim: int, scalar, two_fields: bool = False) -> dict:
             dts = sv.dt
         return dts, B
 
-    @wp.kernel
+    @wp.kernel(enable_backward=differentiable)
     def p2g(
         src: wp.array(dtype=Particles),
         bodies: wp.array(dtype=Bodies),
@@ -171,7 +175,7 @@ def make_p2g(dim: int, scalar, two_fields: bool = False) -> dict:
         for q in range(NS):
             scatter_node(g, ct, p, q, w0, w1, w2, first, block.shape, fx, mp, A, Afx, mv, is_clamped)
 
-    @wp.kernel
+    @wp.kernel(enable_backward=False)
     def p2g_scatter(
         x: wp.array(dtype=vec),
         bodies: wp.array(dtype=Bodies),
@@ -213,7 +217,7 @@ def make_p2g(dim: int, scalar, two_fields: bool = False) -> dict:
             for q in range(NS):
                 scatter_node(g, ct, p, q, w0, w1, w2, first, block.shape, fx, mp, A, Afx, mv, is_clamped)
 
-    @wp.kernel
+    @wp.kernel(enable_backward=False)
     def node_displacement(
         X: wp.array(dtype=vec),
         x: wp.array(dtype=vec),
@@ -237,7 +241,7 @@ def make_p2g(dim: int, scalar, two_fields: bool = False) -> dict:
             weight, o, idx = stencil_node(q, w0, w1, w2, first, block.shape)
             wp.atomic_add(grid_u, slot_of(ct, p, idx), weight * mu)
 
-    @wp.kernel
+    @wp.kernel(enable_backward=False)
     def contact_scan(
         x: wp.array(dtype=vec),
         X: wp.array(dtype=vec),
@@ -274,7 +278,7 @@ def make_p2g(dim: int, scalar, two_fields: bool = False) -> dict:
                     for c in range(dim):
                         wp.atomic_add(moments, row + 1 + dim + a * dim + c, wm * Xp[a] * Xp[c])
 
-    @wp.kernel
+    @wp.kernel(enable_backward=False)
     def contact_scatter(
         x: wp.array(dtype=vec),
         v: wp.array(dtype=vec),

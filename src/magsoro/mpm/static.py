@@ -59,6 +59,9 @@ from magsoro.mpm.solver import block_struct, bodies_array, contact_grid
 from magsoro.mpm.stencil import host_bspline, make_stencil
 from magsoro.mpm.viscous import viscous_struct
 
+# No kernel here runs under wp.Tape (only magsoro.diff's rollout does): Warp need not build their adjoints.
+wp.set_module_options({"enable_backward": False})
+
 #: central-difference step of the material tangent dP/dF (dimensionless) and of the field's gradient (cells)
 F_STEP = 1e-6
 X_STEP = 1e-4
