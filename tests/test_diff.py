@@ -198,11 +198,11 @@ def test_bad_inputs_are_refused(tmp_path):
 
 
 def test_adjoints_are_built_for_the_rollouts_kernels_only():
-    """Warp generates and compiles a kernel's adjoint unless told not to; the engine asks for it only on the five
-    kernels the differentiable rollout launches under wp.Tape (one-field variant). The others' adjoints cost a
-    cold start most of its compile time (the 3D float32 contact p2g's PTX: 150 s with them, 7 s without,
-    benchmarks/results/*-compile-time.json) and were never called. A kernel the rollout launches without its
-    adjoint would fail test_gradient_matches_central_differences; this pins the list both ways."""
+    """Warp generates and compiles a kernel's adjoint unless told not to. The engine asks for it only in the
+    variant the differentiable rollout takes (make_kernels(..., differentiable=True)), and there only on the five
+    kernels it launches under wp.Tape; the kernels a simulation runs have none. Those adjoints cost a cold start
+    most of its compile time (benchmarks/results/*-compile-time.json) and were never called. A kernel the rollout
+    launches without its adjoint would fail test_gradient_matches_central_differences; this pins the lists."""
     import warp as wp
 
     from magsoro.mpm.kernels import make_kernels
@@ -211,6 +211,7 @@ def test_adjoints_are_built_for_the_rollouts_kernels_only():
     tested = {"stress_kernel", "body_stress_kernel"}  # one material law at a time, small: left as Warp builds them
     for dim in (2, 3):
         for contact in (False, True):
-            k = make_kernels(dim, wp.float64, contact=contact)
-            with_adjoint = {n for n, v in k.items() if isinstance(v, wp.Kernel) and v.options.get("enable_backward", True)}
-            assert with_adjoint - tested == (set() if contact else rollout), (dim, contact)
+            for differentiable in (False, True):
+                k = make_kernels(dim, wp.float64, contact=contact, differentiable=differentiable)
+                with_adjoint = {n for n, v in k.items() if isinstance(v, wp.Kernel) and v.options.get("enable_backward", True)}
+                assert with_adjoint - tested == (rollout if differentiable else set()), (dim, contact, differentiable)

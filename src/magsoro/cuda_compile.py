@@ -23,9 +23,10 @@ report and lets the compiles run in parallel. (The one exception: ``contact_clas
 stencil builds through its cache, stays in ``magsoro.mpm.contact`` for every dimension and precision, about a
 second of compile each.) Every variant the package can create is listed:
 
-- ``engine {2,3}D {float32,float64}[ (contact)]: p2g | g2p | grid``: the transfers and the grid update, without
-  and with the two velocity fields per node of contact (``two_fields``); updated and total Lagrangian are the same
-  kernels (a run-time argument);
+- ``engine {2,3}D {float32,float64}[ (contact)| (adjoint)]: p2g | g2p | grid``: the transfers and the grid
+  update, without and with the two velocity fields per node of contact (``two_fields``), and the differentiable
+  rollout's variant with the adjoints of the kernels it records (``differentiable``); updated and total
+  Lagrangian are the same kernels (a run-time argument);
 - ``engine {2,3}D {float32,float64}: contact | kernels``: ``contact_classify`` and the stress kernels
   (``stress_kernel``, ``body_stress_kernel``; one per dimension and precision);
 - ``fields {2,3}D {float32,float64}: device``: the field accumulate kernel (:mod:`magsoro.fields.device`) for the
@@ -272,11 +273,11 @@ def _catalogue() -> tuple:
     for dim in DIMS:
         for sname in SCALAR_NAMES:
             sc = scalars[sname]
-            for contact in (False, True):
-                label = f"engine {dim}D {sname}" + (" (contact)" if contact else "")
+            for contact, differentiable in ((False, False), (True, False), (False, True)):
+                label = f"engine {dim}D {sname}" + (" (contact)" if contact else "") + (" (adjoint)" if differentiable else "")
                 for factory in (make_p2g, make_grid, make_g2p):
-                    groups += _groups_of(label, _fresh(factory, dim, sc, contact), seen)
-                if not contact:
+                    groups += _groups_of(label, _fresh(factory, dim, sc, contact, differentiable), seen)
+                if not contact and not differentiable:
                     # one per dimension and precision; contact_classify comes from the cache, where the transfers'
                     # stencil (magsoro.mpm.stencil) has already put it
                     groups += _groups_of(label, _fresh(_stress_kernel, dim, sc), seen)

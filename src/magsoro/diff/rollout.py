@@ -28,7 +28,7 @@ import warp as wp
 from magsoro.errors import MagsoroError
 from magsoro.fields.device import accumulate_kernel
 from magsoro.mpm.colliders import COLLIDER_STRIDE, MODES, collider_table
-from magsoro.mpm.kernels import F_FROM_GRID, F_FROM_REMAP
+from magsoro.mpm.kernels import F_FROM_GRID, F_FROM_REMAP, make_kernels
 from magsoro.mpm.materials import LAWS
 from magsoro.mpm.solver import block_struct, bodies_array, contact_grid, grid_settings
 from magsoro.mpm.viscous import viscous_struct
@@ -174,7 +174,7 @@ class Rollout:
         if st.contact is not None and st.contact.active(groups):
             raise ValueError("the differentiable rollout has no contact between bodies or self-contact; give the scene "
                              "contact.friction = 'sticky' (one velocity field) or a single body")
-        self.k = k = m.kernels
+        self.k = k = make_kernels(m.dim, m.scalar, differentiable=True)  # the engine's kernels, with their adjoints
         self._no_contact = contact_grid(m)  # one velocity field per node
         self._no_viscous = viscous_struct(m, None)
         # p2g's arrays for the scatter threads' split (unused here: the rollout runs p2g whole)

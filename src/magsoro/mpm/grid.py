@@ -54,12 +54,10 @@ def grid_settings_struct(dim: int, scalar):
 
 
 @functools.cache
-def make_grid(dim: int, scalar, two_fields: bool = False) -> dict:
-    """Node kernels for ``dim``, ``scalar``; ``two_fields``: the contact variant (:mod:`magsoro.mpm.contact`)."""
-    # Only the differentiable rollout (magsoro.diff) runs kernels under wp.Tape: p2g, grid_update, g2p,
-    # remap_node_velocity and remap_F of the one-field variant. Every other kernel is built without the adjoint
-    # Warp otherwise generates and compiles for each (docs/engine.md, "Compile time").
-    differentiable = not two_fields
+def make_grid(dim: int, scalar, two_fields: bool = False, differentiable: bool = False) -> dict:
+    """Node kernels for ``dim``, ``scalar``; ``two_fields``: the contact variant (:mod:`magsoro.mpm.contact`). ``differentiable``:
+    with the adjoints of the kernels the differentiable rollout (:mod:`magsoro.diff`) records on its wp.Tape;
+    Warp otherwise builds none (docs/engine.md, "Compile time")."""
     s = make_stencil(dim, scalar, two_fields)
     t = s.types
     vec, ivec, v3 = t.vec, t.ivec, t.v3

@@ -62,19 +62,22 @@ def _stress_kernel(dim: int, scalar) -> dict:
 
 
 @functools.cache
-def make_kernels(dim: int, scalar, contact: bool = False) -> dict:
+def make_kernels(dim: int, scalar, contact: bool = False, differentiable: bool = False) -> dict:
     """Every kernel and type of the engine for ``dim`` in (2, 3) and ``scalar`` in (wp.float32, wp.float64).
 
     ``contact``: the variant with two velocity fields per node (:mod:`magsoro.mpm.contact`). Without it the
     kernels never read their contact argument, which on CPU doubled the grid update of a single body (a few
-    nanoseconds per node against about 4 ns for the whole update)."""
+    nanoseconds per node against about 4 ns for the whole update). ``differentiable``: p2g, grid_update, g2p,
+    remap_node_velocity and remap_F with their adjoints, for the differentiable rollout (:mod:`magsoro.diff`), the
+    only caller that records kernels on a wp.Tape; without it Warp builds no adjoint, which on a cold cache saves
+    most of the engine's compile time (docs/engine.md, "Compile time")."""
     t = make_types(dim, scalar)
     two_fields = bool(contact)
     ct_ns = make_contact(dim, scalar)
     return dict(
-        **make_p2g(dim, scalar, two_fields),
-        **make_grid(dim, scalar, two_fields),
-        **make_g2p(dim, scalar, two_fields),
+        **make_p2g(dim, scalar, two_fields, differentiable),
+        **make_grid(dim, scalar, two_fields, differentiable),
+        **make_g2p(dim, scalar, two_fields, differentiable),
         **_stress_kernel(dim, scalar),
         ContactGrid=ct_ns["ContactGrid"],
         contact_classify=ct_ns["contact_classify"],
