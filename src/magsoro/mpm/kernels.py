@@ -38,7 +38,7 @@ def _stress_kernel(dim: int, scalar) -> dict:
     body_elastic_stress, body_elastic_energy = body.body_elastic_stress, body.body_elastic_energy
     mat, vprm, Bodies = t.mat, t.vprm, t.Bodies
 
-    @wp.kernel
+    @wp.kernel(enable_backward=False)  # never under wp.Tape
     def stress_kernel(
         F: wp.array(dtype=mat), model: int, G: scalar, K: scalar, prm: vprm, P: wp.array(dtype=mat), psi: wp.array(dtype=scalar)
     ):
@@ -47,7 +47,7 @@ def _stress_kernel(dim: int, scalar) -> dict:
         P[i] = elastic_stress(F[i], model, G, K, prm)
         psi[i] = elastic_energy(F[i], model, G, K, prm)
 
-    @wp.kernel
+    @wp.kernel(enable_backward=False)
     def body_stress_kernel(
         F: wp.array(dtype=mat), bodies: wp.array(dtype=Bodies), P: wp.array(dtype=mat), psi: wp.array(dtype=scalar)
     ):
