@@ -4,11 +4,10 @@ readiness"): :mod:`magsoro.cuda_compile`.
 Cost and what the quick suite compiles
 --------------------------------------
 
-Everything (the 51 modules of ``warp_modules()``, forward and backward code as Warp builds them by default, O3)
-is about 330 CPU-seconds per arch on a cold kernel cache: 5.5 minutes of wall time for both archs on a 2-core
-machine. The 3D p2g and g2p modules are most of it: about 40 s each with contact and 13-19 s without, per arch.
-The quick suite compiles a covering subset instead (``quick_plan``: 59 compiles, 1.8 to 2.7 minutes cold on a
-2-core machine depending on its load, under 10 s warm):
+Everything (the 67 modules of ``warp_modules()``, O3) on a cold kernel cache is dominated by the differentiable
+rollout's variants, whose kernels carry their adjoints (the 3D float32 p2g alone about 90 s of PTX per arch on a
+2-core machine); the kernels a simulation runs have none and compile in seconds each (docs/engine.md, "Compile
+time"). The quick suite compiles a covering subset instead (``quick_plan``: 63 compiles):
 
 - sm_90 (H100), the engine in a Latin square over (dimension, precision, contact): 3D float32 with contact,
   3D float64 without, 2D float32 without, 2D float64 with. So every engine kernel is compiled in each of
@@ -16,7 +15,8 @@ The quick suite compiles a covering subset instead (``quick_plan``: 59 compiles,
   total / updated Lagrangian choice is a run-time argument) in each dimension and in each precision. Also every
   other module: ``contact_classify`` and ``stress_kernel`` for all four (dimension, precision), the field
   accumulate kernel with every field source's device function in all four, the magnetic interaction's deposit and
-  gather kernels, the static solver's kernels and the Prony update kernels in all four, the bench reference (2D, 3D) and the differentiable rollout's kernels.
+  gather kernels, the static solver's kernels and the Prony update kernels in all four, the bench reference (2D, 3D) and the differentiable rollout's kernels;
+  and the rollout's variant with adjoints in 2D float64 (p2g, g2p, grid and the field module).
 - sm_80 (A100): the other two 2D engine variants (2D float32 with contact, 2D float64 without), with which every
   engine kernel is compiled in both precisions and both contact forms, ``contact_classify`` and ``stress_kernel``
   in all four (dimension, precision), one field module (3D float32: the accumulate kernel with every field
@@ -25,7 +25,7 @@ The quick suite compiles a covering subset instead (``quick_plan``: 59 compiles,
   Warp's CUDA headers, which depends on the builtins and types a kernel uses, not on the variant.
 
 The rest (the two 3D variants left out, 3D float32 without contact and 3D float64 with, the 3D engine, three
-field modules and the 3D bench reference on sm_80) is compiled by the ``slow`` test, which with the quick one
+field modules and the 3D bench reference on sm_80, the other adjoint variants) is compiled by the ``slow`` test, which with the quick one
 covers every module of ``warp_modules()`` for both archs. PTX goes to Warp's kernel cache under content-hashed
 names: a second run with unchanged kernels compiles nothing.
 """
@@ -38,14 +38,16 @@ import warp as wp
 from magsoro import cuda_compile as cc
 
 ARCHS = (80, 90)
-#: warp_modules(): 8 engine variants x (p2g, g2p, grid) + (contact, kernels) x 4 + fields x 4 + magnetic
-#: interaction x 4 + static solver x 4 + viscous (Prony) x 4 + reference x 2 + rollout
-EXPECTED_MODULES = 8 * 3 + 2 * 4 + 4 + 4 + 4 + 4 + 2 + 1
+#: warp_modules(): 8 engine variants x (p2g, g2p, grid) + the rollout's 4 (adjoint) variants x 3 + (contact,
+#: kernels) x 4 + fields x 4 (and x 4 with adjoints) + magnetic interaction x 4 + static solver x 4 + viscous
+#: (Prony) x 4 + reference x 2 + rollout
+EXPECTED_MODULES = 8 * 3 + 4 * 3 + 2 * 4 + 4 + 4 + 4 + 4 + 4 + 2 + 1
 #: field sources with a device function (dipole, cuboid, cylinder exact and multipole, current loop, Magpylib
 #: lattice, regional uniform): each field module holds one accumulate kernel per function
 EXPECTED_FIELD_FUNCTIONS = 7
-#: the quick plan: sm_90 gets 4 engine variants x 3 + the 27 other modules, sm_80 2 x 3 + 14 (see the docstring)
-EXPECTED_QUICK_JOBS = (4 * 3 + 27) + (2 * 3 + 14)
+#: the quick plan: sm_90 gets 4 engine variants x 3 + the 27 other modules + the 2D float64 adjoint variant x 3 and
+#: its field module, sm_80 2 x 3 + 14 (see the docstring)
+EXPECTED_QUICK_JOBS = (4 * 3 + 27 + 3 + 1) + (2 * 3 + 14)
 
 _missing = [a for a in ARCHS if a not in cc.nvrtc_archs()]
 pytestmark = pytest.mark.skipif(
@@ -55,6 +57,9 @@ pytestmark = pytest.mark.skipif(
 )
 
 _VARIANT = re.compile(r"^engine (\dD) (float\d\d)( \(contact\))?: (p2g|g2p|grid)$")
+#: the differentiable rollout's variants (the same kernels with their adjoints): the quick suite compiles one
+_ADJOINT = re.compile(r"^(engine|fields) (\dD) (float\d\d) \(adjoint\): \w+$")
+QUICK_ADJOINT = ("2D", "float64", 90)
 #: engine variants (dimension, precision, contact) compiled for each arch in the quick suite
 QUICK_VARIANTS = {
     90: {("3D", "float32", True), ("3D", "float64", False), ("2D", "float32", False), ("2D", "float64", True)},
@@ -74,6 +79,9 @@ SM80_ONE_OF = {"fields ": "fields 3D float32: device", "bench reference ": "benc
 
 
 def _quick_arch(label: str, arch: int) -> bool:
+    a = _ADJOINT.match(label)
+    if a is not None:
+        return (a.group(2), a.group(3), arch) == QUICK_ADJOINT
     v = _variant(label)
     if v is not None:
         return v in QUICK_VARIANTS[arch]
@@ -147,6 +155,8 @@ def test_quick_plan_covers_every_kernel_per_dim_and_precision(modules):
             assert 90 in archs, label
         elif 90 in archs:
             keys.setdefault((v[0], v[1]), set()).update(module.kernels)
+    assert {label.split(":")[0] for label, *_ in plan if _ADJOINT.match(label)} == {
+        "engine 2D float64 (adjoint)", "fields 2D float64 (adjoint)"}
     sm80 = [(label, m) for label, m, archs in plan if 80 in archs]
     assert cc.uncovered_kernels(sm80) == []
     assert any(label.startswith("fields ") for label, _ in sm80)

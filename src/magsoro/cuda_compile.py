@@ -29,7 +29,7 @@ second of compile each.) Every variant the package can create is listed:
   Lagrangian are the same kernels (a run-time argument);
 - ``engine {2,3}D {float32,float64}: contact | kernels``: ``contact_classify`` and the stress kernels
   (``stress_kernel``, ``body_stress_kernel``; one per dimension and precision);
-- ``fields {2,3}D {float32,float64}: device``: the field accumulate kernel (:mod:`magsoro.fields.device`) for the
+- ``fields {2,3}D {float32,float64}[ (adjoint)]: device``: the field accumulate kernel (:mod:`magsoro.fields.device`) for the
   device function of every field source (found from the ``device_func`` methods of the package's sources);
 - ``viscous {2,3}D {float32,float64}: viscous``: the Prony update and overstress kernels (:mod:`magsoro.mpm.viscous`);
 - ``bench reference {2,3}D: reference``: the bare MLS-MPM step of ``magsoro bench``;
@@ -47,11 +47,11 @@ content-hashed name, so a second run with unchanged kernels finds it there and c
 never raises: its :class:`CompileResult` carries the error, for NVRTC the first error lines of its log (NVRTC
 writes the log to the process's stderr; the failed jobs are compiled again one at a time with stderr captured).
 
-Costs (measured on a 2-core machine, cold cache, forward and backward code as Warp builds them by default): a 3D
-p2g or g2p module takes about 40 s with contact and 13-19 s without, a field module 8-10 s (seven field
-functions), the 3D bench reference 8 s, 2D engine modules 3-8 s, the rest 0.4-2.5 s each: about 330 CPU-seconds
-per arch for the whole list, 5.5 minutes of wall time for both archs on 2 cores (``tests/test_cuda_compile.py``
-compiles a covering subset in the quick suite). Peak memory stays under 1 GB with two compiles at a time.
+Costs (a 2-core machine, cold cache, ``python benchmarks/compile_time.py``): the kernels a simulation runs carry
+no adjoint and compile in seconds per module (3D float32: p2g 5 s of PTX, 7 s with contact; g2p 2-5 s); the
+differentiable rollout's variants, whose kernels keep their adjoints, are most of the whole list (3D float32 p2g
+about 90 s per arch). ``tests/test_cuda_compile.py`` compiles a covering subset in the quick suite. Peak memory
+stays under 1 GB with two compiles at a time.
 """
 
 from __future__ import annotations
@@ -285,8 +285,9 @@ def _catalogue() -> tuple:
     field_funcs = _field_device_functions()
     for dim in DIMS:
         for sname in SCALAR_NAMES:
-            made = [k for f in field_funcs for k in _fresh(accumulate_kernel, f, dim, scalars[sname])]
-            groups += _groups_of(f"fields {dim}D {sname}", made, seen)
+            for differentiable in (False, True):
+                made = [k for f in field_funcs for k in _fresh(accumulate_kernel, f, dim, scalars[sname], differentiable)]
+                groups += _groups_of(f"fields {dim}D {sname}" + (" (adjoint)" if differentiable else ""), made, seen)
     for dim in DIMS:
         for sname in SCALAR_NAMES:
             groups += _groups_of(f"interaction {dim}D {sname}", _fresh(make_interaction_kernels, dim, scalars[sname]), seen)
@@ -331,7 +332,9 @@ def _weight(label: str) -> float:
     if "3D" in label:
         w *= 4.0
     if "(contact)" in label:
-        w *= 2.0
+        w *= 1.5
+    if "(adjoint)" in label:  # the adjoints are most of the cost (docs/engine.md, "Compile time")
+        w *= 15.0
     if label.endswith(("p2g", "g2p")):
         w *= 6.0
     elif label.endswith("reference"):

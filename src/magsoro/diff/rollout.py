@@ -227,7 +227,7 @@ class Rollout:
         for s in self.uniform_sources:
             Bu += np.array([s.uniform_value(t) for t in times])
         self.B_uniform = wp.array(Bu.astype(m.np_scalar), dtype=k["v3"], device=dev, requires_grad=True)
-        self._point_kernels = [accumulate_kernel(s.device_func(), dim, sc) for s in self.point_sources]
+        self._point_kernels = [accumulate_kernel(s.device_func(), dim, sc, differentiable=True) for s in self.point_sources]
         self.source_params = []
         self._param_views = []
         for s in self.point_sources:

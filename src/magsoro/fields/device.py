@@ -10,16 +10,18 @@ from magsoro.fields.base import FieldSource
 
 
 @functools.cache
-def accumulate_kernel(func, dim: int, scalar):
+def accumulate_kernel(func, dim: int, scalar, differentiable: bool = False):
     """Kernel adding (B, grad B) of one source's ``func`` at particle positions into per-particle arrays.
 
-    In 2D (plane strain in the x-y plane) the particle sits at (x, y, plane_z).
+    In 2D (plane strain in the x-y plane) the particle sits at (x, y, plane_z). ``differentiable``: with its
+    adjoint, for the differentiable rollout's wp.Tape (:mod:`magsoro.diff`); a simulation's has none, which Warp
+    would otherwise compile for every source (docs/engine.md, "Compile time").
     """
     vec = wp.types.vector(length=dim, dtype=scalar)
     v3 = wp.types.vector(length=3, dtype=scalar)
     m3 = wp.types.matrix(shape=(3, 3), dtype=scalar)
 
-    @wp.kernel
+    @wp.kernel(enable_backward=differentiable)
     def accumulate(
         x: wp.array(dtype=vec),
         prm: wp.array(dtype=wp.float64),
