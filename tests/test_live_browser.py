@@ -289,8 +289,12 @@ def test_time_step_allows_for_the_largest_field(strip):
 
 def test_cli_serves_and_stops_on_ctrl_c(strip):
     env = {**os.environ, "PYTHONUNBUFFERED": "1"}
+    # SIGINT back to its default in the child: a test run started in the background of a non-interactive shell
+    # (`bash .ci/run &`) inherits SIGINT ignored, and Python then installs no KeyboardInterrupt handler (as in
+    # tests/test_sweep.py)
     proc = subprocess.Popen([sys.executable, "-m", "magsoro", "live", str(strip), "--port", "0", "--no-browser"],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env,
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     try:
         url = None
         deadline = time.monotonic() + 60
