@@ -19,9 +19,9 @@ F_REMAP_APART = wp.constant(3)  # F from the remap, whose scatter runs in remap_
 
 @functools.cache
 def make_g2p(dim: int, scalar, two_fields: bool = False, differentiable: bool = False) -> dict:
-    """Gather kernels for ``dim``, ``scalar``; ``two_fields``: the contact variant (:mod:`magsoro.mpm.contact`). ``differentiable``:
-    with the adjoints of the kernels the differentiable rollout (:mod:`magsoro.diff`) records on its wp.Tape;
-    Warp otherwise builds none (docs/engine.md, "Compile time")."""
+    """Gather kernels for ``dim``, ``scalar``; ``two_fields``: the contact variant (:mod:`magsoro.mpm.contact`);
+    ``differentiable``: with the adjoints of the kernels the differentiable rollout (:mod:`magsoro.diff`) records
+    on its wp.Tape. Warp otherwise builds none (docs/engine.md, "Compile time")."""
     s = make_stencil(dim, scalar, two_fields)
     t = s.types
     vec, mat, v3, ivec = t.vec, t.mat, t.v3, t.ivec

@@ -55,9 +55,9 @@ def grid_settings_struct(dim: int, scalar):
 
 @functools.cache
 def make_grid(dim: int, scalar, two_fields: bool = False, differentiable: bool = False) -> dict:
-    """Node kernels for ``dim``, ``scalar``; ``two_fields``: the contact variant (:mod:`magsoro.mpm.contact`). ``differentiable``:
-    with the adjoints of the kernels the differentiable rollout (:mod:`magsoro.diff`) records on its wp.Tape;
-    Warp otherwise builds none (docs/engine.md, "Compile time")."""
+    """Node kernels for ``dim``, ``scalar``; ``two_fields``: the contact variant (:mod:`magsoro.mpm.contact`);
+    ``differentiable``: with the adjoints of the kernels the differentiable rollout (:mod:`magsoro.diff`) records
+    on its wp.Tape. Warp otherwise builds none (docs/engine.md, "Compile time")."""
     s = make_stencil(dim, scalar, two_fields)
     t = s.types
     vec, ivec, v3 = t.vec, t.ivec, t.v3

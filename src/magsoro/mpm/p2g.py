@@ -19,9 +19,9 @@ wp.set_module_options({"max_unroll": 32})
 
 @functools.cache
 def make_p2g(dim: int, scalar, two_fields: bool = False, differentiable: bool = False) -> dict:
-    """Scatter kernels for ``dim``, ``scalar``; ``two_fields``: the contact variant (:mod:`magsoro.mpm.contact`). ``differentiable``:
-    with the adjoints of the kernels the differentiable rollout (:mod:`magsoro.diff`) records on its wp.Tape;
-    Warp otherwise builds none (docs/engine.md, "Compile time")."""
+    """Scatter kernels for ``dim``, ``scalar``; ``two_fields``: the contact variant (:mod:`magsoro.mpm.contact`);
+    ``differentiable``: with the adjoints of the kernels the differentiable rollout (:mod:`magsoro.diff`) records
+    on its wp.Tape. Warp otherwise builds none (docs/engine.md, "Compile time")."""
     s = make_stencil(dim, scalar, two_fields)
     t = s.types
     vec, mat, v3, m3, ivec = t.vec, t.mat, t.v3, t.m3, t.ivec
