@@ -46,6 +46,7 @@ from magsoro.mpm.stencil import make_types
 # No kernel here runs under wp.Tape (only magsoro.diff's rollout does): Warp need not build their adjoints.
 wp.set_module_options({"enable_backward": False})
 
+
 @functools.cache
 def make_viscous(dim: int, scalar):
     """The Warp side for ``dim``, ``scalar``: the ``Viscous`` argument struct (each particle's Prony row, -1 none;
