@@ -168,7 +168,9 @@ def make_contact(dim: int, scalar):
             if c >= scalar(0.0):
                 s = BODIES
                 mu[idx] = c
-        elif a >= 0 and fold != 0:
+        elif a == b and fold != 0:
+            # one group reaches the node (an empty node has a > b: it must not index the friction table, where
+            # a * n_groups overflows)
             c = friction[a * n_groups + a]
             stride = 1 + dim + dim * dim
             row = idx * stride
