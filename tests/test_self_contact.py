@@ -130,3 +130,41 @@ def test_without_contact_the_folded_arms_pass_through_each_other():
     the test above sees interpenetration when there is some."""
     s = run_fold(FoldSetup(self_contact=False, formulation="total")).summary()
     assert s["far_min_cells"] < MIN_CELLS and s["far_close_max"] > 0, s
+
+
+def test_self_contact_with_a_second_body_runs_and_classifies_only_reached_nodes():
+    """Self-contact beside contact between two bodies (a ring with a disc inside it): the classify pass used to
+    treat nodes no particle reaches as self-contact candidates and index the friction table with an overflowed
+    group number, which crashed the step as soon as there were two contact groups. The disc, pushed into the
+    ring, must stay inside it (contact holds) and every node of the split classes must carry mass."""
+    from magsoro.mpm.contact import BODIES, FOLD
+    from magsoro.scene import parse_scene
+    from magsoro.simulation import Simulation
+
+    scene = parse_scene({
+        "name": "ring_and_disc",
+        "simulation": {"dim": 2, "dx": 2.5e-4, "particles_per_cell": 2, "domain_lo": [-4e-3, -4e-3],
+                       "domain_hi": [4e-3, 4e-3], "duration": 2e-3, "damping": 0.0},
+        "bodies": [
+            {"name": "ring", "shape": {"type": "arc", "center": [0.0, 0.0], "radius": 2.25e-3, "width": 5e-4,
+                                       "start_angle": 0.0, "end_angle": 360.0},
+             "material": {"density": 1000.0, "shear_modulus": 5e4}},
+            {"name": "disc", "shape": {"type": "polygon", "vertices": [[-1e-3, -1e-3], [1e-3, -1e-3], [1e-3, 1e-3], [-1e-3, 1e-3]]},
+             "material": {"density": 1000.0, "shear_modulus": 5e4}, "velocity": [0.5, 0.0]},
+        ],
+        "contact": {"friction": 0.3, "self_contact": True},
+    }, "test")
+    sim = Simulation(scene)
+    res = sim.run(2e-3)
+    assert res.status == "completed", res.message
+    split = sim.solver._ct["split"].numpy()[: sim.solver.n_active]
+    mass = sim.solver.grid_m.numpy()
+    n = sim.solver.n_active
+    node_mass = mass[:n] + mass[n: 2 * n]  # field 1 of node i sits at slot i + n (the active nodes)
+    assert np.all(node_mass[(split == BODIES) | (split == FOLD)] > 0.0)
+    assert (split == BODIES).any()  # the disc reached the ring: the two groups met
+    x = sim.particles()["x"]
+    body = sim.particles()["body"]
+    r = np.hypot(x[body == 1, 0], x[body == 1, 1])
+    # the disc (0.5 m/s for 2 ms: 1 mm of free flight, 0.5 mm to the ring's inner face) stays inside the bore
+    assert r.max() < 2.0e-3 + 2.5e-4
