@@ -43,7 +43,10 @@ holds the beam about a cell (1.5 mm) off the pin, and it comes to the surface on
 (particle centres 1.56, 1.20, 0.92, 0.61, 0.37 mm from the pin at 3-20 mT; their radius is 0.375 mm).
 strip_magnet was redone once its reproduction solved each magnet gap with the static solver (184 s against 579 s
 for the dynamic sweep; the strain 0.4-0.7 % below the dynamic sweep's at every gap, e.g. 7.29 % against 7.35 %
-at 37 mm). Engine changes committed after a result was made are not in it.
+at 37 mm). tail_crush and tail_pull (seed 004's bench tests of the everted growing robot) were made on
+2026-11-28 with the engine of commit 0641bf2 (the contact classification that no longer crashes with self-contact
+beside two contact groups); tail_crush's checks and summary were recomputed from its committed CSV after two
+corrections to the report (commit abb6c58). Engine changes committed after a result was made are not in it.
 
 The 3D robots' entries also show a picture and an animation drawn by `magsoro render` from one run of the robot's
 scene (`magsoro run scenes/NAME.toml`): `magsoro reproduce` keeps no particle frames, so that run is separate from

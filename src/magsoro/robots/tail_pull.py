@@ -3,12 +3,12 @@ the tail pulled at 0.2 mm/s through the outer wall held on a fixed base, no lubr
 the required pulling force by a factor of five".
 
 A reduced model, in plane strain: the force needed to slide the tail along the wall is the Coulomb friction of the
-contact that holds the tail in the wall, F = mu N L, with N the normal force per unit length between tail and wall.
-N is computed by MPM on the cross-section: the tail, whose natural shape does not fit the wall's bore, is grown to it
-inside the wall (a tangential eigenstretch from a shrunken copy: the wall thickness stays the wall's) and settles
-against the elastic wall, frictionless while it settles; N is then read from the wall's hoop force (below). What is
-left out: the axial stretch of the pulled tail (its Poisson contraction loosens the grip), the contact's history
-along the segment, adhesion.
+contact that holds the tail in the wall, F = mu N, with N the normal force between tail and wall over the segment's
+length (plane strain: N per unit length times 20 mm). N is computed by MPM on the cross-section: the tail, whose
+natural shape does not fit the wall's bore, is grown to it inside the wall (a tangential eigenstretch from a
+shrunken copy: the wall thickness stays the wall's) and settles against the elastic wall, frictionless while it
+settles; N is then read from the wall's hoop force (below). What is left out: the axial stretch of the pulled tail
+(its Poisson contraction loosens the grip), the contact's history along the segment, adhesion.
 
 - Cylindrical tail: the same tube as the wall (1.8 mm outer diameter, 100 um; seed 004) in the wall's 1.6 mm bore:
   its mid-line perimeter is 17 % too long and it buckles with the wall.
@@ -40,6 +40,7 @@ SEGMENTS = 36            # the cylindrical tail's arcs, each growing along its o
 PAPER_RATIO = 5.0        # seed 004: cylindrical / cruciform pulling force
 #: the cruciform's natural arm-tip radius (outer surface), m: from touching the bore to the robot's 0.9 mm
 CRU_TIPS = (0.80e-3, 0.85e-3, 0.90e-3)
+PREVIEW_TIPS = (0.90e-3,)  # the preview: the cylindrical tail and the robot-sized cruciform (under 3 minutes)
 HOOP_BINS = 120          # reference-angle bins of the hoop-force reading
 
 
@@ -222,7 +223,8 @@ def _gif(path, runs: dict, keys: list, title: str):
 
 
 def reproduce(ctx: Context) -> ReproduceResult:
-    cases = [("cylindrical", None)] + [("cruciform", tip) for tip in CRU_TIPS]
+    tips = PREVIEW_TIPS if ctx.preview else CRU_TIPS
+    cases = [("cylindrical", None)] + [("cruciform", tip) for tip in tips]
     runs = {}
     for tail, tip in cases:
         key = tail if tip is None else f"cruciform_{tip * 1e6:.0f}um"
@@ -236,7 +238,7 @@ def reproduce(ctx: Context) -> ReproduceResult:
     N = {k: float(runs[k]["force"][-1]) for k in keys}
     cyl = N["cylindrical"]
     cru_keys = keys[1:]
-    tips_mm = np.array(CRU_TIPS) * 1e3
+    tips_mm = np.array(tips) * 1e3
     ratio = np.array([cyl / N[k] if N[k] > 0 else np.inf for k in cru_keys])
     pull = {k: FRICTION * N[k] for k in keys}
     csv = write_csv(ctx.out / f"{NAME}.csv", {
