@@ -11,7 +11,8 @@ settles; N is then read from the wall's hoop force (below). What is left out: th
 (its Poisson contraction loosens the grip), the contact's history along the segment, adhesion.
 
 - Cylindrical tail: the same tube as the wall (1.8 mm outer diameter, 100 um; seed 004) in the wall's 1.6 mm bore:
-  its mid-line perimeter is 17 % too long and it buckles with the wall.
+  its mid-line perimeter is 17 % too long, and it stretches the wall (at two cells through the wall the pair buckles
+  into a rounded square, at four it stays nearly round).
 - Cruciform tail: a thin-walled plus (arm half-width as in tail_crush, our assumption). With the tube's perimeter
   its arm tips stop 82 um short of the bore (nothing holds it: N = 0); the seed gives the cruciform's size nowhere,
   so the tips' natural radius is swept, from touching the bore (0.80 mm) to the robot's own 0.90 mm.
