@@ -32,6 +32,7 @@ import math
 import numpy as np
 
 from magsoro.robots.base import Context, FrameRecorder, ReproduceResult, Robot, RobotError, plot_curve, scene_data, simulation, write_csv
+from magsoro.robots.continuum_soft import Row
 
 NAME = "tail_crush"
 
@@ -122,13 +123,13 @@ def case_scene(tail: str, angle_deg: float, data: dict | None = None) -> dict:
 
 
 # -- one crush ----------------------------------------------------------------------------------------------
-def _plates(data: dict) -> tuple[float, float]:
-    """(load cell start height, crush duration) from the scene's moving collider."""
+def _crush_time(data: dict) -> float:
+    """The crush's duration (s): the time the scene's moving collider (the load cell) takes over its path."""
     moving = [c for c in data.get("colliders", []) if c.get("path")]
     if len(moving) != 1:
         raise RobotError(f"{NAME}: the scene should move one collider (the load cell), found {len(moving)}")
     path = moving[0]["path"]
-    return float(path["positions"][0][1]), float(path["times"][-1] - path["times"][0])
+    return float(path["times"][-1] - path["times"][0])
 
 
 def crush(ctx: Context, tail: str, angle_deg: float, frames: list | None = None) -> dict:
@@ -136,23 +137,21 @@ def crush(ctx: Context, tail: str, angle_deg: float, frames: list | None = None)
     reading, the particle count, steps and wall time. ``frames`` collects the positions at each reading."""
     data = case_scene(tail, angle_deg)
     data.setdefault("output", {})["particles"] = False
-    _, duration = _plates(data)
+    duration = _crush_time(data)
     sim = simulation(NAME, data, preview=ctx.preview, device=ctx.device)
     every = duration / RECORDS
     depth, top, base = [0.0], [0.0], [0.0]
     speed = CRUSH / duration
 
     def record(s):
+        if frames is not None:
+            frames.append(s.state.x.numpy().copy())
         if s.time <= 0.0:
-            if frames is not None:
-                frames.append(s.state.x.numpy().copy())
             return
         f = s.collider_forces()
         depth.append((s.time - every / 2.0) * speed)  # the force is the mean over the interval
         top.append(f[1, 1])
         base.append(-f[0, 1])
-        if frames is not None:
-            frames.append(s.state.x.numpy().copy())
 
     res = sim.run(duration, record=record, record_every=every)
     if res.status != "completed":
@@ -282,7 +281,7 @@ def report(ctx: Context, runs: dict, labels: dict, gif_wanted: bool = True) -> R
     case = f"robot-{NAME}"
     dx = first["dx"]
     inp = {"dx_mm": round(dx * 1e3, 4), "crush_mm": CRUSH * 1e3,
-           "speed_mm_s": round(CRUSH / _plates(scene_data(NAME))[1] * 1e3, 3)}
+           "speed_mm_s": round(CRUSH / _crush_time(scene_data(NAME)) * 1e3, 3)}
     rows = []
     for key in labels:
         F, B, d = runs[key]["load_cell"], runs[key]["base"], runs[key]["depth"]
@@ -344,13 +343,6 @@ def report(ctx: Context, runs: dict, labels: dict, gif_wanted: bool = True) -> R
                 "caption": "Secant stiffness F(d) / d over the crush depth d: the seed's measure read at every depth "
                            "instead of at 1.5 mm only (dashed: the seed's values)."}]
     return ReproduceResult(NAME, csv, png, gif, summary, rows, info, figures)
-
-
-def Row(*args, **kwargs):
-    """A :class:`magsoro.validation.registry.Row` (imported here: magsoro.validation imports the robots)."""
-    from magsoro.validation.registry import Row as _Row
-
-    return _Row(*args, **kwargs)
 
 
 ROBOT = Robot(

@@ -31,7 +31,8 @@ import math
 import numpy as np
 
 from magsoro.robots.base import Context, FrameRecorder, ReproduceResult, Robot, RobotError, plot_curve, simulation, write_csv
-from magsoro.robots.tail_crush import ARM_HALF_WIDTH, GAP, MATERIAL, WALL, WALL_RADIUS, Row
+from magsoro.robots.continuum_soft import Row
+from magsoro.robots.tail_crush import ARM_HALF_WIDTH, GAP, MATERIAL, WALL, WALL_RADIUS
 
 NAME = "tail_pull"
 
@@ -187,26 +188,25 @@ def case_scene(tail: str, tip: float | None = None, data: dict | None = None) ->
 
 def settle(ctx: Context, tail: str, tip: float | None = None, frames: list | None = None) -> dict:
     """Grow the tail in the wall and let it settle; returns the contact force N (N, whole segment) read at each
-    of the last readings, the times, and the run's facts."""
+    reading from the end of the growth on, and the run's facts."""
     data = case_scene(tail, tip)
     data.setdefault("output", {})["particles"] = False
     grow, duration = _timing(data)
     sim = simulation(NAME, data, preview=ctx.preview, device=ctx.device)
     wall = [b.name for b in sim.scene.bodies].index("wall")
-    times, forces = [], []
+    forces = []
     every = duration / 40.0
 
     def record(s):
         if frames is not None:
             frames.append(s.state.x.numpy().copy())
         if s.time >= grow - 1e-12:
-            times.append(s.time)
             forces.append(ring_contact_force(s, wall))
 
     res = sim.run(duration, record=record, record_every=every)
     if res.status != "completed":
         raise RobotError(f"{NAME}: {tail} tail: run {res.status}: {res.message}")
-    return {"times": np.array(times), "force": np.array(forces), "particles": sim.model.n_particles,
+    return {"force": np.array(forces), "particles": sim.model.n_particles,
             "steps": res.steps, "wall_s": res.wall_time, "body": sim.model.host["body"].copy(),
             "dx": sim.scene.simulation.dx, "grow": grow, "every": every}
 
