@@ -260,12 +260,20 @@ class PlanWeightsConfig(_Strict):
 
 
 class PlanReplayConfig(_Strict):
-    """``[replay]``: the MPM replay (2D plane strain) of the plan."""
+    """``[replay]``: the MPM replay of the plan (2D plane strain, or 3D in the magnet's whole field)."""
 
     dx: float = Field(..., gt=0, description="Grid spacing, m; link length and thickness must be multiples of dx / 2. Required.")
     step_duration: float | None = Field(None, gt=0, description="Simulated time per plan step, s. Default one first bending period of the full strip.")
     move_fraction: float = Field(0.5, gt=0, lt=1, description="Part of a step during which the magnet moves. Default 0.5.")
     damping_ratio: float = Field(1.0, ge=0, description="Grid damping as a fraction of critical for the first bending mode. Default 1.")
+    dim: Literal[2, 3] = Field(2, description="2: plane strain in the plan's plane (the field's in-plane part); 3: a free beam of section thickness x depth in the magnet's whole field, B_z and the pull towards the magnet included. Default 2.")
+    floor: bool = Field(False, description="dim = 3 only: a frictionless floor under the robot, with gravity. Default false (no floor, no gravity).")
+
+    @model_validator(mode="after")
+    def _floor_3d(self):
+        if self.floor and self.dim != 3:
+            raise ValueError("floor = true needs dim = 3 (the floor lies under the robot, out of the 2D plane)")
+        return self
 
 
 class PlanConfig(_Strict):

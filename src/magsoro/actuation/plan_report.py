@@ -103,9 +103,12 @@ def plot_replay(path, result, title: str = "") -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, ax = plt.subplots(figsize=(6, 5))
+    if result.dim == 3:  # the plane, and the tip's height out of it
+        fig, (ax, az) = plt.subplots(1, 2, figsize=(10, 5), gridspec_kw={"width_ratios": [3, 2]})
+    else:
+        fig, ax = plt.subplots(figsize=(6, 5))
     ax.plot(1e3 * result.tip_prb[:, 0], 1e3 * result.tip_prb[:, 1], "-", color="C0", label="PRB (quasi-static)")
-    ax.plot(1e3 * result.tip_mpm[:, 0], 1e3 * result.tip_mpm[:, 1], "-", color="C1", label="MPM replay")
+    ax.plot(1e3 * result.tip_mpm[:, 0], 1e3 * result.tip_mpm[:, 1], "-", color="C1", label=f"MPM replay ({result.dim}D)")
     ax.plot(1e3 * result.step_end_prb[:, 0], 1e3 * result.step_end_prb[:, 1], "o", color="C0")
     ax.plot(1e3 * result.step_end_mpm[:, 0], 1e3 * result.step_end_mpm[:, 1], "s", color="C1", mfc="none")
     for J in result.step_end_joints_mpm:
@@ -117,6 +120,13 @@ def plot_replay(path, result, title: str = "") -> None:
     ax.set_ylabel("y [mm]")
     ax.legend(fontsize=8)
     ax.set_title(title or "tip path: MPM replay vs PRB")
+    if result.dim == 3:
+        az.plot(result.times, 1e3 * result.out_of_plane, "-", color="C1")
+        az.axhline(0.0, color="C0", lw=0.8, ls="--", label="PRB (in the plane)")
+        az.set_xlabel("t [s]")
+        az.set_ylabel("tip z - plane z [mm]")
+        az.legend(fontsize=8)
+        az.set_title("out of the plane")
     fig.tight_layout()
     fig.savefig(path, dpi=120)
     plt.close(fig)
@@ -157,12 +167,14 @@ def run_plan(config, out, replay: bool = False, progress=None) -> dict:
             from magsoro.actuation.config import ActuationInputError
 
             raise ActuationInputError("the plan has no [replay] table (needs at least replay.dx)")
-        result = run_replay(plan, strip, rc.dx, step_duration, move_fraction, rc.damping_ratio)
+        result = run_replay(plan, strip, rc.dx, step_duration, move_fraction, rc.damping_ratio, dim=rc.dim,
+                            floor=rc.floor)
         with (out / "replay.csv").open("w", newline="") as fh:
             w = csv.writer(fh)
-            w.writerow(["t", "tip_mpm_x", "tip_mpm_y", "tip_prb_x", "tip_prb_y", "error"])
+            z = ["tip_mpm_z"] if result.dim == 3 else []
+            w.writerow(["t", "tip_mpm_x", "tip_mpm_y"] + z + ["tip_prb_x", "tip_prb_y", "error"])
             for t, a, b, e in zip(result.times, result.tip_mpm, result.tip_prb, result.path_errors):
-                w.writerow([f"{t:.9g}", f"{a[0]:.9e}", f"{a[1]:.9e}", f"{b[0]:.9e}", f"{b[1]:.9e}", f"{e:.9e}"])
+                w.writerow([f"{t:.9g}"] + [f"{v:.9e}" for v in a] + [f"{b[0]:.9e}", f"{b[1]:.9e}", f"{e:.9e}"])
         plot_replay(out / "replay.png", result, (config.name or "plan") + ": MPM replay")
         errs = result.step_end_errors
         summary["replay"] = {
@@ -176,7 +188,17 @@ def run_plan(config, out, replay: bool = False, progress=None) -> dict:
             "max_step_end_tip_error_m": float(errs.max()),
             "max_step_end_tip_error_over_length": float(errs.max() / (robot.n_links * robot.link_length)),
             "max_path_tip_error_m": float(result.path_errors.max()),
+            "dim": result.dim,
         }
+        if result.dim == 3:
+            inplane = result.step_end_in_plane_errors
+            summary["replay"].update({
+                "floor": rc.floor,
+                "step_end_in_plane_tip_errors_m": [float(e) for e in inplane],
+                "max_step_end_in_plane_tip_error_m": float(inplane.max()),
+                "step_end_tip_z_m": [float(v) for v in result.step_end_mpm[:, 2] - result.plane_z],
+                "max_abs_tip_z_m": float(np.abs(result.out_of_plane).max()),
+            })
         files += ["replay.csv", "replay.png"]
     summary["files"] = files
     (out / "plan.json").write_text(json.dumps(summary, indent=2) + "\n")

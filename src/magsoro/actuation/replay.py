@@ -1,8 +1,15 @@
-"""Replay of a magnet-path plan by the MPM engine (2D plane strain), growth included.
+"""Replay of a magnet-path plan by the MPM engine (2D plane strain or 3D), growth included.
 
-The planned robot is a plane-strain strip clamped at its base. Each PRB link becomes one body of the scene (a
-rectangle with its own remanence: the magnetisation profile), behind the base sits an unmagnetised stub whose
-rear part is clamped. The bodies share the MPM grid, so they act as one continuous strip.
+The planned robot is a strip clamped at its base. Each PRB link becomes one body of the scene (a rectangle, or in
+3D a box of the strip's thickness and depth, with its own remanence: the magnetisation profile), behind the base
+sits an unmagnetised stub whose rear part is clamped. The bodies share the MPM grid, so they act as one continuous
+strip.
+
+In 3D the robot is a free beam of section thickness x depth centred on the plan's plane z = plane_z, and it feels
+the magnet's whole field: the out-of-plane component B_z, which the planar PRB and the 2D replay leave out, turns a
+link's in-plane moment out of the plane (torque m x B), and the field's gradient pulls it towards the magnet. The
+3D replay measures what that does to the planned shape (``out_of_plane``), and what a frictionless floor under the
+robot with gravity (``floor = True``) leaves of it.
 
 Growth. The engine's Model is fixed during a run, so eversion is replayed step by step: step k runs its own
 Simulation holding the links everted at step k. When a step ends, the next Simulation receives the state of the
@@ -26,6 +33,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from magsoro.constants import MU0
+
+#: gravity of the 3D replay's floor variant, m/s^2
+GRAVITY = 9.81
 from magsoro.errors import SimulationError
 from magsoro.mpm.timestep import cfl_time_step
 from magsoro.actuation.planning import Plan, PlanarPRB, plane_strain_modulus
@@ -58,6 +68,8 @@ class ReplayResult:
     times, tip_mpm, tip_prb : samples of the whole replay; tip_prb is the quasi-static PRB equilibrium under the
     same keyframed magnet at those times. step_end_mpm, step_end_prb : (K, 2) tips at the end of each step
     (the settled states the plan specifies). wall_time : s; steps : MPM steps taken; particles : at the end.
+    In 3D (``dim`` 3) tip_mpm, step_end_mpm and the MPM joints have three components and the PRB's two are
+    compared in the plane (the PRB lies in z = ``plane_z``).
     """
 
     times: np.ndarray
@@ -72,26 +84,48 @@ class ReplayResult:
     steps: int
     particles: int
     dt: float
+    dim: int = 2
+    plane_z: float = 0.0
+
+    def _lift(self, a: np.ndarray) -> np.ndarray:
+        """PRB points (..., 2) in the MPM's space: z = plane_z added in 3D."""
+        if self.dim == 2:
+            return a
+        return np.concatenate([a, np.full(a.shape[:-1] + (1,), self.plane_z)], axis=-1)
 
     @property
     def step_end_errors(self) -> np.ndarray:
-        """|tip_MPM - tip_PRB| (m) at the end of each step."""
-        return np.linalg.norm(self.step_end_mpm - self.step_end_prb, axis=1)
+        """|tip_MPM - tip_PRB| (m) at the end of each step (in 3D the distance in space, out of the plane included)."""
+        return np.linalg.norm(self.step_end_mpm - self._lift(self.step_end_prb), axis=1)
+
+    @property
+    def step_end_in_plane_errors(self) -> np.ndarray:
+        """|tip_MPM - tip_PRB| (m) at the end of each step in the robot's plane (x, y)."""
+        return np.linalg.norm(self.step_end_mpm[:, :2] - self.step_end_prb, axis=1)
 
     @property
     def path_errors(self) -> np.ndarray:
         """|tip_MPM - tip_PRB| (m) at every sample, moves included (the MPM lags the quasi-static PRB while the
         magnet moves)."""
-        return np.linalg.norm(self.tip_mpm - self.tip_prb, axis=1)
+        return np.linalg.norm(self.tip_mpm - self._lift(self.tip_prb), axis=1)
+
+    @property
+    def out_of_plane(self) -> np.ndarray:
+        """z_tip - plane_z (m) at every sample (zero in 2D)."""
+        if self.dim == 2:
+            return np.zeros(len(self.tip_mpm))
+        return self.tip_mpm[:, 2] - self.plane_z
 
 
 def _rigid_fit(X, x):
-    """Rotation R (2x2) and centroids (X_c, x_c) of the best rigid map X -> x (Kabsch)."""
+    """Rotation R (dim x dim) and centroids (X_c, x_c) of the best rigid map X -> x (Kabsch)."""
     Xc, xc = X.mean(axis=0), x.mean(axis=0)
     H = (X - Xc).T @ (x - xc)
     U, _, Vt = np.linalg.svd(H)
     d = np.sign(np.linalg.det(Vt.T @ U.T))
-    R = Vt.T @ np.diag([1.0, d]) @ U.T
+    D = np.ones(X.shape[1])
+    D[-1] = d
+    R = Vt.T @ np.diag(D) @ U.T
     return R, Xc, xc
 
 
@@ -102,6 +136,18 @@ def _check_multiple(value, h, what):
                          "particle lattice splits exactly at link ends")
 
 
+def beam_robot(prb: PlanarPRB, strip: StripSpec) -> PlanarPRB:
+    """The PRB of the 3D replay's body: the same links with the bending (and axial) stiffness of a free beam,
+    Young's modulus E in place of the plane-strain E / (1 - nu^2) the plan's strip carries (1 - nu^2 = 0.88 at
+    nu = 0.35: the 3D beam is that much softer)."""
+    import dataclasses
+
+    G, K = strip.shear_modulus, strip.bulk_modulus
+    ratio = (9.0 * K * G / (3.0 * K + G)) / plane_strain_modulus(G, K)
+    axial = None if prb.axial_stiffness is None else prb.axial_stiffness * ratio
+    return dataclasses.replace(prb, bending_stiffness=prb.bending_stiffness * ratio, axial_stiffness=axial)
+
+
 def link_remanence(prb: PlanarPRB, strip: StripSpec) -> np.ndarray:
     """Remanence (n, 3) in T of each link in the reference frame (the strip along +x): mu0 m / (l t depth)."""
     br = np.zeros((prb.n_links, 3))
@@ -110,37 +156,59 @@ def link_remanence(prb: PlanarPRB, strip: StripSpec) -> np.ndarray:
 
 
 def _scene(prb: PlanarPRB, strip: StripSpec, n_links: int, dx: float, ppc: int, domain, damping: float,
-           dt: float) -> dict:
+           dt: float, dim: int = 2, floor: bool = False) -> dict:
     ell, t = prb.link_length, strip.thickness
     remanence = link_remanence(prb, strip)
     bx, by = prb.base_position
     mat = {"density": strip.density, "shear_modulus": strip.shear_modulus, "bulk_modulus": strip.bulk_modulus}
     stub = 4 * dx
-    bodies = [{"name": "stub", "shape": {"type": "rectangle", "center": [bx - 0.5 * stub, by], "size": [stub, t]},
-               "material": mat}]
+    if dim == 2:
+        def shape(cx, cy, length, width):
+            return {"type": "rectangle", "center": [cx, cy], "size": [length, width]}
+    else:  # a box of the strip's section, centred on the plan's plane
+        def shape(cx, cy, length, width):
+            return {"type": "box", "center": [cx, cy, prb.plane_z], "size": [length, width, width / t * strip.depth]}
+    bodies = [{"name": "stub", "shape": shape(bx - 0.5 * stub, by, stub, t), "material": mat}]
     for j in range(n_links):
         br = remanence[j]
-        bodies.append({"name": f"link{j}", "shape": {"type": "rectangle", "center": [bx + (j + 0.5) * ell, by], "size": [ell, t]},
+        bodies.append({"name": f"link{j}", "shape": shape(bx + (j + 0.5) * ell, by, ell, t),
                        "material": mat, "magnetization": [float(v) for v in br]})
-    return {
+    sim = {"dim": dim, "dx": dx, "particles_per_cell": ppc, "domain_lo": list(domain[0]), "domain_hi": list(domain[1]),
+           "duration": 1.0, "dt": dt, "damping": damping}
+    if dim == 2:
+        sim.update(depth=strip.depth, plane_z=prb.plane_z)
+    scene = {
         "name": f"plan replay, {n_links} links",
-        "simulation": {"dim": 2, "dx": dx, "particles_per_cell": ppc, "domain_lo": list(domain[0]), "domain_hi": list(domain[1]),
-                       "duration": 1.0, "dt": dt, "damping": damping, "depth": strip.depth, "plane_z": prb.plane_z},
+        "simulation": sim,
         "bodies": bodies,
         # the rear of the stub is held; its nodes reach to the base point x = bx, where the PRB clamp sits
-        "clamps": [{"region": {"type": "rectangle", "center": [bx - 2.5 * dx, by], "size": [3 * dx, 2 * t]}, "body": "stub"}],
+        "clamps": [{"region": shape(bx - 2.5 * dx, by, 3 * dx, 2 * t), "body": "stub"}],
         "output": {"particles": False},
     }
+    if floor:  # a frictionless floor under the strip's lower face, with gravity
+        sim["gravity"] = [0.0, 0.0, -GRAVITY]
+        scene["colliders"] = [{"type": "half_space", "point": [bx, by, prb.plane_z - 0.5 * strip.depth],
+                               "normal": [0.0, 0.0, 1.0], "mode": "slip"}]
+    return scene
 
 
 def replay(plan: Plan, strip: StripSpec, dx: float, step_duration: float | None = None, move_fraction: float = 0.5,
            damping_ratio: float = 1.0, particles_per_cell: int = 2, cfl: float = 0.4, samples_per_step: int = 10,
-           progress=None, on_sample=None) -> ReplayResult:
+           progress=None, on_sample=None, dim: int = 2, floor: bool = False,
+           out_of_plane_room: float | None = None, check_robot: PlanarPRB | None = None) -> ReplayResult:
     """Run the plan's magnet keyframes on the MPM strip, one Simulation per growth step (see module docstring).
 
-    dx : grid spacing (m); the link length and the thickness must be multiples of dx / particles_per_cell.
+    dx : grid spacing (m); the link length and the thickness (and in 3D the depth) must be multiples of
+    dx / particles_per_cell.
     step_duration : simulated time per plan step (s); default the first bending period of the full strip.
     damping_ratio : grid damping c = 2 zeta omega_1(L_k) of the links everted at each step.
+    dim : 2 (plane strain, the planar field) or 3 (a free beam in the whole 3D field).
+    floor : 3D only: a frictionless floor under the strip and gravity (9.81 m/s^2, -z).
+    out_of_plane_room : 3D only: room (m) above and below the strip for its out-of-plane motion; default half
+    the robot's final length (below the floor when there is one: none).
+    check_robot : the PRB the MPM is compared with (tip_prb, and the step ends as its equilibria at the end of each
+    step); default the plan's robot, whose step ends are the planned shapes. For the 3D body,
+    :func:`beam_robot` is the like-for-like PRB.
     progress(k, sim) : called after each step; on_sample(t, tip_mpm, tip_prb) after each sample.
     """
     import time
@@ -149,11 +217,17 @@ def replay(plan: Plan, strip: StripSpec, dx: float, step_duration: float | None 
     from magsoro.simulation import Simulation
 
     prb = plan.robot
+    if dim not in (2, 3):
+        raise ValueError(f"dim must be 2 or 3, got {dim!r}")
+    if floor and dim != 3:
+        raise ValueError("floor needs dim = 3 (the floor lies under the strip, out of the 2D plane)")
     if abs(prb.base_angle) > 1e-12:
         raise ValueError("the MPM replay builds the strip along +x: plan with base_angle = 0")
     h = dx / particles_per_cell
     _check_multiple(prb.link_length, h, "link length")
     _check_multiple(strip.thickness, h, "thickness")
+    if dim == 3:
+        _check_multiple(strip.depth, h, "depth")
     ell, t = prb.link_length, strip.thickness
     n_final = plan.steps[-1].links
     L = n_final * ell
@@ -170,6 +244,14 @@ def replay(plan: Plan, strip: StripSpec, dx: float, step_duration: float | None 
     lo = np.floor((pts.min(axis=0) - margin - [bx, by]) / dx) * dx + [bx, by]
     hi = np.ceil((pts.max(axis=0) + margin - [bx, by]) / dx) * dx + [bx, by]
     lo[1] = by - dx * math.ceil((by - lo[1]) / dx)
+    if dim == 3:  # z: the section and the room for out-of-plane motion, the lattice split at the plane
+        room = 0.5 * L if out_of_plane_room is None else float(out_of_plane_room)
+        half = 0.5 * strip.depth
+        below = half + (4 * dx if floor else room + 4 * dx)
+        above = half + room + 4 * dx
+        z0 = prb.plane_z - half  # the strip's lower face lies on a lattice plane
+        lo = np.append(lo, z0 - dx * math.ceil((below - half) / dx))
+        hi = np.append(hi, z0 + dx * math.ceil((above + half) / dx))
 
     # time step: CFL with the elastic and magnetic wave speed over the whole plan
     from magsoro.fields.dipole import Dipole
@@ -186,12 +268,13 @@ def replay(plan: Plan, strip: StripSpec, dx: float, step_duration: float | None 
     prev = None  # (state arrays, last-link indices, reference positions) of the previous step
     wall0 = time.perf_counter()
     total_steps = 0
-    theta_prb = prb.straight(0)
+    ref = prb if check_robot is None else check_robot
+    theta_prb = ref.straight(0)
     for k, step in enumerate(plan.steps):
         n = step.links
         Lk = n * ell
         damping = 2.0 * damping_ratio * 2.0 * math.pi / strip.first_period(Lk)
-        sim = Simulation(parse_scene(_scene(prb, strip, n, dx, particles_per_cell, (lo, hi), damping, dt),
+        sim = Simulation(parse_scene(_scene(prb, strip, n, dx, particles_per_cell, (lo, hi), damping, dt, dim, floor),
                                      source=f"replay step {k}"))
         sim.control.sources.append(source)
         X = sim.model.host["positions"]
@@ -207,7 +290,7 @@ def replay(plan: Plan, strip: StripSpec, dx: float, step_duration: float | None 
             x[new] = xc + (X[new] - Xc) @ R.T
             v = np.zeros_like(X)
             v[:m_old] = s_old["v"]
-            C = np.zeros((len(X), 2, 2))
+            C = np.zeros((len(X), dim, dim))
             C[:m_old] = s_old["C"]
             F = np.tile(R, (len(X), 1, 1))
             F[:m_old] = s_old["F"]
@@ -220,14 +303,15 @@ def replay(plan: Plan, strip: StripSpec, dx: float, step_duration: float | None 
         sim.state.time = k * T
         body = sim.model.host["body"]
         idx_last = np.flatnonzero(body == n)  # body 0 is the stub, link j is body j + 1
-        tip_ref = np.array([bx + Lk, by])
+        on_plane = [prb.plane_z] if dim == 3 else []
+        tip_ref = np.array([bx + Lk, by] + on_plane)
 
         def tip_now():
             x = sim.state.x.numpy().astype(np.float64)
             R, Xc, xc = _rigid_fit(X[idx_last], x[idx_last])
             return xc + R @ (tip_ref - Xc)
 
-        theta_prb = prb.grow(theta_prb, n)
+        theta_prb = ref.grow(theta_prb, n)
         for j in range(1, samples_per_step + 1):
             tj = k * T + T * j / samples_per_step
             try:
@@ -236,27 +320,29 @@ def replay(plan: Plan, strip: StripSpec, dx: float, step_duration: float | None 
                 raise SimulationError(f"plan step {k} ({n} links) of the replay: {exc}", exc.step, exc.time) from None
             times.append(tj)
             tip_mpm.append(tip_now())
-            theta_prb = prb.equilibrium(source.dipole_at(tj), theta_prb)
-            tip_prb.append(prb.tip(theta_prb))
+            theta_prb = ref.equilibrium(source.dipole_at(tj), theta_prb)
+            tip_prb.append(ref.tip(theta_prb))
             if on_sample is not None:
                 on_sample(tj, tip_mpm[-1], tip_prb[-1])
         total_steps += sim.steps
         end_mpm.append(tip_mpm[-1])
-        end_prb.append(prb.tip(step.theta))
+        theta_end = step.theta if check_robot is None else theta_prb
+        end_prb.append(ref.tip(theta_end))
         # MPM joints: the reference link ends mapped by each link's rigid fit (base of each link, then the tip)
         x_now = sim.state.x.numpy().astype(np.float64)
         joints = []
         for j in range(n):
             idx = np.flatnonzero(body == j + 1)
             R, Xc, xc = _rigid_fit(X[idx], x_now[idx])
-            joints.append(xc + R @ (np.array([bx + j * ell, by]) - Xc))
+            joints.append(xc + R @ (np.array([bx + j * ell, by] + on_plane) - Xc))
         joints.append(tip_mpm[-1])
         joints_mpm.append(np.array(joints))
-        joints_prb.append(prb.joints(step.theta))
+        joints_prb.append(ref.joints(theta_end))
         s_np = sim.state.numpy()
         prev = ({key: s_np[key].astype(np.float64) for key in ("x", "v", "C", "F")}, idx_last, X.copy())
         if progress is not None:
             progress(k, sim)
     return ReplayResult(np.array(times), np.array(tip_mpm), np.array(tip_prb), np.array(end_mpm), np.array(end_prb),
-                        joints_mpm, joints_prb, T, time.perf_counter() - wall0, total_steps, len(X), dt)
+                        joints_mpm, joints_prb, T, time.perf_counter() - wall0, total_steps, len(X), dt, dim,
+                        float(prb.plane_z))
 

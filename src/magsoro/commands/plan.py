@@ -56,5 +56,9 @@ def run_plan_command(args) -> int:
         print(f"MPM replay: tip at the end of each step within {1e3 * r['max_step_end_tip_error_m']:.3g} mm of the PRB "
               f"({100 * r['max_step_end_tip_error_over_length']:.3g} % of the length); during moves within "
               f"{1e3 * r['max_path_tip_error_m']:.3g} mm ({r['mpm_steps']} MPM steps, {r['wall_time_s']:.3g} s)")
+        if r.get("dim") == 3:
+            print(f"3D replay{' on a frictionless floor with gravity' if r['floor'] else ' (free, no gravity)'}: in the "
+                  f"plane within {1e3 * r['max_step_end_in_plane_tip_error_m']:.3g} mm at the step ends; the tip "
+                  f"leaves the plane by up to {1e3 * r['max_abs_tip_z_m']:.3g} mm")
     print(f"wrote {', '.join(str(out / f) for f in summary['files'])}")
     return 0
