@@ -1,7 +1,7 @@
 """The triangle robot's field level by the static solver, against the gallery's dynamic sweep.
 
     python benchmarks/triangle_static.py [--level 15] [--max-iterations 400] [--together] [--preview]
-                                         [--floor-clear-of-walls]
+                                         [--floor-clear-of-walls] [--fractions 0.2,0.4,0.6,0.8,1]
 
 Seed 002's robots lie free on a friction plate and lift off it as the field rises; their reproductions run the
 dynamics (docs/engine.md, "Which reproductions use it"). This script measures what the static solver does with
@@ -9,7 +9,9 @@ one of them: scenes/triangle.toml, float64, the N35 magnet held centred under th
 at the robot's centre is ``--level`` mT (as `magsoro reproduce triangle` places it), solved from the flat robot
 
 - by default with gravity first (level 0: gravity alone) and then the field (level 1);
-- with ``--together``: field and gravity ramped together in one level.
+- with ``--together``: field and gravity ramped together in one level;
+- with ``--fractions``: gravity first, then the field in levels at those fractions of it, each solved from the
+  last (a field sweep's continuation: does it spread the contact's release over the levels?).
 
 ``--preview`` takes the preview grid (dx 2 mm, one cell through the 2 mm robot); ``--floor-clear-of-walls`` moves
 the domain's lower edge 6 mm further down, so that the plate lies clear of the bottom wall's band (at the preview
@@ -58,6 +60,7 @@ def main(argv=None) -> int:
     ap.add_argument("--together", action="store_true", help="field and gravity ramped together in one level")
     ap.add_argument("--preview", action="store_true", help="the preview grid (dx 2 mm)")
     ap.add_argument("--floor-clear-of-walls", action="store_true", help="domain_lo z 6 mm lower")
+    ap.add_argument("--fractions", default=None, help="gravity first, then the field at these comma-separated fractions")
     args = ap.parse_args(argv)
 
     data = scene_data("triangle")
@@ -76,7 +79,8 @@ def main(argv=None) -> int:
     corners = T._corners(d)
     rest = T.measure(sim, X0, mass, corners)
     touching_rest = touching(sim)
-    levels = [1.0] if args.together else [0.0, 1.0]
+    fractions = None if args.fractions is None else [float(v) for v in args.fractions.split(",")]
+    levels = [1.0] if args.together else [0.0] + (fractions or [1.0])
     t0 = time.perf_counter()
     res = sim.solve_static(levels=levels)
     wall = time.perf_counter() - t0
@@ -103,8 +107,8 @@ def main(argv=None) -> int:
     if gallery is not None and res.converged and not args.preview:
         gallery["Wt_static_over_dynamic"] = round(result["Wt_mm"] / gallery["Wt_mm"], 5)
         gallery["centroid_static_over_dynamic"] = round(result["centroid_height_mm"] / gallery["centroid_height_mm"], 5)
-    variant = ("together" if args.together else "gravity-first") + ("-preview" if args.preview else "") + (
-        "-floor-clear" if args.floor_clear_of_walls else "")
+    variant = ("together" if args.together else "gravity-first") + ("-steps" if fractions else "") + (
+        "-preview" if args.preview else "") + ("-floor-clear" if args.floor_clear_of_walls else "")
     out = {
         "benchmark": "triangle_static",
         "variant": variant,
