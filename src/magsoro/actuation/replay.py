@@ -195,7 +195,8 @@ def _scene(prb: PlanarPRB, strip: StripSpec, n_links: int, dx: float, ppc: int, 
 def replay(plan: Plan, strip: StripSpec, dx: float, step_duration: float | None = None, move_fraction: float = 0.5,
            damping_ratio: float = 1.0, particles_per_cell: int = 2, cfl: float = 0.4, samples_per_step: int = 10,
            progress=None, on_sample=None, dim: int = 2, floor: bool = False,
-           out_of_plane_room: float | None = None, check_robot: PlanarPRB | None = None) -> ReplayResult:
+           out_of_plane_room: float | None = None, check_robot: PlanarPRB | None = None,
+           record=None) -> ReplayResult:
     """Run the plan's magnet keyframes on the MPM strip, one Simulation per growth step (see module docstring).
 
     dx : grid spacing (m); the link length and the thickness (and in 3D the depth) must be multiples of
@@ -209,7 +210,8 @@ def replay(plan: Plan, strip: StripSpec, dx: float, step_duration: float | None 
     check_robot : the PRB the MPM is compared with (tip_prb, and the step ends as its equilibria at the end of each
     step); default the plan's robot, whose step ends are the planned shapes. For the 3D body,
     :func:`beam_robot` is the like-for-like PRB.
-    progress(k, sim) : called after each step; on_sample(t, tip_mpm, tip_prb) after each sample.
+    progress(k, sim) : called after each step; on_sample(t, tip_mpm, tip_prb) after each sample; record(sim) after
+    each sample too (e.g. an animation's frames; the particle count grows with the links).
     """
     import time
 
@@ -324,6 +326,8 @@ def replay(plan: Plan, strip: StripSpec, dx: float, step_duration: float | None 
             tip_prb.append(ref.tip(theta_prb))
             if on_sample is not None:
                 on_sample(tj, tip_mpm[-1], tip_prb[-1])
+            if record is not None:
+                record(sim)
         total_steps += sim.steps
         end_mpm.append(tip_mpm[-1])
         theta_end = step.theta if check_robot is None else theta_prb
