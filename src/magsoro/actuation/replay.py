@@ -196,7 +196,7 @@ def replay(plan: Plan, strip: StripSpec, dx: float, step_duration: float | None 
            damping_ratio: float = 1.0, particles_per_cell: int = 2, cfl: float = 0.4, samples_per_step: int = 10,
            progress=None, on_sample=None, dim: int = 2, floor: bool = False,
            out_of_plane_room: float | None = None, check_robot: PlanarPRB | None = None,
-           record=None) -> ReplayResult:
+           record=None, planar_field: bool = False) -> ReplayResult:
     """Run the plan's magnet keyframes on the MPM strip, one Simulation per growth step (see module docstring).
 
     dx : grid spacing (m); the link length and the thickness (and in 3D the depth) must be multiples of
@@ -207,6 +207,10 @@ def replay(plan: Plan, strip: StripSpec, dx: float, step_duration: float | None 
     floor : 3D only: a frictionless floor under the strip and gravity (9.81 m/s^2, -z).
     out_of_plane_room : 3D only: room (m) above and below the strip for its out-of-plane motion; default half
     the robot's final length (below the floor when there is one: none).
+    planar_field : 3D only: the MPM robot feels the field the planar PRB sees instead of the magnet's: the magnet
+    and its mirror image in the plan's plane (moment (m_x, m_y, -m_z) at (x, y, 2 plane_z - z)), each of half the
+    moment. On the plane that pair has the magnet's in-plane field and gradients and no B_z, and it is symmetric
+    about the plane, so a free robot stays in it: the 3D body against its PRB, the out-of-plane field removed.
     check_robot : the PRB the MPM is compared with (tip_prb, and the step ends as its equilibria at the end of each
     step); default the plan's robot, whose step ends are the planned shapes. For the 3D body,
     :func:`beam_robot` is the like-for-like PRB.
@@ -223,6 +227,8 @@ def replay(plan: Plan, strip: StripSpec, dx: float, step_duration: float | None 
         raise ValueError(f"dim must be 2 or 3, got {dim!r}")
     if floor and dim != 3:
         raise ValueError("floor needs dim = 3 (the floor lies under the strip, out of the 2D plane)")
+    if planar_field and dim != 3:
+        raise ValueError("planar_field needs dim = 3 (the 2D replay sees the in-plane field only anyway)")
     if abs(prb.base_angle) > 1e-12:
         raise ValueError("the MPM replay builds the strip along +x: plan with base_angle = 0")
     h = dx / particles_per_cell
@@ -235,6 +241,15 @@ def replay(plan: Plan, strip: StripSpec, dx: float, step_duration: float | None 
     L = n_final * ell
     T = step_duration if step_duration is not None else strip.first_period(L)
     source = plan.keyframes(T, move_fraction)
+    mpm_source = source
+    if planar_field:
+        from magsoro.actuation.epm_path import KeyframedDipole
+        from magsoro.fields.base import FieldSum
+
+        flip = np.array([1.0, 1.0, -1.0])
+        mirror_pos = source.positions * flip + [0.0, 0.0, 2.0 * prb.plane_z]
+        mpm_source = FieldSum([KeyframedDipole(source.times, source.positions, 0.5 * source.moments),
+                               KeyframedDipole(source.times, mirror_pos, 0.5 * source.moments * flip)])
 
     # domain: everything the PRB plan visits plus the stub, with room for the dynamics; aligned with the base
     # so the lattice splits at the link ends
@@ -278,7 +293,7 @@ def replay(plan: Plan, strip: StripSpec, dx: float, step_duration: float | None 
         damping = 2.0 * damping_ratio * 2.0 * math.pi / strip.first_period(Lk)
         sim = Simulation(parse_scene(_scene(prb, strip, n, dx, particles_per_cell, (lo, hi), damping, dt, dim, floor),
                                      source=f"replay step {k}"))
-        sim.control.sources.append(source)
+        sim.control.sources.append(mpm_source)
         X = sim.model.host["positions"]
         if prev is not None:
             s_old, idx_last, X_old = prev
