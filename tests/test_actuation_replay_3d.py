@@ -87,3 +87,37 @@ def test_plan_cli_refuses_a_floor_in_2d(tmp_path, capsys):
     assert main(["plan", str(bad), "--out", str(tmp_path / "o"), "--replay"]) == 2
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and "replay.dim" in err
+
+
+def test_planar_pair_has_the_magnets_in_plane_field_on_the_plane_and_no_bz(planned):
+    """The mirror pair of replay(planar_field=True): on the plane z = plane_z its field is (B_x, B_y, 0) of the
+    magnet, its in-plane gradients the magnet's, and the in-plane field does not change across the plane."""
+    from magsoro.actuation.replay import planar_pair
+
+    cfg, robot, strip, plan = planned
+    src = plan.keyframes(cfg.replay.step_duration, 0.5)
+    for z0 in (0.0, 0.004):
+        pair = planar_pair(src, z0)
+        rng = np.random.default_rng(1)
+        pts = np.column_stack([rng.uniform(-0.04, 0.07, 20), rng.uniform(-0.03, 0.05, 20), np.full(20, z0)])
+        for t in (0.1, 2.5 * cfg.replay.step_duration, 5.9 * cfg.replay.step_duration):
+            B, Bp = src.B(pts, t), pair.B(pts, t)
+            scale = np.abs(B).max()
+            assert np.allclose(Bp[:, :2], B[:, :2], atol=1e-12 * scale) and np.allclose(Bp[:, 2], 0.0, atol=1e-12 * scale)
+            G, Gp = src.grad_B(pts, t), pair.grad_B(pts, t)
+            gscale = np.abs(G).max()
+            # d B_i / d x_j for in-plane i, j: the magnet's; d B_x / dz = d B_y / dz = 0 on the plane
+            assert np.allclose(Gp[:, :2, :2], G[:, :2, :2], atol=1e-10 * gscale)
+            assert np.allclose(Gp[:, :2, 2], 0.0, atol=1e-10 * gscale) and np.allclose(Gp[:, 2, :2], 0.0, atol=1e-10 * gscale)
+
+
+def test_free_3d_replay_in_the_planar_field_stays_in_the_plane(planned):
+    """In the pair's field (symmetric about the plane) the free robot stays in the plane, and it follows the beam
+    PRB (dx = 3 mm: 2.2, 2.6, 7.5 mm at 60, 120, 180 degrees; dx = 1.5 mm: 2.2, 0.8, 4.8 mm)."""
+    cfg, robot, strip, plan = planned
+    r = replay(plan, strip, 0.003, cfg.replay.step_duration, dim=3, planar_field=True,
+               check_robot=beam_robot(robot, strip))
+    assert np.abs(r.out_of_plane).max() < 5e-4  # measured 0.02 mm (dx 1.5 mm: 0.16 mm)
+    assert r.step_end_in_plane_errors[:5].max() < 0.004 and r.step_end_in_plane_errors[5] < 0.01
+    with pytest.raises(ValueError, match="planar_field needs dim = 3"):
+        replay(plan, strip, 0.003, cfg.replay.step_duration, planar_field=True)

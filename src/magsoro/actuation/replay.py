@@ -148,6 +148,20 @@ def beam_robot(prb: PlanarPRB, strip: StripSpec) -> PlanarPRB:
     return dataclasses.replace(prb, bending_stiffness=prb.bending_stiffness * ratio, axial_stiffness=axial)
 
 
+def planar_pair(source, plane_z: float = 0.0):
+    """The field a planar model sees, as a 3D source: the keyframed dipole ``source`` and its mirror image in the
+    plane z = plane_z (moment (m_x, m_y, -m_z) at (x, y, 2 plane_z - z)), each with half the moment. On the plane
+    the pair's B is the magnet's (B_x, B_y, 0), its in-plane gradients the magnet's, and d(B_x, B_y)/dz = 0; it is
+    symmetric about the plane. A :class:`~magsoro.fields.base.FieldSum` of two keyframed dipoles."""
+    from magsoro.actuation.epm_path import KeyframedDipole
+    from magsoro.fields.base import FieldSum
+
+    flip = np.array([1.0, 1.0, -1.0])
+    mirror = source.positions * flip + [0.0, 0.0, 2.0 * plane_z]
+    return FieldSum([KeyframedDipole(source.times, source.positions, 0.5 * source.moments),
+                     KeyframedDipole(source.times, mirror, 0.5 * source.moments * flip)])
+
+
 def link_remanence(prb: PlanarPRB, strip: StripSpec) -> np.ndarray:
     """Remanence (n, 3) in T of each link in the reference frame (the strip along +x): mu0 m / (l t depth)."""
     br = np.zeros((prb.n_links, 3))
@@ -243,13 +257,7 @@ def replay(plan: Plan, strip: StripSpec, dx: float, step_duration: float | None 
     source = plan.keyframes(T, move_fraction)
     mpm_source = source
     if planar_field:
-        from magsoro.actuation.epm_path import KeyframedDipole
-        from magsoro.fields.base import FieldSum
-
-        flip = np.array([1.0, 1.0, -1.0])
-        mirror_pos = source.positions * flip + [0.0, 0.0, 2.0 * prb.plane_z]
-        mpm_source = FieldSum([KeyframedDipole(source.times, source.positions, 0.5 * source.moments),
-                               KeyframedDipole(source.times, mirror_pos, 0.5 * source.moments * flip)])
+        mpm_source = planar_pair(source, prb.plane_z)
 
     # domain: everything the PRB plan visits plus the stub, with room for the dynamics; aligned with the base
     # so the lattice splits at the link ends
