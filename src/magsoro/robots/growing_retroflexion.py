@@ -208,7 +208,7 @@ ROBOT = Robot(
     quantity="tip path in 3D under the planned magnet poses, against the planar PRB",
     sentence=("The growing robot with a magnetic tip everts straight and is curled to 180 degrees by the external "
               "magnet whose poses the planar planner chose; the 3D MPM replay grows it link by link, on a floor and "
-              "free in space, in the magnet's whole field."),
+              "free in space in the magnet's whole field, and in the field the planar model sees."),
     reproduce=reproduce,
     in_ci=True,
 )
