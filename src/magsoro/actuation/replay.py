@@ -33,12 +33,12 @@ from dataclasses import dataclass
 import numpy as np
 
 from magsoro.constants import MU0
-
-#: gravity of the 3D replay's floor variant, m/s^2
-GRAVITY = 9.81
 from magsoro.errors import SimulationError
 from magsoro.mpm.timestep import cfl_time_step
 from magsoro.actuation.planning import Plan, PlanarPRB, plane_strain_modulus
+
+#: gravity of the 3D replay's floor variant, m/s^2
+GRAVITY = 9.81
 
 
 @dataclass
