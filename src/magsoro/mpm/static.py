@@ -84,6 +84,9 @@ MAX_STEP = 10.0
 #: iterations before gives up (its load increment is then halved): at a contact's onset such solves went on to the
 #: iteration limit at a level |R| (the obstacle beam from straight to 3 mT: six attempts of 40 iterations)
 STALL_ITERATIONS = 10
+#: once a converged state has released points that pull (a body lifting off a collider), points that pull leave the
+#: active set after every accepted Newton iterate of that solve, not only at converged states
+PEEL = True
 STALL_FACTOR = 0.5
 #: arc-length continuation (StaticSolver._arc_length), taken where load increments fail (a limit point): at most
 #: ARC_STEPS steps along the equilibrium path; the first step's load change is ARC_FIRST of the way left; a step
@@ -839,11 +842,13 @@ class StaticSolver:
         norm = float(np.abs(r).max()) if r.size else 0.0
         best = norm
         bests = []  # the lowest |R| so far, after each iteration (STALL_ITERATIONS)
+        peeling = False  # PEEL: after a release at a converged state, pulling points also leave after each iterate
         for it in range(self.max_iterations + 1):
             if norm <= self.tolerance * scale:
                 if self.contact is None or not self.contact.release():
                     return u_nodes, True, it, norm, ""
                 # nodes that pull left the colliders' active set: solve again without them
+                peeling = PEEL
                 r_full = self._scatter(u_nodes, field_level, gravity_level)
                 r = self._reduce(r_full)
                 norm = best = float(np.abs(r).max())
@@ -896,6 +901,13 @@ class StaticSolver:
                         best = norm if changed else min(best, norm)  # new contacts: a new problem, a new reference
                         if self.contact is not None:
                             self.contact.commit()
+                            if peeling and self.contact.release():
+                                # a peeling front: the points it lifts leave at once, not one ring per converged
+                                # round (a new problem: a new reference for the line search and the stall check)
+                                r_full = self._scatter(u_nodes, field_level, gravity_level)
+                                r = self._reduce(r_full)
+                                norm = best = float(np.abs(r).max())
+                                bests = []
                         break
                 alpha *= 0.5
             else:
