@@ -467,3 +467,47 @@ def test_cube_next_to_a_dipole_matches_its_dynamic_settling():
     assert moved["static"][0] == pytest.approx(0.765e-3, rel=2e-3)
     assert np.all(np.abs(moved["static"] / moved["dynamic"] - 1) < 0.01)  # the acceptance: 1 %
     assert np.all(np.abs(moved["static"] / moved["dynamic"] - 1) < 2e-3)  # measured 0.11-0.15 %
+
+
+def test_move_to_continues_along_a_magnets_path(tmp_path):
+    """StaticSolver.move_to: the cantilever next to a point dipole that moves along a path (three keyframes);
+    continued from one time to the next (the field moved with the load increments, each from the last
+    equilibrium), the equilibrium at each time is the one a fresh solve at that time finds (no friction, no
+    contact, and a dipole weak enough for one equilibrium at each time: nothing depends on the path), to 1e-8 of
+    the length (measured 2e-11 m). (With a four times stronger moment the beam has two equilibria near the magnet,
+    and the continuation and the fresh solve find different ones.)"""
+    from magsoro.mpm.static import StaticSolver
+    from magsoro.scene import load_scene
+    from magsoro.simulation import Simulation
+
+    text = SCENE.read_text().replace(
+        'type = "uniform"\nB = [0.0, 0.0059, 0.0]\nprofile = { type = "ramp", duration = 0.04 }',
+        'type = "dipole"\nmoment = [0.0, 0.005, 0.0]\nposition = [0.034, -0.008, 0.0]\n'
+        'path = { times = [0.0, 1.0, 2.0], positions = [[0.034, -0.008, 0.0], [0.028, -0.006, 0.0], '
+        '[0.025, -0.009, 0.0]] }')
+    assert "path = " in text
+    path = tmp_path / "moving.toml"
+    path.write_text(text)
+
+    def fresh(t):
+        scene = load_scene(path)
+        scene.simulation.precision = "float64"
+        sim = Simulation(scene)
+        solver = StaticSolver(sim, t)
+        assert solver.solve_level(1.0).converged
+        return solver.u_nodes.copy()
+
+    scene = load_scene(path)
+    scene.simulation.precision = "float64"
+    sim = Simulation(scene)
+    solver = StaticSolver(sim, 0.0)
+    assert solver.solve_level(1.0).converged
+    length = 0.02
+    for t in (1.0, 2.0):
+        solver.move_to(t)
+        res = solver.solve_level(1.0)
+        assert res.converged, res.message
+        assert solver.field_time == t
+        diff = np.abs(solver.u_nodes - fresh(t)).max()
+        assert diff < 1e-8 * length, diff
+    assert np.abs(solver.u_nodes).max() > 2e-3  # the dipole bent the beam (measured 2.6 mm)

@@ -393,6 +393,7 @@ class StaticSolver:
         self.extra_force = None  # (n_nodes, dim) N: the imperfection force of a branch switch
         self.contact = None  # the colliders' penalty (magsoro.mpm.static_contact), set up below
         self.collider_time = self.t  # the time the colliders stand at (their paths), s: ramped from 0 to t
+        self.field_time = self.t  # the time the fields are evaluated at, s: moved with the loads after move_to()
         self._scene_contact = None  # its part for the scene's colliders (the rest: the domain walls)
         self._last_tangent = None
         # free nodes: carrying mass, not held
@@ -515,7 +516,7 @@ class StaticSolver:
         solver, model, k, sc = self.solver, self.model, self.k, self.sc
         self._place(u_nodes)
         applied = k["Applied"]()
-        b0 = self.fields.uniform_value(self.t) * field_level
+        b0 = self.fields.uniform_value(self.field_time) * field_level
         applied.B_uniform = k["v3"](*[sc(b) for b in b0])
         has_gradient = self.fields.has_gradient or solver.interaction is not None
         applied.has_gradient = 1 if has_gradient else 0
@@ -524,7 +525,7 @@ class StaticSolver:
             B.zero_()
             G.zero_()
             if self.fields.has_gradient:
-                self.fields.evaluate(self.x, B, G, self.t)
+                self.fields.evaluate(self.x, B, G, self.field_time)
                 if field_level != 1.0:
                     Bn, Gn = B.numpy(), G.numpy()
                     B.assign(Bn * field_level)
@@ -734,7 +735,7 @@ class StaticSolver:
         G = wp.zeros(n, dtype=k["m3"], device=self.dev)
         x0 = self.x.numpy().astype(np.float64)
         xs = wp.zeros(n, dtype=k["vec"], device=self.dev)
-        self.fields.evaluate(self.x, B, G, self.t)
+        self.fields.evaluate(self.x, B, G, self.field_time)
         G0 = G.numpy().astype(np.float64)[:, :dim, :dim] * field_level
         h = X_STEP * self.model.dx
         dG = np.zeros((n, dim, dim, dim))  # dG[p, a, b, e] = d(dB_a/dx_b)/dx_e
@@ -744,7 +745,7 @@ class StaticSolver:
                 xx = x0.copy()
                 xx[:, e] += sign * h
                 xs.assign(xx.astype(self.model.np_scalar))
-                self.fields.evaluate(xs, B, G, self.t)
+                self.fields.evaluate(xs, B, G, self.field_time)
                 Gs.append(G.numpy().astype(np.float64)[:, :dim, :dim])
             dG[:, :, :, e] = (Gs[0] - Gs[1]) / (2.0 * h) * field_level
         return G0, dG
@@ -1033,11 +1034,13 @@ class StaticSolver:
         u = self.u_nodes.copy()
         norm, message = 0.0, ""
         tau0 = self.collider_time  # the colliders move along their paths to the solve's time with the loads
+        tf0 = self.field_time  # and the fields, from where move_to() left them
         while s < 1.0 - 1e-12:
             ds = min(ds, 1.0 - s)
             s_try = s + ds
             load = tuple(a + s_try * (b - a) for a, b in zip(start, target))
             self._set_collider_time(tau0 + s_try * (self.t - tau0))
+            self.field_time = tf0 + s_try * (self.t - tf0)
             u_new, ok, its, norm, message = self._newton(u.copy(), load[0], load[1], scale)
             iterations += its
             if not ok and self.contact is None and self.dim == 3:
@@ -1057,6 +1060,7 @@ class StaticSolver:
                     lam, mode = self.lowest_mode(self._last_tangent if its > 0 else None)
                     if lam is not None and lam < 0.0:
                         self.u_nodes, self.field_level, self.gravity_level = before
+                        self.field_time = tf0 + s * (self.t - tf0)
                         return "unstable", iterations, increments, norm, s, "", load, lam, mode
                 u, s = u_new, s_try
                 increments += 1
@@ -1069,6 +1073,7 @@ class StaticSolver:
                     ds *= 2.0
             else:
                 self._set_collider_time(tau0 + s * (self.t - tau0))
+                self.field_time = tf0 + s * (self.t - tf0)
                 ds *= 0.5
                 # From the unloaded state with the colliders still, the loads grow in proportion: where they pull
                 # the free bodies along the one flat friction collider that carries them harder than friction
@@ -1210,6 +1215,13 @@ class StaticSolver:
         self.u_nodes, (self.field_level, self.gravity_level) = u0, start
         return False, iterations, increments, norm, message or "the equilibrium stayed unstable after the largest imperfection"
 
+    def move_to(self, t: float) -> None:
+        """Continue to the loads at time ``t`` (s): the next :meth:`solve_level` moves the fields and the colliders
+        along their paths from where they stand to ``t`` with its load increments, from the last equilibrium (a
+        sweep along a magnet's path, each position from the last). Eigenstrains and pressure loads stay at the
+        solver's first time."""
+        self.t = float(t)
+
     def solve_level(self, level: float, gravity_level: float = 1.0) -> LevelResult:
         """Equilibrium under the fields scaled by ``level`` and gravity scaled by ``gravity_level``, reached in
         load increments from the last converged state, each checked for stability; at the first unstable one
@@ -1219,10 +1231,12 @@ class StaticSolver:
         before = (self.u_nodes.copy(), self.field_level, self.gravity_level)
         # the force scale of the tolerance: the out-of-balance force of the undeformed body under the target load,
         # the colliders at the solve's time (a plate moved into the body loads it through the penalty)
-        tau = self.collider_time
+        tau, tf = self.collider_time, self.field_time
         self._set_collider_time(self.t)
+        self.field_time = self.t
         r_ref = self._reduce(self._scatter(np.zeros_like(self.u_nodes), *target))
         self._set_collider_time(tau)
+        self.field_time = tf
         scale = max(float(np.abs(r_ref).max()), 1e-30)
         iterations = increments = arc_steps = 0
         buckled, lam, limits = False, None, []
