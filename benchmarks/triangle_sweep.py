@@ -1,0 +1,136 @@
+"""The triangle robot's field sweep (seed 002 Figs. 6 and 9) by the static solver along the magnet's path, against
+the reproduction's dynamic sweep, timed in one run.
+
+    python benchmarks/triangle_sweep.py [--preview] [--static-only]
+
+`magsoro reproduce triangle` raises the N35 magnet under the plate level by level (B_z at the robot's centre 0 to
+45 mT) and reads the vertex warp height W_t and the centroid height at the end of each hold, by the dynamics.
+Here the same levels are solved as equilibria: the magnet's positions become a path in (pseudo-)time, the static
+solver (float64) settles the robot under gravity with the magnet far, then moves along the path level by level
+(:meth:`magsoro.mpm.static.StaticSolver.move_to`: the field moves with the load increments, each level from the
+last equilibrium, the plate's friction anchors carried along). The dynamic sweep is the reproduction's (its
+stepped path, holds and damping; without the animation). Records per level W_t, the centroid height, Newton
+iterations and wall time, and both wall times. Writes
+benchmarks/results/<date>-cpu-<commit>-triangle-sweep[-preview].json with the machine and the commit.
+"""
+
+import argparse
+import copy
+import datetime
+import json
+import os
+import platform
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from magsoro.bench.runner import _commit  # the checkout's commit (MAGSORO_COMMIT without git history)
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def static_sweep(levels, preview: bool) -> dict:
+    from magsoro.mpm.static import StaticSolver
+    from magsoro.robots import triangle as T
+    from magsoro.robots.base import scene_data, simulation
+
+    d = copy.deepcopy(scene_data("triangle"))
+    magnet = next(f for f in d["fields"] if f.get("name") == "magnet")
+    offsets = T.magnet_offsets(magnet, levels)
+    far = [0.0, 0.0, float(offsets[0][2]) - 10 * abs(float(offsets[0][2]))]  # where the robot settles first
+    times = [float(k) for k in range(len(offsets) + 1)]
+    magnet["path"] = {"times": times, "positions": [far] + [list(map(float, o)) for o in offsets]}
+    d["simulation"]["precision"] = "float64"
+    d["simulation"]["duration"] = times[-1]
+    d.setdefault("output", {})["particles"] = False
+    sim = simulation("triangle", d, preview=preview, device="cpu")
+    X0 = sim.model.host["positions"].astype(np.float64)
+    mass = sim.model.host["mass"].astype(np.float64)
+    corners = T._corners(d)
+    rest = T.measure(sim, X0, mass, corners)
+    t0 = time.perf_counter()
+    sc = sim.scene.static
+    solver = StaticSolver(sim, 0.0, tolerance=sc.tolerance, max_iterations=sc.max_iterations)
+    first = [solver.solve_level(0.0), solver.solve_level(1.0)]  # gravity, then the far magnet's field
+    rows = []
+    for k, lv in enumerate(levels):
+        tk = time.perf_counter()
+        solver.move_to(float(k + 1))
+        res = solver.solve_level(1.0)
+        solver.write_state()
+        m = T.measure(sim, X0, mass, corners)
+        rows.append({"B_mT": lv, "converged": res.converged, "Wt_mm": 1e3 * float(np.mean(m["vertex"]) - np.mean(rest["vertex"])),
+                     "centroid_height_mm": 1e3 * float(m["centroid"]), "iterations": res.iterations,
+                     "load_increments": res.increments, "wall_s": round(time.perf_counter() - tk, 1),
+                     "message": res.message})
+        print(f"static {lv:g} mT: W_t {rows[-1]['Wt_mm']:.3f} mm, centroid {rows[-1]['centroid_height_mm']:.3f} mm, "
+              f"{res.iterations} iterations, {rows[-1]['wall_s']} s", flush=True)
+        if not res.converged:
+            break
+    return {"wall_s": round(time.perf_counter() - t0, 1), "particles": int(sim.model.n_particles),
+            "settle_iterations": [r.iterations for r in first], "levels": rows}
+
+
+def dynamic_sweep(levels, preview: bool) -> dict:
+    from magsoro.robots import triangle as T
+    from magsoro.robots.base import scene_data, simulation
+
+    data = scene_data("triangle")
+    magnet = next(f for f in data["fields"] if f.get("name") == "magnet")
+    offsets = T.magnet_offsets(magnet, levels)
+    times, positions, reads = T.stepped_path(offsets, T.SETTLE, T.HOLD, T.MOVE)
+    magnet["path"] = {"times": times, "positions": positions}
+    data.setdefault("output", {})["particles"] = False
+    sim = simulation("triangle", data, preview=preview, device="cpu")
+    X0 = sim.model.host["positions"].astype(np.float64)
+    mass = sim.model.host["mass"].astype(np.float64)
+    corners = T._corners(data)
+    rest = T.measure(sim, X0, mass, corners)
+    t0 = time.perf_counter()
+    rows = []
+    for lv, t_read in zip(levels, reads):
+        T.advance(sim, t_read, None, T.FRAME_EVERY)
+        m = T.measure(sim, X0, mass, corners)
+        rows.append({"B_mT": lv, "Wt_mm": 1e3 * float(np.mean(m["vertex"]) - np.mean(rest["vertex"])),
+                     "centroid_height_mm": 1e3 * float(m["centroid"])})
+        print(f"dynamic {lv:g} mT: W_t {rows[-1]['Wt_mm']:.3f} mm, centroid {rows[-1]['centroid_height_mm']:.3f} mm",
+              flush=True)
+    return {"wall_s": round(time.perf_counter() - t0, 1), "particles": int(sim.model.n_particles), "levels": rows}
+
+
+def main(argv=None) -> int:
+    from magsoro.robots import triangle as T
+
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--preview", action="store_true", help="the preview grid and levels")
+    ap.add_argument("--static-only", action="store_true", help="skip the dynamic sweep")
+    args = ap.parse_args(argv)
+    levels = T.PREVIEW_LEVELS_MT if args.preview else T.LEVELS_MT
+    out = {
+        "benchmark": "triangle_sweep",
+        "preview": args.preview,
+        "levels_mT": levels,
+        "date": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
+        "commit": _commit(),
+        "machine": {"node": platform.node(), "processor": platform.processor() or platform.machine(),
+                    "cpu_count": os.cpu_count()},
+        "static": static_sweep(levels, args.preview),
+    }
+    if not args.static_only:
+        out["dynamic"] = dynamic_sweep(levels, args.preview)
+        out["dynamic_over_static_wall"] = round(out["dynamic"]["wall_s"] / out["static"]["wall_s"], 3)
+        pairs = [(s, d) for s, d in zip(out["static"]["levels"], out["dynamic"]["levels"]) if s["converged"]]
+        out["Wt_static_minus_dynamic_mm"] = [round(s["Wt_mm"] - d["Wt_mm"], 4) for s, d in pairs]
+    stamp = datetime.date.today().isoformat()
+    name = f"{stamp}-cpu-{out['commit']}-triangle-sweep{'-preview' if args.preview else ''}.json"
+    path = ROOT / "benchmarks" / "results" / name
+    path.write_text(json.dumps(out, indent=2) + "\n")
+    print(f"static {out['static']['wall_s']} s" + (f", dynamic {out['dynamic']['wall_s']} s" if "dynamic" in out else "")
+          + f"; {path}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
