@@ -511,3 +511,28 @@ def test_move_to_continues_along_a_magnets_path(tmp_path):
         diff = np.abs(solver.u_nodes - fresh(t)).max()
         assert diff < 1e-8 * length, diff
     assert np.abs(solver.u_nodes).max() > 2e-3  # the dipole bent the beam (measured 2.6 mm)
+
+
+def test_move_to_that_fails_names_the_move(tmp_path):
+    """A move along the path that load increments cannot follow (the strong dipole swept towards the beam's tip: the
+    increments stall at 0.85 of the way, though a fresh solve at the end time converges; the beam has more than one
+    equilibrium there) fails with a message that names the move and what to do, not an arc-length one."""
+    from magsoro.mpm.static import StaticSolver
+    from magsoro.scene import load_scene
+    from magsoro.simulation import Simulation
+
+    text = SCENE.read_text().replace(
+        'type = "uniform"\nB = [0.0, 0.0059, 0.0]\nprofile = { type = "ramp", duration = 0.04 }',
+        'type = "dipole"\nmoment = [0.0, 0.02, 0.0]\nposition = [0.03, -0.006, 0.0]\n'
+        'path = { times = [0.0, 1.0], positions = [[0.03, -0.006, 0.0], [0.0198, -0.006, 0.0]] }')
+    path = tmp_path / "snap.toml"
+    path.write_text(text)
+    scene = load_scene(path)
+    scene.simulation.precision = "float64"
+    solver = StaticSolver(Simulation(scene), 0.0)
+    assert solver.solve_level(1.0).converged
+    solver.move_to(1.0)
+    res = solver.solve_level(1.0)
+    assert not res.converged
+    assert "the fields moving along their paths from t = 0 s to 1 s: move_to intermediate times" in res.message
+    assert "arc length" not in res.message

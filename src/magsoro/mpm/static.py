@@ -1248,13 +1248,15 @@ class StaticSolver:
                 return LevelResult(level, False, its, 0, norm, norm / scale, time.perf_counter() - t0,
                                    f"arc length: {message}", None, False, limit_levels=limits, arc_length_steps=arc_steps)
             iterations = its
+        # after move_to: the fields move along their paths to the solve's time (arc length follows a field level only)
+        moving = (self.field_time,) if self.field_time != self.t else None
         for _ in range(0 if self.arc_length else MAX_SWITCHES + 1):
             here = (self.field_level, self.gravity_level)
             status, its, inc, norm, reached, message, load, lam, mode = self._increments(here, target, scale, watch=True)
             iterations, increments = iterations + its, increments + inc
             if status == "done":
                 break
-            if status == "failed" and self.contact is None and self.solver.interaction is None:
+            if status == "failed" and self.contact is None and self.solver.interaction is None and not moving:
                 # a limit point: no equilibrium near the path past it under load control; follow the path by arc
                 # length until it reaches the level again (beyond a snap-through)
                 here = (self.field_level, self.gravity_level)
@@ -1268,6 +1270,9 @@ class StaticSolver:
                 self._scatter(self.u_nodes, self.field_level, self.gravity_level)
                 why = (f"no equilibrium from {reached:.4g} of the way" if status == "sliding"
                        else f"load increment below 1e-4 of the level at {reached:.4g} of the way")
+                if moving:
+                    why += (f" (the fields moving along their paths from t = {moving[0]:.6g} s to {self.t:.6g} s: "
+                            "move_to intermediate times)")
                 return LevelResult(level, False, iterations, increments, norm, norm / scale, time.perf_counter() - t0,
                                    f"{why}: {message}", lam, buckled, limit_levels=limits, arc_length_steps=arc_steps,
                                    no_equilibrium=status == "sliding")
