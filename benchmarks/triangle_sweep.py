@@ -33,10 +33,23 @@ from magsoro.bench.runner import _commit  # the checkout's commit (MAGSORO_COMMI
 ROOT = Path(__file__).resolve().parents[1]
 
 
+def _robot(data: dict, preview: bool):
+    """The triangle's Simulation from scene ``data`` and its reference for T.measure: (sim, X0, mass, corners,
+    the measure at rest)."""
+    from magsoro.robots import triangle as T
+    from magsoro.robots.base import simulation
+
+    sim = simulation("triangle", data, preview=preview, device="cpu")
+    X0 = sim.model.host["positions"].astype(np.float64)
+    mass = sim.model.host["mass"].astype(np.float64)
+    corners = T._corners(data)
+    return sim, X0, mass, corners, T.measure(sim, X0, mass, corners)
+
+
 def static_sweep(levels, preview: bool, between=()) -> dict:
     from magsoro.mpm.static import StaticSolver
     from magsoro.robots import triangle as T
-    from magsoro.robots.base import scene_data, simulation
+    from magsoro.robots.base import scene_data
 
     d = copy.deepcopy(scene_data("triangle"))
     magnet = next(f for f in d["fields"] if f.get("name") == "magnet")
@@ -49,11 +62,7 @@ def static_sweep(levels, preview: bool, between=()) -> dict:
     d["simulation"]["precision"] = "float64"
     d["simulation"]["duration"] = times[-1]
     d.setdefault("output", {})["particles"] = False
-    sim = simulation("triangle", d, preview=preview, device="cpu")
-    X0 = sim.model.host["positions"].astype(np.float64)
-    mass = sim.model.host["mass"].astype(np.float64)
-    corners = T._corners(d)
-    rest = T.measure(sim, X0, mass, corners)
+    sim, X0, mass, corners, rest = _robot(d, preview)
     t0 = time.perf_counter()
     sc = sim.scene.static
     solver = StaticSolver(sim, 0.0, tolerance=sc.tolerance, max_iterations=sc.max_iterations)
@@ -79,7 +88,7 @@ def static_sweep(levels, preview: bool, between=()) -> dict:
 
 def dynamic_sweep(levels, preview: bool) -> dict:
     from magsoro.robots import triangle as T
-    from magsoro.robots.base import scene_data, simulation
+    from magsoro.robots.base import scene_data
 
     data = scene_data("triangle")
     magnet = next(f for f in data["fields"] if f.get("name") == "magnet")
@@ -87,11 +96,7 @@ def dynamic_sweep(levels, preview: bool) -> dict:
     times, positions, reads = T.stepped_path(offsets, T.SETTLE, T.HOLD, T.MOVE)
     magnet["path"] = {"times": times, "positions": positions}
     data.setdefault("output", {})["particles"] = False
-    sim = simulation("triangle", data, preview=preview, device="cpu")
-    X0 = sim.model.host["positions"].astype(np.float64)
-    mass = sim.model.host["mass"].astype(np.float64)
-    corners = T._corners(data)
-    rest = T.measure(sim, X0, mass, corners)
+    sim, X0, mass, corners, rest = _robot(data, preview)
     t0 = time.perf_counter()
     rows = []
     for lv, t_read in zip(levels, reads):
