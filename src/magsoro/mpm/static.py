@@ -84,10 +84,10 @@ MAX_STEP = 10.0
 #: iterations before gives up (its load increment is then halved): at a contact's onset such solves went on to the
 #: iteration limit at a level |R| (the obstacle beam from straight to 3 mT: six attempts of 40 iterations)
 STALL_ITERATIONS = 10
+STALL_FACTOR = 0.5
 #: once a converged state has released points that pull (a body lifting off a collider), points that pull leave the
 #: active set after every accepted Newton iterate of that solve, not only at converged states
 PEEL = True
-STALL_FACTOR = 0.5
 #: arc-length continuation (StaticSolver._arc_length), taken where load increments fail (a limit point): at most
 #: ARC_STEPS steps along the equilibrium path; the first step's load change is ARC_FIRST of the way left; a step
 #: grows by ARC_GROW (up to ARC_LONGEST times the first) after a corrector that converged within 4 iterations
@@ -986,6 +986,13 @@ class StaticSolver:
             for part in self.contact.parts:
                 part.t = float(tau)
 
+    def _load_times(self, times0, s: float) -> None:
+        """The colliders and the fields at fraction ``s`` of their way from ``times0`` (collider time, field time)
+        to the solve's time."""
+        tau0, tf0 = times0
+        self._set_collider_time(tau0 + s * (self.t - tau0))
+        self.field_time = tf0 + s * (self.t - tf0)
+
     def _colliders_move(self) -> bool:
         """Whether a scene collider has a path (it moves with the first level's load increments)."""
         return any(c.path is not None for c in self.sim.control.colliders)
@@ -1033,14 +1040,14 @@ class StaticSolver:
         iterations = increments = 0
         u = self.u_nodes.copy()
         norm, message = 0.0, ""
-        tau0 = self.collider_time  # the colliders move along their paths to the solve's time with the loads
-        tf0 = self.field_time  # and the fields, from where move_to() left them
+        # the colliders move along their paths to the solve's time with the loads, and the fields from where
+        # move_to() left them
+        times0 = (self.collider_time, self.field_time)
         while s < 1.0 - 1e-12:
             ds = min(ds, 1.0 - s)
             s_try = s + ds
             load = tuple(a + s_try * (b - a) for a, b in zip(start, target))
-            self._set_collider_time(tau0 + s_try * (self.t - tau0))
-            self.field_time = tf0 + s_try * (self.t - tf0)
+            self._load_times(times0, s_try)
             u_new, ok, its, norm, message = self._newton(u.copy(), load[0], load[1], scale)
             iterations += its
             if not ok and self.contact is None and self.dim == 3:
@@ -1060,7 +1067,6 @@ class StaticSolver:
                     lam, mode = self.lowest_mode(self._last_tangent if its > 0 else None)
                     if lam is not None and lam < 0.0:
                         self.u_nodes, self.field_level, self.gravity_level = before
-                        self.field_time = tf0 + s * (self.t - tf0)
                         return "unstable", iterations, increments, norm, s, "", load, lam, mode
                 u, s = u_new, s_try
                 increments += 1
@@ -1072,8 +1078,7 @@ class StaticSolver:
                 if its <= 4:
                     ds *= 2.0
             else:
-                self._set_collider_time(tau0 + s * (self.t - tau0))
-                self.field_time = tf0 + s * (self.t - tf0)
+                self._load_times(times0, s)
                 ds *= 0.5
                 # From the unloaded state with the colliders still, the loads grow in proportion: where they pull
                 # the free bodies along the one flat friction collider that carries them harder than friction
@@ -1249,14 +1254,14 @@ class StaticSolver:
                                    f"arc length: {message}", None, False, limit_levels=limits, arc_length_steps=arc_steps)
             iterations = its
         # after move_to: the fields move along their paths to the solve's time (arc length follows a field level only)
-        moving = (self.field_time,) if self.field_time != self.t else None
+        moved_from = self.field_time if self.field_time != self.t else None
         for _ in range(0 if self.arc_length else MAX_SWITCHES + 1):
             here = (self.field_level, self.gravity_level)
             status, its, inc, norm, reached, message, load, lam, mode = self._increments(here, target, scale, watch=True)
             iterations, increments = iterations + its, increments + inc
             if status == "done":
                 break
-            if status == "failed" and self.contact is None and self.solver.interaction is None and not moving:
+            if status == "failed" and self.contact is None and self.solver.interaction is None and moved_from is None:
                 # a limit point: no equilibrium near the path past it under load control; follow the path by arc
                 # length until it reaches the level again (beyond a snap-through)
                 here = (self.field_level, self.gravity_level)
@@ -1270,8 +1275,8 @@ class StaticSolver:
                 self._scatter(self.u_nodes, self.field_level, self.gravity_level)
                 why = (f"no equilibrium from {reached:.4g} of the way" if status == "sliding"
                        else f"load increment below 1e-4 of the level at {reached:.4g} of the way")
-                if moving:
-                    why += (f" (the fields moving along their paths from t = {moving[0]:.6g} s to {self.t:.6g} s: "
+                if moved_from is not None:
+                    why += (f" (the fields moving along their paths from t = {moved_from:.6g} s to {self.t:.6g} s: "
                             "move_to intermediate times)")
                 return LevelResult(level, False, iterations, increments, norm, norm / scale, time.perf_counter() - t0,
                                    f"{why}: {message}", lam, buckled, limit_levels=limits, arc_length_steps=arc_steps,
