@@ -24,14 +24,12 @@ benchmarks/results/<date>-cpu-<commit>-replay-3d.json with the machine and the c
 import argparse
 import datetime
 import json
-import os
-import platform
 import sys
 from pathlib import Path
 
 import numpy as np
 
-from magsoro.bench.runner import _commit  # the checkout's commit (MAGSORO_COMMIT without git history)
+from magsoro.bench.runner import provenance  # date, commit (MAGSORO_COMMIT without git history), machine
 
 ROOT = Path(__file__).resolve().parents[1]
 PLAN = ROOT / "examples" / "actuation" / "plan_retroflexion_tip.toml"
@@ -45,7 +43,7 @@ def mm(a) -> list:
 
 def main(argv=None) -> int:
     from magsoro.actuation.config import PlanConfig, load
-    from magsoro.actuation.replay import beam_robot, replay
+    from magsoro.actuation.replay import beam_robot, prb_path, replay
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--dx", type=float, default=0.0015, help="grid spacing, m (default 1.5 mm: 4 cells across)")
@@ -67,10 +65,7 @@ def main(argv=None) -> int:
         "plan": str(PLAN.relative_to(ROOT)),
         "dx_m": args.dx,
         "step_duration_s": T,
-        "date": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
-        "commit": _commit(),
-        "machine": {"node": platform.node(), "processor": platform.processor() or platform.machine(),
-                    "cpu_count": os.cpu_count()},
+        **provenance(),
         "planned_tips_mm": mm(planned),
         "magnet_positions_mm": mm([s.position for s in plan.steps]),
         "variants": {},
@@ -91,15 +86,8 @@ def main(argv=None) -> int:
         out["variants"][name] = entry
         print(f"{name}: step-end tips {entry['step_end_tips_mm']} mm, {entry['wall_s']} s", flush=True)
     # the beam PRB's quasi-static step ends under the same keyframes (PRB only: no MPM)
-    source = plan.keyframes(T, cfg.replay.move_fraction)
-    q = beam.straight(0)
-    ends = []
-    for k, step in enumerate(plan.steps):
-        q = beam.grow(q, step.links)
-        for j in range(1, 11):
-            q = beam.equilibrium(source.dipole_at(k * T + T * j / 10), q)
-        ends.append(beam.tip(q))
-    ends = np.array(ends)
+    _, _, thetas = prb_path(plan, beam, T, cfg.replay.move_fraction)
+    ends = np.array([beam.tip(q) for q in thetas])
     out["beam_prb_tips_mm"] = mm(ends)
     for name, entry in out["variants"].items():
         if entry["dim"] == 3:

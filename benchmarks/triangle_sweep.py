@@ -20,15 +20,13 @@ import argparse
 import copy
 import datetime
 import json
-import os
-import platform
 import sys
 import time
 from pathlib import Path
 
 import numpy as np
 
-from magsoro.bench.runner import _commit  # the checkout's commit (MAGSORO_COMMIT without git history)
+from magsoro.bench.runner import provenance  # date, commit (MAGSORO_COMMIT without git history), machine
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -123,10 +121,7 @@ def main(argv=None) -> int:
         "benchmark": "triangle_sweep",
         "preview": args.preview,
         "levels_mT": levels,
-        "date": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
-        "commit": _commit(),
-        "machine": {"node": platform.node(), "processor": platform.processor() or platform.machine(),
-                    "cpu_count": os.cpu_count()},
+        **provenance(),
         "between_mT": between,
         "static": static_sweep(levels, args.preview, between),
     }

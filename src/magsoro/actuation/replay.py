@@ -162,6 +162,26 @@ def planar_pair(source, plane_z: float = 0.0):
                      KeyframedDipole(source.times, mirror, 0.5 * source.moments * flip)])
 
 
+def prb_path(plan: Plan, robot: PlanarPRB, step_duration: float, move_fraction: float = 0.5,
+             samples_per_step: int = 10):
+    """The PRB ``robot``'s quasi-static equilibria under the plan's keyframed magnet, grown at each step's start
+    and followed sample by sample as the replay samples: (times (K s,), link angles at each sample, and at each
+    step's end)."""
+    T = float(step_duration)
+    source = plan.keyframes(T, move_fraction)
+    theta = robot.straight(0)
+    times, thetas, ends = [], [], []
+    for k, step in enumerate(plan.steps):
+        theta = robot.grow(theta, step.links)
+        for j in range(1, samples_per_step + 1):
+            tj = k * T + T * j / samples_per_step
+            theta = robot.equilibrium(source.dipole_at(tj), theta)
+            times.append(tj)
+            thetas.append(theta)
+        ends.append(theta)
+    return np.array(times), thetas, ends
+
+
 def link_remanence(prb: PlanarPRB, strip: StripSpec) -> np.ndarray:
     """Remanence (n, 3) in T of each link in the reference frame (the strip along +x): mu0 m / (l t depth)."""
     br = np.zeros((prb.n_links, 3))
@@ -294,7 +314,7 @@ def replay(plan: Plan, strip: StripSpec, dx: float, step_duration: float | None 
     wall0 = time.perf_counter()
     total_steps = 0
     ref = prb if check_robot is None else check_robot
-    theta_prb = ref.straight(0)
+    _, ref_thetas, ref_ends = prb_path(plan, ref, T, move_fraction, samples_per_step)
     for k, step in enumerate(plan.steps):
         n = step.links
         Lk = n * ell
@@ -336,7 +356,6 @@ def replay(plan: Plan, strip: StripSpec, dx: float, step_duration: float | None 
             R, Xc, xc = _rigid_fit(X[idx_last], x[idx_last])
             return xc + R @ (tip_ref - Xc)
 
-        theta_prb = ref.grow(theta_prb, n)
         for j in range(1, samples_per_step + 1):
             tj = k * T + T * j / samples_per_step
             try:
@@ -345,15 +364,14 @@ def replay(plan: Plan, strip: StripSpec, dx: float, step_duration: float | None 
                 raise SimulationError(f"plan step {k} ({n} links) of the replay: {exc}", exc.step, exc.time) from None
             times.append(tj)
             tip_mpm.append(tip_now())
-            theta_prb = ref.equilibrium(source.dipole_at(tj), theta_prb)
-            tip_prb.append(ref.tip(theta_prb))
+            tip_prb.append(ref.tip(ref_thetas[k * samples_per_step + j - 1]))
             if on_sample is not None:
                 on_sample(tj, tip_mpm[-1], tip_prb[-1])
             if record is not None:
                 record(sim)
         total_steps += sim.steps
         end_mpm.append(tip_mpm[-1])
-        theta_end = step.theta if check_robot is None else theta_prb
+        theta_end = step.theta if check_robot is None else ref_ends[k]
         end_prb.append(ref.tip(theta_end))
         # MPM joints: the reference link ends mapped by each link's rigid fit (base of each link, then the tip)
         x_now = sim.state.x.numpy().astype(np.float64)

@@ -193,6 +193,15 @@ def _commit() -> str:
         return "unknown"
 
 
+def provenance() -> dict:
+    """What a benchmark result file records about its run: the date (UTC), the checkout's commit and the machine."""
+    import os
+
+    return {"date": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"), "commit": _commit(),
+            "machine": {"node": platform.node(), "processor": platform.processor() or platform.machine(),
+                        "cpu_count": os.cpu_count()}}
+
+
 def names_or_all(names):
     unknown = [n for n in names if n not in SCENES]
     if unknown:
