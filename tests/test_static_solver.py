@@ -536,3 +536,57 @@ def test_move_to_that_fails_names_the_move(tmp_path):
     assert not res.converged
     assert "the fields moving along their paths from t = 0 s to 1 s: move_to intermediate times" in res.message
     assert "arc length" not in res.message
+
+
+def _moving_dipole_text() -> str:
+    text = SCENE.read_text().replace(
+        'type = "uniform"\nB = [0.0, 0.0059, 0.0]\nprofile = { type = "ramp", duration = 0.04 }',
+        'type = "dipole"\nmoment = [0.0, 0.005, 0.0]\nposition = [0.034, -0.008, 0.0]\n'
+        'path = { times = [0.0, 1.0, 2.0], positions = [[0.034, -0.008, 0.0], [0.028, -0.006, 0.0], '
+        '[0.025, -0.009, 0.0]] }')
+    assert "path = " in text
+    return text
+
+
+def test_static_times_sweep_along_the_path(tmp_path):
+    """[static] times: `magsoro run --static` solves the equilibria along the dipole's path at the times given (one
+    metrics row and frame per time, first column 'time'), each from the last; with one equilibrium at each time
+    (test_move_to_continues_along_a_magnets_path) the tip at t = 2 s is Simulation.solve_static's at that time alone
+    (levels [1], t = 2), to 1e-9 m. Giving times together with levels, or times that do not increase, is one
+    line naming the key."""
+    import json
+
+    from magsoro.scene import load_scene
+    from magsoro.simulation import Simulation
+
+    text = _moving_dipole_text().replace("[output]", "[static]\ntimes = [0.0, 1.0, 2.0]\n\n[output]")
+    scene = tmp_path / "moving.toml"
+    scene.write_text(text)
+    out = tmp_path / "out"
+    run = subprocess.run([sys.executable, "-m", "magsoro", "run", str(scene), "--static", "--out", str(out), "--quiet"],
+                         capture_output=True, text=True)
+    assert run.returncode == 0, run.stderr[-2000:]
+    lines = (out / "metrics.csv").read_text().splitlines()
+    head = lines[0].split(",")
+    assert head[0] == "time" and [ln.split(",")[0] for ln in lines[1:]] == ["0", "1", "2"]
+    info = json.loads((out / "run.json").read_text())
+    assert info["status"] == "completed" and [lv["time"] for lv in info["static"]["levels"]] == [0.0, 1.0, 2.0]
+    tip_y = float(lines[-1].split(",")[head.index("tip_y")])
+
+    alone = load_scene(scene)
+    alone.static.times = None
+    alone.simulation.precision = "float64"  # as `magsoro run --static` takes it
+    sim = Simulation(alone)
+    res = sim.solve_static(levels=[1.0], t=2.0)
+    assert res.converged, res.message
+    assert abs(sim.probe_values()["tip_y"] - tip_y) < 1e-9, (sim.probe_values()["tip_y"], tip_y)
+    assert abs(tip_y) > 1e-3  # the dipole bent the beam
+
+    for bad, key in (("[static]\ntimes = [0.0, 1.0]\nlevels = [1.0]\n", "static.levels"),
+                     ("[static]\ntimes = [1.0, 1.0]\n", "static.times")):
+        wrong = tmp_path / "wrong.toml"
+        wrong.write_text(_moving_dipole_text().replace("[output]", bad + "\n[output]"))
+        run = subprocess.run([sys.executable, "-m", "magsoro", "run", str(wrong), "--static", "--out", str(tmp_path / "o")],
+                             capture_output=True, text=True)
+        ours = [ln for ln in run.stderr.strip().splitlines() if not ln.startswith("Warp")]
+        assert run.returncode == 2 and len(ours) == 1 and key in ours[0] and "wrong.toml" in ours[0], run.stderr

@@ -236,40 +236,62 @@ class Simulation:
         }
 
     # -- statics -------------------------------------------------------------------------------------------
-    def solve_static(self, levels=None, t: float | None = None, on_level: Callable | None = None):
+    def solve_static(self, levels=None, t: float | None = None, on_level: Callable | None = None, times=None):
         """Equilibria by Newton's method (:mod:`magsoro.mpm.static`) under the loads at time ``t`` (default
         simulation.duration), the fields scaled by each of ``levels`` in turn (default [static] levels) and
         gravity in full; each level starts from the previous equilibrium and the state holds the last converged
         one. ``on_level(sim, level_result)`` after each converged level. Returns a StaticResult; stops at the
         first level that does not converge (its message names the level). Afterwards :meth:`field_at` and the
-        field probes read the applied fields scaled by the last level solved."""
+        field probes read the applied fields scaled by the last level solved.
+
+        ``times`` (default [static] times) sweeps along the scene's paths instead: the equilibrium under the loads
+        at each of these times (s, increasing) in turn, the fields in full; the first from the unloaded body, each
+        later one from the last, the fields and colliders moving along their paths with the load increments
+        (:meth:`~magsoro.mpm.static.StaticSolver.move_to`; a magnet brought closer step by step). ``levels`` and
+        ``t`` do not apply then; each result's ``level`` is 1 and ``time`` its time. The state's time is the last
+        time solved."""
         from magsoro.mpm.static import StaticResult, StaticSolver
 
         cfg = self.scene.static
-        t = self.scene.simulation.duration if t is None else float(t)
+        times = cfg.times if times is None and levels is None and t is None else times
+        if times is not None:
+            times = [float(v) for v in times]
+            if levels is not None or t is not None:
+                raise ValueError("solve_static: give times, or levels (and t), not both")
+            if not times or any(b <= a for a, b in zip(times[:-1], times[1:])):
+                raise ValueError(f"solve_static: times must be a non-empty increasing list, not {times}")
+            levels = [1.0] * len(times)
+        t = (times[0] if times is not None else self.scene.simulation.duration) if t is None else float(t)
         levels = cfg.levels if levels is None else list(levels)
         t0 = _time.perf_counter()
         solver = StaticSolver(self, t, tolerance=cfg.tolerance, max_iterations=cfg.max_iterations, arc_length=cfg.arc_length)
         self.state.time = t
         out = StaticResult(True)
-        for level in levels:
+        for k, level in enumerate(levels):
+            if times is not None:
+                solver.move_to(times[k])
+                self.state.time = times[k]
             res = solver.solve_level(level)
+            res.time = self.state.time
             out.levels.append(res)
             solver.write_state()
             self._static_forces = solver.collider_reactions()
             self.field_scale = solver.field_level  # field probes read the applied field of the level solved
             if not res.converged:
                 out.converged = False
-                out.message = f"level {level:g} did not converge ({res.message}); the state is the last converged level's"
+                what = f"time {times[k]:g} s" if times is not None else f"level {level:g}"
+                out.message = f"{what} did not converge ({res.message}); the state is the last converged {'time' if times is not None else 'level'}'s"
                 if res.wall_crossing is None and not res.no_equilibrium:
-                    out.message += ": insert intermediate levels, raise static.max_iterations, or check the loads"
+                    out.message += (": insert intermediate times, raise static.max_iterations, or check the loads"
+                                    if times is not None else
+                                    ": insert intermediate levels, raise static.max_iterations, or check the loads")
                 break
             if on_level is not None:
                 on_level(self, res)
         out.wall_time = _time.perf_counter() - t0
         out.residual_evaluations = solver.residual_evaluations
         if out.converged:
-            out.message = f"{len(levels)} level(s) converged"
+            out.message = f"{len(times)} time(s) converged" if times is not None else f"{len(levels)} level(s) converged"
         return out
 
     # -- stepping ------------------------------------------------------------------------------------------

@@ -24,7 +24,8 @@ def register(sub):
     p.add_argument("--static", action="store_true",
                    help="instead of the motion, solve the static equilibria by Newton's method (float64, total-Lagrangian "
                         "form) under the loads at t = duration, the fields scaled by each of [static] levels; writes one "
-                        "metrics row and frame per level (first column 'level'); rigid colliders, no contact between bodies yet")
+                        "metrics row and frame per level (first column 'level'); or, with [static] times, the equilibria along the "
+                        "scene's paths at those times (first column 'time'); rigid colliders, no contact between bodies yet")
     p.add_argument("--quiet", action="store_true", help="no progress bar, and no Warp start-up banner or kernel-load lines")
     p.set_defaults(func=run)
 
@@ -161,21 +162,27 @@ def _relax(args, sim, writer, t_loads: float, wall0: float) -> int:
 
 
 def _static(args, sim, writer, wall0: float) -> int:
-    """``--static``: the unloaded state (level 0), then the equilibrium at each level of [static] levels."""
+    """``--static``: the unloaded state (level 0), then the equilibrium at each level of [static] levels; or the
+    equilibrium at each of [static] times along the scene's paths."""
     from dataclasses import asdict
 
     from magsoro.errors import SimulationError
     from magsoro.simulation import RunResult
 
-    writer.columns[0] = "level"
-    sim.field_scale = 0.0  # the unloaded row: field probes read no applied field
-    writer.record(sim, stamp=0.0)
+    along_paths = sim.scene.static.times is not None
+    if along_paths:  # [static] times: one row per time along the paths (first column the time)
+        on_level = lambda s, lev: writer.record(s, stamp=lev.time)  # noqa: E731
+    else:
+        writer.columns[0] = "level"
+        sim.field_scale = 0.0  # the unloaded row: field probes read no applied field
+        writer.record(sim, stamp=0.0)
+        on_level = lambda s, lev: writer.record(s, stamp=lev.level)  # noqa: E731
     try:
-        res = sim.solve_static(on_level=lambda s, lev: writer.record(s, stamp=lev.level))
+        res = sim.solve_static(on_level=on_level)
         status, message, wall = ("completed" if res.converged else "failed"), res.message, res.wall_time
         writer.info["static"] = {"converged": res.converged, "levels": [asdict(r) for r in res.levels],
                                  "residual_evaluations": res.residual_evaluations, "wall_time": res.wall_time,
-                                 "t_loads": sim.time}
+                                 "t_loads": sim.time, "times": sim.scene.static.times}
     except SimulationError as exc:
         status, message, wall = "failed", str(exc), time.perf_counter() - wall0
     except KeyboardInterrupt as exc:

@@ -319,7 +319,7 @@ class LevelResult:
     residual_relative: float
     wall_time: float
     message: str = ""
-    lowest_eigenvalue: float | None = None  # of the symmetric stiffness -(J + J^T)/2 at the equilibrium, N/m
+    lowest_eigenvalue: float | None = None  # of the stiffness -J at the equilibrium (lowest_mode), N/m
     buckled: bool = False  # the equilibrium reached first was unstable; the branch was switched (docstring)
     penetration: float | None = None  # m: the largest overlap of a node with a collider at the end (static_contact)
     # arc-length continuation (taken where load increments failed): the field levels where the path turned back
@@ -332,6 +332,8 @@ class LevelResult:
     # the loads pull free bodies along the friction collider that carries them harder than friction holds
     # (StaticSolver._sliding): no equilibrium near the state, smaller load increments cannot help
     no_equilibrium: bool = False
+    # the time of the loads (s): simulation.duration, or the time of a sweep along the paths ([static] times)
+    time: float | None = None
 
 
 @dataclass

@@ -855,10 +855,21 @@ class Static(Strict):
     solver")."""
 
     levels: list[Annotated[float, Field(allow_inf_nan=False)]] = Field(default_factory=lambda: [1.0], min_length=1, max_length=10000, description="Field scale factors, solved in this order, each from the previous equilibrium. Default [1.0].")
+    times: list[Annotated[float, Field(allow_inf_nan=False, ge=0)]] | None = Field(default=None, min_length=1, max_length=10000, description="Instead of levels: times (s, increasing) along the scene's field and collider paths, solved in this order with the fields in full; the first from the unloaded body, each later one from the last equilibrium with the fields and colliders moving along their paths (a magnet brought closer step by step). One metrics row and frame per time.")
     tolerance: float = Field(default=1e-8, gt=0, lt=1, description="Newton tolerance: largest node force over the out-of-balance force of the undeformed body under the level's load.")
     max_iterations: int = Field(default=40, ge=1, le=1000, description="Newton iterations per load increment before the increment is halved.")
     arc_length: bool = Field(default=False, description="Follow the equilibrium path from each level to the next by arc length (the load factor an unknown) instead of load increments: passes limit points (a snap-through) and reports the field levels where the path turned back (run.json static.levels[].limit_levels). Scenes without colliders. Where load increments fail, the solver takes it anyway.")
     collider_contact: Literal["surface", "nodes"] = Field(default="surface", description="Where rigid colliders meet the bodies in the static solve: 'surface' (default): each particle is a ball of half its lattice spacing, so the bodies' surface rests on the collider's; 'nodes': the grid nodes at the engine's contact skin, the law of a dynamic run, which holds a body that moves onto a collider about one cell off it (docs/engine.md). Domain walls always act at the nodes.")
+
+    @model_validator(mode="after")
+    def _times_or_levels(self):
+        if self.times is not None:
+            if "levels" in self.model_fields_set:
+                raise ValueError("give static.levels (field scale factors) or static.times (times along the paths), not both")
+            bad = [f"{a:g} then {b:g}" for a, b in zip(self.times[:-1], self.times[1:]) if b <= a]
+            if bad:
+                raise ValueError(f"static.times must increase ({bad[0]})")
+        return self
 
 
 class Output(Strict):
