@@ -4,8 +4,12 @@ warp its three vertices up when the N35 magnet under the plate comes closer. Rep
 
 The field level is set the way the paper sets it: by the magnet's distance. For each level the magnet (the exact
 field of the N35 cylinder of seed 002 sec 3) is placed, centred under the robot, at the distance where B_z at
-the robot's centre equals the level; one run steps through the levels, holding each until the robot settles,
-and reads the shape at the end of each hold.
+the robot's centre equals the level. Figs. 6 and 9 are static curves: the reproduction solves each level as an
+equilibrium of the static solver (Simulation.solve_static along the magnet's path, [static] times: each level
+from the last, the magnet moving with the load increments, the plate's friction anchors carried along), the
+robot first settled on the plate under gravity with the magnet 1 m away. The scene file's path is the dynamic
+version of the same sweep (`magsoro run scenes/triangle.toml`: holds of HOLD s at each level), which the preview
+runs (PREVIEW_DYNAMIC) and the full reproduction ran before (benchmarks/triangle_sweep.py compares the two).
 
 The module also holds the few helpers the other robots of seed 002 share (magnet distance for a field level,
 stepped magnet paths, reading settled values).
@@ -25,10 +29,26 @@ from magsoro.robots.base import (
 NAME = "triangle"
 LEVELS_MT = [0, 5, 10, 15, 20, 25, 30, 35, 40, 45]   # seed 002 Figs. 6 and 9 span 0..45 mT
 PREVIEW_LEVELS_MT = [0, 15, 30, 45]
+# the dynamic sweep of the scene file's magnet path (magsoro run scenes/triangle.toml)
 SETTLE = 0.04    # s at zero field (level 0): the robot settles on the plate under gravity
 HOLD = 0.08      # s per level: the magnet moves in the first MOVE seconds, the robot settles in the rest
 MOVE = 0.02      # s
 FRAME_EVERY = 0.02  # s between animation frames (the level reads fall on this grid)
+# Levels (mT) the static sweep solves on its way without reading them: they split the robot's lift-off from the
+# plate (1-5 mT), which the load increments along the magnet's path follow badly in one step (the field at the
+# robot rises steeply only at the end of a move). Full grid (benchmarks/triangle_sweep.py, 2026-11-28): 0 to 5 mT
+# in one step took 229 Newton iterations (153 s); through 1, 2, 3 and 4 mT, 83 (60 s).
+BETWEEN_MT = [1, 2, 3, 4]
+# PREVIEW_DYNAMIC: the preview sweeps by the dynamics. On its grid (dx 2 mm: one cell through the 2 mm plate) the
+# static solve's total-Lagrangian form bends far softer than the dynamics (W_t 9.8 against 3.7 mm at 15 mT, 14.2
+# against 9.0 at 45 mT; at the full grid the two agree within 0.7 % from 15 to 45 mT) and took 31 s against 6.5 s
+# (measured 2026-11-28 with 1, 2, 3, 4, 5 and 10 mT on the way).
+#: room (m) added below the domain for the static sweep: on the preview grid (dx 2 mm) the domain's floor, 4 mm
+#: under the plate, is two cells away, so the nodes under the robot start in the band of the domain wall, which the
+#: static solver then models as a collider at the nodes (StaticSolver._starting_walls): the wall, frictionless,
+#: carries the robot instead of the friction plate, and the robot, free to slide, drifted 51 mm along y on a
+#: 1e-9 N imbalance. (The dynamics' wall would carry it there too; 4 mm is room enough at the full grid's 1 mm.)
+STATIC_ROOM = 0.01
 FAR = 1.0        # m: magnet distance standing for "no magnet" (field at the robot below 0.01 mT)
 
 # seed 002 values drawn as paper points (mm at 45 mT)
@@ -188,8 +208,63 @@ def speeds(ctx: Context, data: dict, corners: np.ndarray) -> dict:
             "dx": dx}
 
 
-def reproduce(ctx: Context) -> ReproduceResult:
-    levels_mt = PREVIEW_LEVELS_MT if ctx.preview else LEVELS_MT
+def static_sweep(ctx: Context, levels_mt, between_mt):
+    """The triangle's equilibria along the magnet's path through ``levels_mt`` (read) and ``between_mt`` (solved
+    on the way, not read), from the robot settled under gravity with the magnet at level 0 (1 m away). Returns
+    (sim, X0, mass, corners, rest measure, [(level, measure)], StaticSweep-like numbers: iterations per level,
+    worst relative residual, wall time, the frames)."""
+    from magsoro.robots.continuum_soft import StaticSweep
+
+    data = scene_data(NAME)
+    magnet = next(f for f in data["fields"] if f.get("name") == "magnet")
+    levels = sorted(set(levels_mt) | set(between_mt))
+    read = set(levels_mt)
+    times = [float(k) for k in range(len(levels))]  # one pseudo-second per level along the path
+    magnet["path"] = {"times": times, "positions": magnet_offsets(magnet, levels)}
+    magnet["position"] = magnet["path"]["positions"][0]
+    sim_table = data["simulation"]
+    sim_table["precision"] = "float64"  # the static solver's tolerance needs it
+    sim_table["duration"] = times[-1]
+    sim_table["domain_lo"][2] -= STATIC_ROOM
+    data.setdefault("output", {})["particles"] = False
+    sim = simulation(NAME, data, preview=ctx.preview, device=ctx.device)
+    X0 = sim.model.host["positions"].astype(np.float64)
+    mass = sim.model.host["mass"].astype(np.float64)
+    corners = _corners(data)
+    ctx.log(f"triangle: {len(X0)} particles, dx = {sim.model.dx * 1e3:.2f} mm, levels {levels_mt} mT (and "
+            f"{between_mt} mT on the way), static solver along the magnet's path")
+    current = {"level": 0.0}
+    frames = FrameRecorder(axes=(0, 2), label=lambda s: f"equilibrium, B_z at the robot centre = {current['level']:.0f} mT")
+    frames.record(sim)
+    rest = measure(sim, X0, mass, corners)
+    rows_out, results = [], []
+    w0 = time.perf_counter()
+
+    def on_level(s, res):
+        lv = levels[len(results)]
+        results.append(res)
+        if lv not in read:
+            ctx.log(f"  ({lv:g} mT on the way: {res.iterations} Newton iterations, {time.perf_counter() - w0:.0f} s wall)")
+            return
+        m = measure(s, X0, mass, corners)
+        rows_out.append((lv, m))
+        current["level"] = lv
+        frames.record(s)
+        ctx.log(f"  {lv:4.0f} mT: W_t = {1e3 * (np.mean(m['vertex']) - np.mean(rest['vertex'])):.2f} mm, "
+                f"centroid {1e3 * m['centroid']:.2f} mm high ({res.iterations} Newton iterations, "
+                f"{time.perf_counter() - w0:.0f} s wall)")
+
+    out = sim.solve_static(times=times, on_level=on_level)
+    if not out.converged:
+        raise RobotError(f"{NAME}: static solve failed: {out.message}")
+    sweep = StaticSweep([], results, int(sim.model.n_particles), time.perf_counter() - w0)
+    return sim, X0, mass, corners, rest, rows_out, sweep, frames
+
+
+def dynamic_sweep(ctx: Context, levels_mt):
+    """The sweep by the dynamics (the scene file's stepped magnet path): the magnet holds HOLD s at each level and
+    the shape is read at the end of each hold. Returns (sim, X0, mass, corners, rest measure, [(level, measure)],
+    wall time, the frames)."""
     data = scene_data(NAME)
     magnet = next(f for f in data["fields"] if f.get("name") == "magnet")
     offsets = magnet_offsets(magnet, levels_mt)
@@ -200,7 +275,7 @@ def reproduce(ctx: Context) -> ReproduceResult:
     mass = sim.model.host["mass"].astype(np.float64)
     corners = _corners(data)
     ctx.log(f"triangle: {len(X0)} particles, dx = {sim.model.dx * 1e3:.2f} mm, levels {levels_mt} mT, "
-            f"{reads[-1]:.2f} s simulated")
+            f"{reads[-1]:.2f} s simulated (dynamics)")
 
     def caption(s):
         pos = path_position(s.time, times, positions)
@@ -219,7 +294,19 @@ def reproduce(ctx: Context) -> ReproduceResult:
         ctx.log(f"  {lv:4.0f} mT: W_t = {1e3 * (np.mean(m['vertex']) - np.mean(rest['vertex'])):.2f} mm, "
                 f"centroid {1e3 * m['centroid']:.2f} mm high (t = {sim.time:.2f} s, "
                 f"{time.perf_counter() - w0:.0f} s wall)")
-    wall = time.perf_counter() - w0
+    return sim, X0, mass, corners, rest, rows_out, time.perf_counter() - w0, frames
+
+
+def reproduce(ctx: Context) -> ReproduceResult:
+    from magsoro.robots.continuum_soft import static_row
+
+    levels_mt = PREVIEW_LEVELS_MT if ctx.preview else LEVELS_MT
+    if ctx.preview:  # the dynamics (PREVIEW_DYNAMIC)
+        sim, X0, mass, corners, rest, rows_out, wall, frames = dynamic_sweep(ctx, levels_mt)
+        sweep = None
+    else:
+        sim, X0, mass, corners, rest, rows_out, sweep, frames = static_sweep(ctx, levels_mt, BETWEEN_MT)
+        wall = sweep.wall_s
 
     B = np.array([lv for lv, _ in rows_out], float)
     vz0 = np.array(rest["vertex"])
@@ -238,7 +325,8 @@ def reproduce(ctx: Context) -> ReproduceResult:
         "flux density at the robot B (mT)", "height (mm)", "Triangular robot: warping under the magnet",
         paper={f"W_t {k} (seed 002 Fig. 9)": ([45.0], [v]) for k, v in PAPER_WT.items()}
         | {f"H_t {k} (seed 002 Fig. 6)": ([45.0], [v]) for k, v in PAPER_HT.items()},
-        note=f"dx = {sim.model.dx * 1e3:.1f} mm; magnet distance sets B_z at the robot centre",
+        note=f"dx = {sim.model.dx * 1e3:.1f} mm; magnet distance sets B_z at the robot centre; "
+             + ("dynamics (preview)" if sweep is None else "equilibria (static solver)"),
     )
     gif = frames.write_gif(ctx.out / f"{NAME}.gif", title="triangle, side view (x-z)", fps=8)
 
@@ -264,6 +352,8 @@ def reproduce(ctx: Context) -> ReproduceResult:
             {"levels_mT": list(map(float, B))},
             0.0, float(increments.min()), float(max(0.0, -increments.min())), 0.2),
     ]
+    if sweep is not None:
+        rows.append(static_row(case, sweep, {"levels_mT": list(map(float, B)), "dx_mm": sim.model.dx * 1e3}))
     # speeds under the moving actuator: each at least goes the right way (issue "Robot library II")
     from magsoro.robots._seed002_speeds import SETTLE as MAGNET_WAIT
 
@@ -297,10 +387,14 @@ def reproduce(ctx: Context) -> ReproduceResult:
                + (f", the paper's 9 mm/s at a magnet rising at {match:.0f} mm/s" if match else "")
                + f"; in a pass the robot goes along with the magnet at {along / (v_l * (sp['loco'][-1]['t_pass'] - MAGNET_WAIT)):.2f} "
                f"of its speed at {v_l:.0f} mm/s (paper 1.5 mm/s; scenes/triangle.toml describes how it is carried).")
-    info = {"particles": int(len(X0)), "dx_m": sim.model.dx, "steps": sim.steps, "sim_time_s": round(sim.time, 4),
+    info = {"particles": int(len(X0)), "dx_m": sim.model.dx, "solver": "dynamics" if sweep is None else "static",
             "run_wall_s": round(wall, 1), "levels_mT": list(map(float, B)), "gif_bytes": gif.stat().st_size,
             "speeds_wall_s": round(sp["wall_s"], 1), "speeds_dx_m": sp["dx"],
             "warping_magnet_speed_for_paper_mm_s": match}
+    if sweep is not None:
+        info.update({"levels_on_the_way_mT": list(map(float, BETWEEN_MT)), "newton_iterations": sweep.iterations.tolist()})
+    else:
+        info.update({"steps": sim.steps, "sim_time_s": round(sim.time, 4)})
     figures = [{"csv": sp["csv"], "png": sp["png"],
                 "caption": "warping and locomotion speeds against the speed of the magnet (seed 002 secs 4.3-4.4)"}]
     return ReproduceResult(NAME, csv, png, gif, summary, rows, info, figures)
