@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import math
 import time
+from typing import Callable
 
 import numpy as np
 
@@ -208,57 +209,80 @@ def speeds(ctx: Context, data: dict, corners: np.ndarray) -> dict:
             "dx": dx}
 
 
-def static_sweep(ctx: Context, levels_mt, between_mt):
-    """The triangle's equilibria along the magnet's path through ``levels_mt`` (read) and ``between_mt`` (solved
-    on the way, not read), from the robot settled under gravity with the magnet at level 0 (1 m away). Returns
-    (sim, X0, mass, corners, rest measure, [(level, measure)], StaticSweep-like numbers: iterations per level,
-    worst relative residual, wall time, the frames)."""
+def static_magnet_sweep(ctx: Context, name: str, data: dict, magnet: dict, offsets: Callable, levels_mt, between_mt,
+                        on_read: Callable, on_start: Callable | None = None):
+    """Equilibria of scene ``name`` (table ``data``, its field table ``magnet``) along the magnet's path through
+    the levels ``levels_mt`` (read) and ``between_mt`` (solved on the way, not read), by the static solver
+    ([static] times: one pseudo-second per level, each from the last, the magnet moving with the load increments;
+    the first, the lowest level, from the unloaded robot, which settles under gravity there). ``offsets(levels)``:
+    the magnet's positions (m) for levels (mT). ``on_start(sim)`` before the solve (the unloaded robot);
+    ``on_read(sim, level, level_result)`` at each read level. The domain's floor is lowered by STATIC_ROOM.
+    Returns (sim, StaticSweep of every level solved); a level that does not converge raises RobotError with the
+    solver's message."""
     from magsoro.robots.continuum_soft import StaticSweep
 
-    data = scene_data(NAME)
-    magnet = next(f for f in data["fields"] if f.get("name") == "magnet")
     levels = sorted(set(levels_mt) | set(between_mt))
     read = set(levels_mt)
-    times = [float(k) for k in range(len(levels))]  # one pseudo-second per level along the path
-    magnet["path"] = {"times": times, "positions": magnet_offsets(magnet, levels)}
+    times = [float(k) for k in range(len(levels))]
+    magnet["path"] = {"times": times, "positions": [list(map(float, o)) for o in offsets(levels)]}
     magnet["position"] = magnet["path"]["positions"][0]
-    sim_table = data["simulation"]
-    sim_table["precision"] = "float64"  # the static solver's tolerance needs it
-    sim_table["duration"] = times[-1]
-    sim_table["domain_lo"][2] -= STATIC_ROOM
+    table = data["simulation"]
+    table["precision"] = "float64"  # the static solver's tolerance needs it
+    table["duration"] = times[-1]
+    table["domain_lo"][2] -= STATIC_ROOM
     data.setdefault("output", {})["particles"] = False
-    sim = simulation(NAME, data, preview=ctx.preview, device=ctx.device)
-    X0 = sim.model.host["positions"].astype(np.float64)
-    mass = sim.model.host["mass"].astype(np.float64)
-    corners = _corners(data)
-    ctx.log(f"triangle: {len(X0)} particles, dx = {sim.model.dx * 1e3:.2f} mm, levels {levels_mt} mT (and "
-            f"{between_mt} mT on the way), static solver along the magnet's path")
-    current = {"level": 0.0}
-    frames = FrameRecorder(axes=(0, 2), label=lambda s: f"equilibrium, B_z at the robot centre = {current['level']:.0f} mT")
-    frames.record(sim)
-    rest = measure(sim, X0, mass, corners)
-    rows_out, results = [], []
+    sim = simulation(name, data, preview=ctx.preview, device=ctx.device)
+    if on_start is not None:
+        on_start(sim)
+    results = []
     w0 = time.perf_counter()
 
     def on_level(s, res):
         lv = levels[len(results)]
         results.append(res)
-        if lv not in read:
+        if lv in read:
+            on_read(s, lv, res)
+        else:
             ctx.log(f"  ({lv:g} mT on the way: {res.iterations} Newton iterations, {time.perf_counter() - w0:.0f} s wall)")
-            return
-        m = measure(s, X0, mass, corners)
-        rows_out.append((lv, m))
-        current["level"] = lv
-        frames.record(s)
-        ctx.log(f"  {lv:4.0f} mT: W_t = {1e3 * (np.mean(m['vertex']) - np.mean(rest['vertex'])):.2f} mm, "
-                f"centroid {1e3 * m['centroid']:.2f} mm high ({res.iterations} Newton iterations, "
-                f"{time.perf_counter() - w0:.0f} s wall)")
 
     out = sim.solve_static(times=times, on_level=on_level)
     if not out.converged:
-        raise RobotError(f"{NAME}: static solve failed: {out.message}")
-    sweep = StaticSweep([], results, int(sim.model.n_particles), time.perf_counter() - w0)
-    return sim, X0, mass, corners, rest, rows_out, sweep, frames
+        raise RobotError(f"{name}: static solve failed: {out.message}")
+    return sim, StaticSweep([], results, int(sim.model.n_particles), time.perf_counter() - w0)
+
+
+def static_sweep(ctx: Context, levels_mt, between_mt):
+    """The triangle's equilibria along the magnet's path through ``levels_mt`` (read) and ``between_mt`` (solved
+    on the way, not read), by :func:`static_magnet_sweep`. Returns (sim, X0, mass, corners, rest measure,
+    [(level, measure)], StaticSweep, the frames)."""
+    data = scene_data(NAME)
+    magnet = next(f for f in data["fields"] if f.get("name") == "magnet")
+    corners = _corners(data)
+    current = {"level": 0.0}
+    frames = FrameRecorder(axes=(0, 2), label=lambda s: f"equilibrium, B_z at the robot centre = {current['level']:.0f} mT")
+    rows_out, ref = [], {}
+    w0 = time.perf_counter()
+
+    def on_start(sim):
+        ref["X0"] = sim.model.host["positions"].astype(np.float64)
+        ref["mass"] = sim.model.host["mass"].astype(np.float64)
+        ref["rest"] = measure(sim, ref["X0"], ref["mass"], corners)
+        frames.record(sim)
+        ctx.log(f"triangle: {len(ref['X0'])} particles, dx = {sim.model.dx * 1e3:.2f} mm, levels {levels_mt} mT "
+                f"(and {between_mt} mT on the way), static solver along the magnet's path")
+
+    def on_read(s, lv, res):
+        m = measure(s, ref["X0"], ref["mass"], corners)
+        rows_out.append((lv, m))
+        current["level"] = lv
+        frames.record(s)
+        ctx.log(f"  {lv:4.0f} mT: W_t = {1e3 * (np.mean(m['vertex']) - np.mean(ref['rest']['vertex'])):.2f} mm, "
+                f"centroid {1e3 * m['centroid']:.2f} mm high ({res.iterations} Newton iterations, "
+                f"{time.perf_counter() - w0:.0f} s wall)")
+
+    sim, sweep = static_magnet_sweep(ctx, NAME, data, magnet, lambda lv: magnet_offsets(magnet, lv), levels_mt,
+                                     between_mt, on_read, on_start)
+    return sim, ref["X0"], ref["mass"], corners, ref["rest"], rows_out, sweep, frames
 
 
 def dynamic_sweep(ctx: Context, levels_mt):
