@@ -46,7 +46,12 @@ for the dynamic sweep; the strain 0.4-0.7 % below the dynamic sweep's at every g
 at 37 mm). tail_crush and tail_pull (seed 004's bench tests of the everted growing robot) were made on
 2026-11-28 with the engine of commit 0641bf2 (the contact classification that no longer crashes with self-contact
 beside two contact groups); tail_crush's checks and summary were recomputed from its committed CSV after two
-corrections to the report (commit abb6c58). Engine changes committed after a result was made are not in it.
+corrections to the report (commit abb6c58). triangle and cross were re-run in full on 2026-11-28 once their field
+sweeps were solved by the static solver along the magnet's path (triangle at commit cec654f, cross at 4985439; the
+speeds under the moving magnet by the dynamics, as before): triangle 2069 s
+against 2184 s (the sweep 123 s against 243 s; W_t and H_t within 1.2 % of the dynamic sweep's from 15 to 45 mT,
+W_t 22 % and 5 % below at 5 and 10 mT), cross 791 s against 886 s (the two sweeps 70 s against 143 s); every check
+still passes. Engine changes committed after a result was made are not in it.
 
 The 3D robots' entries also show a picture and an animation drawn by `magsoro render` from one run of the robot's
 scene (`magsoro run scenes/NAME.toml`): `magsoro reproduce` keeps no particle frames, so that run is separate from
