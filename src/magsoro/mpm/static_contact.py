@@ -187,42 +187,56 @@ class ColliderPenalty:
             fn_mag = np.maximum(fn_mag, 0.0)
             inside = gap >= -self.touch  # touching (a body placed on the collider: to rounding)
             if mode != MODES["slip"]:
+                # the tangential law, on every point at once (module docstring)
                 origin = self._origin(c)
-                last = self._last_x[act]
-                stuck = np.zeros(len(act), bool)
+                dim = self.dim
+                anchors = np.full((len(act), dim), np.nan)
+                known = np.zeros(len(act), bool)
                 for j, node in enumerate(act):
                     a = self.anchor[ci].get(int(node))
-                    if a is None:  # first touch: the surface point under the node's last converged position
-                        if not inside[j]:
-                            continue
-                        phl, nl = self._sdf(c, last[j : j + 1])
-                        a = last[j] - (phl[0] - self.level[ci][sel[j]]) * nl[0] - origin
-                    d = xt[node] - (a + origin)
-                    if mode == MODES["sticky"]:
-                        force[j] = -kc[j] * d
-                        blocks[j] = kc[j] * np.eye(self.dim)
-                        stuck[j] = True
-                        continue
-                    # regularised Coulomb (module docstring): f_t = -mu f_n P_t d / max(|P_t d|, slip)
-                    Pt = np.eye(self.dim) - np.outer(n[j], n[j])
-                    dt = Pt @ d
-                    length = float(np.linalg.norm(dt))
-                    mu, fn = c.friction, fn_mag[j]
-                    dfn = kc[j] * n[j] if gap[j] > 0.0 else np.zeros(self.dim)  # -d f_n / dx
-                    if length <= self.slip:  # sticking: a spring of stiffness mu f_n / slip
-                        force[j] -= (mu * fn / self.slip) * dt
-                        if fn > 0.0:
-                            blocks[j] += (mu * fn / self.slip) * Pt - (mu / self.slip) * np.outer(dt, dfn)
-                        elif inside[j]:  # not pressed yet (a node just reaching its level): the tangent takes mu k,
-                            blocks[j] += mu * kc[j] * Pt  # so a step that will press it is not free to slide
-                        # a held node that pulls (it lifts off, and leaves at a converged state) has no friction
-                        # force, and none in the tangent either: a stiffness there that its force lacks leaves
-                        # Newton converging linearly where a light body lifts off along most of its contact
-                        stuck[j] = True
-                    else:  # sliding: mu f_n against the offset's direction; the cap grows with f_n, the direction turns
-                        t_hat = dt / length
-                        force[j] -= mu * fn * t_hat
-                        blocks[j] += (mu * fn / length) * (Pt - np.outer(t_hat, t_hat)) - mu * np.outer(t_hat, dfn)
+                    if a is not None:
+                        anchors[j], known[j] = a, True
+                first = ~known & inside  # first touch: the surface point under the point's last converged position
+                if first.any():
+                    last = self._last_x[act[first]]
+                    phl, nl = self._sdf(c, last)
+                    anchors[first] = last - (phl - self.level[ci][sel[first]])[:, None] * nl - origin
+                anchored = known | first  # the others (not touching, never anchored) carry no tangential force
+                stuck = np.zeros(len(act), bool)
+                d = xt[act] - (anchors + origin)
+                if mode == MODES["sticky"]:
+                    force[anchored] = -kc[anchored, None] * d[anchored]
+                    blocks[anchored] = kc[anchored, None, None] * np.eye(dim)[None]
+                    stuck[anchored] = True
+                else:
+                    mu = c.friction
+                    Pt = np.eye(dim)[None] - np.einsum("pi,pj->pij", n, n)
+                    dt = np.einsum("pij,pj->pi", Pt, np.where(anchored[:, None], d, 0.0))
+                    length = np.linalg.norm(dt, axis=1)
+                    fn = fn_mag
+                    dfn = np.where((gap > 0.0)[:, None], kc[:, None] * n, 0.0)  # -d f_n / dx
+                    sticking = anchored & (length <= self.slip)
+                    # sticking: a spring of stiffness mu f_n / slip
+                    pressed = sticking & (fn > 0.0)
+                    force[sticking] -= (mu * fn[sticking] / self.slip)[:, None] * dt[sticking]
+                    blocks[pressed] += ((mu * fn[pressed] / self.slip)[:, None, None] * Pt[pressed]
+                                        - (mu / self.slip) * np.einsum("pi,pj->pij", dt[pressed], dfn[pressed]))
+                    # not pressed yet (a point just reaching its level): the tangent takes mu k, so a step that
+                    # will press it is not free to slide; a held point that pulls (it lifts off, and leaves at a
+                    # converged state) has no friction force, and none in the tangent either: a stiffness there
+                    # that its force lacks leaves Newton converging linearly where a light body lifts off along
+                    # most of its contact
+                    reaching = sticking & ~(fn > 0.0) & inside
+                    blocks[reaching] += (mu * kc[reaching])[:, None, None] * Pt[reaching]
+                    stuck[sticking] = True
+                    # sliding: mu f_n against the offset's direction; the cap grows with f_n, the direction turns
+                    sliding = anchored & ~sticking
+                    if sliding.any():
+                        t_hat = dt[sliding] / length[sliding, None]
+                        fs, ls = fn[sliding], length[sliding]
+                        force[sliding] -= (mu * fs)[:, None] * t_hat
+                        blocks[sliding] += ((mu * fs / ls)[:, None, None] * (Pt[sliding] - np.einsum("pi,pj->pij", t_hat, t_hat))
+                                            - mu * np.einsum("pi,pj->pij", t_hat, dfn[sliding]))
                 self.sticking[ci] = {int(node): bool(s) for node, s in zip(act, stuck)}
             f[act] += force
             self.reaction[ci, : self.dim] = -force.sum(axis=0)
