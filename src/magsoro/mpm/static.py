@@ -278,27 +278,49 @@ def make_static_kernels(dim: int, scalar) -> dict:
         brs = scalar(0.0)
         if fterms.active != 0:
             brs = wp.dot(fterms.br[p], gs)
+        # column b of every block (s, t) is -V0 Y_b g_t, Y_b's column d = A_.cbd g_s^c: the three Y_b formed once
+        Y0 = mat()
+        Y1 = mat()
+        Y2 = mat()
         for b in range(dim):
-            # column b of every block (s, t): -V0 Y_b g_t, Y_b's column d = A_.cbd g_s^c (formed once per b)
             Yb = mat()
             for d in range(dim):
                 unit_d = vec()
                 unit_d[d] = scalar(1.0)
                 Yb = Yb + wp.outer(A[p * dim * dim + b * dim + d] * gs, unit_d)
-            unit_b = vec()
-            unit_b[b] = scalar(1.0)
-            for t in range(NS):
-                slot = slots[tid * NS + t]
-                if slot < 0:
-                    continue
-                wt, oft, idt = stencil_node(t, w0, w1, w2, first, block.shape)
-                ct = dof[idt]
-                gt = (scalar(4.0) * inv_dx * wt) * (oft - fx)
-                kb = (-V0) * (Yb * gt)
-                if fterms.active != 0:
-                    G = fterms.G[p]
-                    c = fterms.coef[p]
-                    kb = kb + (c * brs * wt) * (G * unit_b) + (c * ws * wp.dot(fterms.br[p], gt)) * (wp.transpose(G) * unit_b) + (ws * wt) * (fterms.H[p] * unit_b)
+            if b == 0:
+                Y0 = Yb
+            elif b == 1:
+                Y1 = Yb
+            else:
+                Y2 = Yb
+        G = mat()
+        H = mat()
+        c = scalar(0.0)
+        if fterms.active != 0:
+            G = fterms.G[p]
+            H = fterms.H[p]
+            c = fterms.coef[p]
+        for t in range(NS):
+            slot = slots[tid * NS + t]
+            if slot < 0:
+                continue
+            wt, oft, idt = stencil_node(t, w0, w1, w2, first, block.shape)
+            ct = dof[idt]
+            gt = (scalar(4.0) * inv_dx * wt) * (oft - fx)
+            # the field's block, whole: (c brs wt) G + (c ws (Br . g_t)) G^T + ws wt H
+            Kf = mat()
+            if fterms.active != 0:
+                Kf = (c * brs * wt) * G + (c * ws * wp.dot(fterms.br[p], gt)) * wp.transpose(G) + (ws * wt) * H
+            for b in range(dim):
+                Yb = Y0
+                if b == 1:
+                    Yb = Y1
+                elif b == 2:
+                    Yb = Y2
+                unit_b = vec()
+                unit_b[b] = scalar(1.0)
+                kb = (-V0) * (Yb * gt) + Kf * unit_b
                 lo = indptr[ct * dim + b] + slot  # the rows of node s in column (t, b); rows rs dim + a follow
                 for a in range(dim):
                     wp.atomic_add(data, lo + a, kb[a])
