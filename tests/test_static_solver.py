@@ -469,6 +469,17 @@ def test_cube_next_to_a_dipole_matches_its_dynamic_settling():
     assert np.all(np.abs(moved["static"] / moved["dynamic"] - 1) < 2e-3)  # measured 0.11-0.15 %
 
 
+def _moving_dipole_text() -> str:
+    """The cantilever scene next to a point dipole moved along a path of three keyframes (t = 0, 1, 2 s)."""
+    text = SCENE.read_text().replace(
+        'type = "uniform"\nB = [0.0, 0.0059, 0.0]\nprofile = { type = "ramp", duration = 0.04 }',
+        'type = "dipole"\nmoment = [0.0, 0.005, 0.0]\nposition = [0.034, -0.008, 0.0]\n'
+        'path = { times = [0.0, 1.0, 2.0], positions = [[0.034, -0.008, 0.0], [0.028, -0.006, 0.0], '
+        '[0.025, -0.009, 0.0]] }')
+    assert "path = " in text
+    return text
+
+
 def test_move_to_continues_along_a_magnets_path(tmp_path):
     """StaticSolver.move_to: the cantilever next to a point dipole that moves along a path (three keyframes);
     continued from one time to the next (the field moved with the load increments, each from the last
@@ -480,14 +491,8 @@ def test_move_to_continues_along_a_magnets_path(tmp_path):
     from magsoro.scene import load_scene
     from magsoro.simulation import Simulation
 
-    text = SCENE.read_text().replace(
-        'type = "uniform"\nB = [0.0, 0.0059, 0.0]\nprofile = { type = "ramp", duration = 0.04 }',
-        'type = "dipole"\nmoment = [0.0, 0.005, 0.0]\nposition = [0.034, -0.008, 0.0]\n'
-        'path = { times = [0.0, 1.0, 2.0], positions = [[0.034, -0.008, 0.0], [0.028, -0.006, 0.0], '
-        '[0.025, -0.009, 0.0]] }')
-    assert "path = " in text
     path = tmp_path / "moving.toml"
-    path.write_text(text)
+    path.write_text(_moving_dipole_text())
 
     def fresh(t):
         scene = load_scene(path)
@@ -536,16 +541,6 @@ def test_move_to_that_fails_names_the_move(tmp_path):
     assert not res.converged
     assert "the fields moving along their paths from t = 0 s to 1 s: move_to intermediate times" in res.message
     assert "arc length" not in res.message
-
-
-def _moving_dipole_text() -> str:
-    text = SCENE.read_text().replace(
-        'type = "uniform"\nB = [0.0, 0.0059, 0.0]\nprofile = { type = "ramp", duration = 0.04 }',
-        'type = "dipole"\nmoment = [0.0, 0.005, 0.0]\nposition = [0.034, -0.008, 0.0]\n'
-        'path = { times = [0.0, 1.0, 2.0], positions = [[0.034, -0.008, 0.0], [0.028, -0.006, 0.0], '
-        '[0.025, -0.009, 0.0]] }')
-    assert "path = " in text
-    return text
 
 
 def test_static_times_sweep_along_the_path(tmp_path):
