@@ -279,19 +279,18 @@ class Simulation:
             self.field_scale = solver.field_level  # field probes read the applied field of the level solved
             if not res.converged:
                 out.converged = False
+                kind = "time" if times is not None else "level"
                 what = f"time {times[k]:g} s" if times is not None else f"level {level:g}"
-                out.message = f"{what} did not converge ({res.message}); the state is the last converged {'time' if times is not None else 'level'}'s"
+                out.message = f"{what} did not converge ({res.message}); the state is the last converged {kind}'s"
                 if res.wall_crossing is None and not res.no_equilibrium:
-                    out.message += (": insert intermediate times, raise static.max_iterations, or check the loads"
-                                    if times is not None else
-                                    ": insert intermediate levels, raise static.max_iterations, or check the loads")
+                    out.message += f": insert intermediate {kind}s, raise static.max_iterations, or check the loads"
                 break
             if on_level is not None:
                 on_level(self, res)
         out.wall_time = _time.perf_counter() - t0
         out.residual_evaluations = solver.residual_evaluations
         if out.converged:
-            out.message = f"{len(times)} time(s) converged" if times is not None else f"{len(levels)} level(s) converged"
+            out.message = f"{len(levels)} {'time' if times is not None else 'level'}(s) converged"
         return out
 
     # -- stepping ------------------------------------------------------------------------------------------

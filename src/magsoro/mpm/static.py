@@ -143,7 +143,7 @@ def factor(J):
 def _odd_negative_count(K, lu=None) -> bool:
     """Whether the symmetric sparse matrix ``K`` has an odd number of negative eigenvalues: the sign of its
     determinant from an LU factorisation (Pr K Pc = L U, L with a unit diagonal: sign det K = sign prod diag U times
-    the signs of the two permutations; ``lu``: scipy's ``splu(K)`` when the caller has it). Sylvester's law of
+    the signs of the two permutations; ``lu``: :func:`factor` of K when the caller has it). Sylvester's law of
     inertia makes the determinant's sign the parity of the negative eigenvalues; an even number of them (two modes
     crossing zero together) is not seen."""
     lu = factor(K) if lu is None else lu
