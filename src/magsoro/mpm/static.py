@@ -119,9 +119,10 @@ def factor(J):
     """Sparse LU of a tangent ``J`` (CSC), as scipy's ``splu`` object (``solve``, ``L``, ``U``, ``perm_r``,
     ``perm_c``). The tangents here have a symmetric pattern and a diagonal that carries them (stiffness, springs),
     so SuperLU runs in its symmetric mode: fill-reducing minimum-degree ordering of J + J^T, pivots on the
-    diagonal. On the triangle robot's tangent (7629 unknowns, 1.7 M entries, 3D) that leaves 21 % less fill and
-    factorises in 0.28 s against 0.42 s for the default (column ordering of J^T J, partial pivoting); the
-    relative residuals of a solve were 2e-13 and 5e-13 (benchmarks/results/*-factor-*.json). A factorisation
+    diagonal. On the triangle robot's tangent at 15 mT (7629 unknowns, 1.7 M entries, 3D) that leaves 20 % less
+    fill and factorises in 0.27 s against 0.41 s for the default (column ordering of J^T J, partial pivoting); the
+    relative residuals of a solve were 1.7e-13 and 4.2e-13 (`python benchmarks/static_factor.py`, file
+    benchmarks/results/2026-11-28-cpu-909c75f-static-factor.json). A factorisation
     whose solve of a random right-hand side leaves a relative residual above FACTOR_CHECK (a pivot too small
     on the diagonal: an indefinite or strongly unsymmetric tangent), or that fails, is made again the default
     way. Raises RuntimeError when that fails too (a singular tangent)."""
