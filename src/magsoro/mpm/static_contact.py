@@ -209,6 +209,7 @@ class ColliderPenalty:
                     blocks[anchored] = kc[anchored, None, None] * np.eye(dim)[None]
                     stuck[anchored] = True
                 else:
+                    # regularised Coulomb (module docstring): f_t = -mu f_n P_t d / max(|P_t d|, slip)
                     mu = c.friction
                     Pt = np.eye(dim)[None] - np.einsum("pi,pj->pij", n, n)
                     dt = np.einsum("pij,pj->pi", Pt, np.where(anchored[:, None], d, 0.0))

@@ -109,6 +109,20 @@ def strip_rod(level: float, magnet: dict | None, shear_modulus: float, bulk_modu
     return float(z[tip].mean() - MID_Z)
 
 
+def markers(X0: np.ndarray) -> dict:
+    """Masks of the particles at reference positions ``X0``: the core ("centre") and the strips' last 1.5 mm
+    ("tips")."""
+    r = np.maximum(np.abs(X0[:, 0]), np.abs(X0[:, 1]))
+    return {"centre": r < HALF_CORE, "tips": r > HALF_CORE + ARM_LENGTH - 0.0015}
+
+
+def _heights(sim, masks: dict) -> tuple[float, float, float]:
+    """(centre's mean z, tips' mean z, tips' lowest z) of the current state (m)."""
+    z = sim.state.x.numpy()[:, 2].astype(np.float64)
+    centre, tips = masks["centre"], masks["tips"]
+    return float(z[centre].mean()), float(z[tips].mean()), float(z[tips].min())
+
+
 def _sweep(ctx: Context, data: dict, levels_mt, remanence: float, label: str, frames: FrameRecorder):
     magnet = next(f for f in data["fields"] if f.get("name") == "magnet")
     magnet["remanence"] = remanence
@@ -116,10 +130,7 @@ def _sweep(ctx: Context, data: dict, levels_mt, remanence: float, label: str, fr
     times, positions, reads = stepped_path(offsets, FIRST_HOLD, HOLD, MOVE)
     magnet["path"] = {"times": times, "positions": positions}
     sim = simulation(NAME, data, preview=ctx.preview, device=ctx.device)
-    X0 = sim.model.host["positions"].astype(np.float64)
-    r = np.maximum(np.abs(X0[:, 0]), np.abs(X0[:, 1]))
-    centre = r < HALF_CORE
-    tips = r > HALF_CORE + ARM_LENGTH - 0.0015
+    masks = markers(sim.model.host["positions"].astype(np.float64))
 
     def caption(s):
         bz = cylinder_magnet(magnet, path_position(s.time, times, positions)).B([[0.0, 0.0, MID_Z]])[0, 2]
@@ -130,8 +141,7 @@ def _sweep(ctx: Context, data: dict, levels_mt, remanence: float, label: str, fr
     out, w0 = [], time.perf_counter()
     for lv, t_read in zip(levels_mt, reads):
         advance(sim, t_read, frames, FRAME_EVERY)
-        z = sim.state.x.numpy()[:, 2].astype(np.float64)
-        out.append((float(z[centre].mean()), float(z[tips].mean()), float(z[tips].min())))
+        out.append(_heights(sim, masks))
         ctx.log(f"  {label} {lv:4.0f} mT: centre z = {out[-1][0] * 1e3:.2f} mm, tips z = {out[-1][1] * 1e3:.2f} mm "
                 f"({time.perf_counter() - w0:.0f} s wall)")
     return np.array(out), sim, time.perf_counter() - w0
@@ -148,15 +158,11 @@ def _static_sweep(ctx: Context, data: dict, levels_mt, remanence: float, label: 
     w0 = time.perf_counter()
 
     def on_start(sim):
-        X0 = sim.model.host["positions"].astype(np.float64)
-        r = np.maximum(np.abs(X0[:, 0]), np.abs(X0[:, 1]))
-        masks["centre"], masks["tips"] = r < HALF_CORE, r > HALF_CORE + ARM_LENGTH - 0.0015
+        masks.update(markers(sim.model.host["positions"].astype(np.float64)))
         frames.record(sim)
 
     def on_read(s, lv, res):
-        z = s.state.x.numpy()[:, 2].astype(np.float64)
-        centre, tips = masks["centre"], masks["tips"]
-        out.append((float(z[centre].mean()), float(z[tips].mean()), float(z[tips].min())))
+        out.append(_heights(s, masks))
         current["level"] = lv * np.sign(remanence)  # the field at the robot points down for a south face up
         frames.record(s)
         ctx.log(f"  {label} {lv:4.0f} mT: centre z = {out[-1][0] * 1e3:.2f} mm, tips z = {out[-1][1] * 1e3:.2f} mm "
@@ -172,10 +178,6 @@ def speeds(ctx: Context, base: dict) -> dict:
     the largest rate of the deflection (centre above the tips for arching, south face up; tips above the centre
     for grabbing, north face up), at each magnet speed."""
     from magsoro.robots import _seed002_speeds as sp
-
-    def markers(X0):
-        r = np.maximum(np.abs(X0[:, 0]), np.abs(X0[:, 1]))
-        return {"centre": r < HALF_CORE, "tips": r > HALF_CORE + ARM_LENGTH - 0.0015}
 
     mags = MAGNET_SPEEDS[-1:] if ctx.preview else MAGNET_SPEEDS
     runs = {mode: [sp.rising_run(NAME, base, (0.0, 0.0), v, sign, markers, ctx, mode) for v in mags]
