@@ -172,3 +172,80 @@ def test_evert_cli_rejects_bad_design(tmp_path, capsys):
     bad.write_text("[tube]\ninner_radius = 0.9e-3\nouter_radius = 0.8e-3\nshear_modulus = 5e4\n")
     assert main(["evert", str(bad), "--out", str(tmp_path / "o")]) == 2
     assert "inner_radius" in capsys.readouterr().err
+
+
+def _zeeman_energy_per_length(m: EversionModel, everted: bool, B0: float, a: float, n: int = 400) -> float:
+    """Magnetic energy per unit reference length (J/m) of the tube wall in an axial field B0 e_z, the tail's
+    remanence -|Br| e_z, integrated over the reference annulus with the deformation gradient of the everted map
+    taken by finite differences of the map itself (x = (r(R) cos t, r(R) sin t, -lambda_z Z)) rather than from
+    the model's formulas."""
+    from scipy.linalg import polar
+
+    A, B, lz = m.inner_radius, m.outer_radius, m.axial_stretch
+    Br = np.array([0.0, 0.0, -m.remanence])
+    field = np.array([0.0, 0.0, B0])
+
+    def x_of(X):
+        R, th = np.hypot(X[0], X[1]), np.arctan2(X[1], X[0])
+        if not everted:
+            return np.array(X, dtype=float)
+        r = np.sqrt(a * a + (B * B - R * R) / lz)
+        return np.array([r * np.cos(th), r * np.sin(th), -lz * X[2]])
+
+    total = 0.0
+    Rs = A + (np.arange(n) + 0.5) * (B - A) / n
+    h = 1e-9
+    for R in Rs:
+        X = np.array([R, 0.0, 0.0])  # axisymmetric: one azimuth suffices
+        F = np.column_stack([(x_of(X + h * e) - x_of(X - h * e)) / (2 * h) for e in np.eye(3)])
+        if m.magnetization_follows == "R":
+            F = polar(F)[0]
+        total += -(field @ (F @ Br)) / MU0 * 2 * np.pi * R * (B - A) / n
+    return total
+
+
+@pytest.mark.parametrize("follows,lz", [("F", 1.0), ("F", 1.2), ("R", 1.2), ("R", 0.9)])
+def test_flip_force_is_the_zeeman_energy_released_per_front_advance(follows, lz):
+    """The flip term against virtual work done independently: the energy released per unit reference length
+    everted (the everted map's F from finite differences, the engine's energy -(1/mu0) B . F Br or R Br) divided
+    by the front's advance per reference length, lambda_z."""
+    m = EversionModel(0.8e-3, 0.9e-3, 120e3, axial_stretch=lz, remanence=0.11, magnetization_follows=follows)
+    B0 = 0.043
+    a = 0.9e-3
+    released = _zeeman_energy_per_length(m, False, B0, a) - _zeeman_energy_per_length(m, True, B0, a)
+    assert released > 0  # the field against the tail's remanence favours eversion
+    assert float(m.flip_force(B0)) == pytest.approx(released / lz, rel=1e-6)
+    assert float(m.flip_force(-B0)) == pytest.approx(-released / lz, rel=1e-12)  # along it: retraction
+
+
+def test_flip_term_lets_a_field_alone_evert_at_unit_stretch():
+    """lambda_z = 1, P = 0: eqs 10-11 alone give no growing field; with the tail's remanence the smallest field
+    is -N_el / (dN_flip/dB0) without friction, and friction raises it; the friction coefficient that makes a given
+    field the threshold reproduces that field."""
+    A, B, G, Br = 0.8e-3, 0.9e-3, 120e3, 0.1123
+    bare = EversionModel(A, B, G)
+    assert bare.minimum_growth_field() is None
+    m = EversionModel(A, B, G, remanence=Br)
+    n_el = float(m.pressure_free_tip_force(0.0))
+    assert n_el < 0
+    per_tesla = 2 * Br / MU0 * np.pi * (B * B - A * A)
+    assert m.flip_force_per_tesla() == pytest.approx(per_tesla, rel=1e-12)
+    b_min = m.minimum_growth_field()
+    assert b_min == pytest.approx(-n_el / per_tesla, rel=1e-9)
+    assert 0.015 < b_min < 0.025  # 20.3 mT: the wall resting on the tail (a = B)
+    fr = Friction.for_tail("cylindrical", 0.02, 0.0, 0.67)
+    with_friction = EversionModel(A, B, G, remanence=Br, friction=fr)
+    mu = with_friction.friction_coefficient_for_growth_field(0.043)
+    assert mu is not None and 0 < mu < 0.05
+    from dataclasses import replace
+    fitted = replace(with_friction, friction=replace(fr, friction_coefficient=mu))
+    assert fitted.minimum_growth_field() == pytest.approx(0.043, rel=1e-6)
+    assert with_friction.friction_coefficient_for_growth_field(0.5 * b_min) is None  # below the frictionless threshold
+
+
+def test_evert_cli_seed004_design(tmp_path, capsys):
+    assert main(["evert", str(DESIGNS / "design_seed004.toml"), "--out", str(tmp_path), "--json"]) == 0
+    s = json.loads(capsys.readouterr().out)
+    assert s["minimum_growth_field_T"] == pytest.approx(0.02026, rel=1e-3)
+    assert s["minimum_growth_field_without_friction_T"] == pytest.approx(s["minimum_growth_field_T"], rel=1e-9)
+    assert s["implied_friction_coefficient"] == pytest.approx(0.005483, rel=1e-3)

@@ -39,6 +39,12 @@ class TubeConfig(_Strict):
     magnetic_stiffening: float = Field(0.0, gt=-1, description=(
         "alpha in mu(I4) = mu (1 + alpha tanh(I4 / I4_sat)), dimensionless. Default 0 (field-independent)."))
     saturation_field: float = Field(0.1, gt=0, description="B_sat with I4_sat = (B_sat / mu0)^2, T. Default 0.1.")
+    remanence: float = Field(0.0, ge=0, description=(
+        "|Br| of the tail wall's axial remanent magnetisation, T; the design's fields point against it (the "
+        "direction in which the reversal of the everting wall's magnetisation helps growth). Default 0 (none)."))
+    magnetization_follows: Literal["F", "R"] = Field("F", description=(
+        'How the deformation carries the remanence: "F" (Zhao\'s law, the engine\'s default) or "R" (the '
+        'rotation of F). Default "F".'))
 
     @model_validator(mode="after")
     def _radii(self):
@@ -73,6 +79,10 @@ class OperatingConfig(_Strict):
         "Everted inner radius a where the wall rests on the tail, m. Default max(a0, B), a0 the zero-pressure radius."))
     required_tip_force: float = Field(0.0, description="Tip load N_load the front must overcome, N. Default 0.")
     max_field: float = Field(1.0, gt=0, description="Largest axial field searched for the minimum growth field, T. Default 1.")
+    measured_growth_field: float | None = Field(None, gt=0, description=(
+        "A measured smallest growing field, T (seed 004: 0.043). When given, the summary reports the friction "
+        "coefficient mu_k that makes it the model's minimum growth field, the other friction factors kept. "
+        "Default none."))
 
 
 class PlotConfig(_Strict):
@@ -115,6 +125,7 @@ class EversionDesign(_Strict):
         return EversionModel(
             t.inner_radius, t.outer_radius, t.shear_modulus, t.magnetic_stiffening, t.saturation_field,
             self.operating.axial_stretch if axial_stretch is None else axial_stretch, friction,
+            t.remanence, t.magnetization_follows,
         )
 
 

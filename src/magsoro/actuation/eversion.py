@@ -36,10 +36,28 @@ Friction (eqs 12-13). N = N_ideal - l mu_k p_n phi (2 pi b) g(Theta), g = exp(ga
 p_n = alpha_c P the part of the internal pressure transmitted as normal load between tail and wall (clipped at
 zero: a wall that would need suction does not press on the tail).
 
-Sign and growth. N is the seed's "tip-growing force": the axial force the everted wall transmits to the eversion
-front. As the seed states, N < 0 at lambda_z = 1 and P = 0 (the elastic integrand 2 - lambda^2 - lambda^-2 is
-never positive) and N rises with lambda_z; friction lowers it (eq 12). We take the front to advance against a
-tip load N_load when N >= N_load.
+Hard-magnetic tail (the flip term). Seed 004 magnetises the second half of its robot axially ("to minimize
+self-attraction between walls"); that half is the tail that everts last. Eversion turns the wall inside out and
+back along the axis (F e_z = -lambda_z e_z in the everted wall), so the axial remanence of tail material reverses
+direction as it passes the front. With the engine's hard-magnetic energy per reference volume,
+W = -(1/mu0) B . F Br ("F", Zhao's law, the default) or -(1/mu0) B . R Br ("R"), and the tail's remanence
+|Br| directed against an axial field B0, everting one reference volume lowers the energy by
+(1 + lambda_F) |Br| B0 / mu0 (lambda_F = lambda_z under "F", 1 under "R"). The front advances lambda_z per unit
+reference length everted, so by virtual work the front gains the force
+
+    N_flip = (1 + lambda_F) / lambda_z  |Br| B0 / mu0  pi (B^2 - A^2),
+
+positive when the field opposes the tail's magnetisation (B0 > 0 here), negative when it is along it. This is
+the field-alone eversion the seed describes; mu(I4) and the Maxwell term (the soft-magnetic response of eqs
+8-11) stay as they are. A uniform field exerts no net force on the tube, so N_flip is the only field term at
+lambda_z = 1.
+
+Sign and growth. N is the force the front can push with: the front advances against a tip load N_load when
+N >= N_load. In eqs 10-11 alone N < 0 at lambda_z = 1 and P = 0 (the elastic integrand 2 - lambda^2 - lambda^-2
+is never positive) and the Maxwell term vanishes there, so those equations cannot make a field alone evert the
+tube; the seed's sentence "for lambda_z = 1 and P = 0, we found N < 0, indicating that the magnetic field alone
+can induce eversion" holds with the flip term of its axially magnetised tail, which is positive and linear in
+the field: the smallest growing field is then -N_el / (dN_flip/dB0) without friction. Friction lowers N (eq 12).
 
 Pressure-free growth. Without fluid pressure, eq 10 with P = 0 fixes the everted radius a0(lambda_z), the same
 for every field because mu(I4) factors out. For a thin tube a0 < B: the free everted wall would be narrower than
@@ -47,8 +65,9 @@ the uneverted tail (outer radius B) it encloses, so it rests on the tail at a = 
 the everted walls remain in contact", seed sec III-B). P(B) of eq 10 is then the support the tail supplies by
 contact: it loads the friction term (p_n = alpha_c P) but no fluid pushes on the front, so the pi a^2 P term is
 absent. The operating radius is therefore max(a0, B) unless given. :meth:`EversionModel.minimum_growth_field`
-finds the smallest axial |B| with N_pressure_free(B) >= N_load; the field helps through the Maxwell term, which
-is positive for lambda_z > 1 (at lambda_z = 1 it vanishes and no field makes a stalled tube grow).
+finds the smallest axial |B| with N_pressure_free(B) >= N_load; the field helps through the flip term (when the
+tail is magnetised, ``remanence`` > 0) and through the Maxwell term (positive for lambda_z > 1 only). Without
+remanence and at lambda_z = 1 no field makes a stalled tube grow.
 """
 
 from __future__ import annotations
@@ -121,8 +140,13 @@ class EversionModel:
     saturation_field : B_sat giving I4_sat = (B_sat / mu0)^2, T.
     axial_stretch : lambda_z (-).
     friction : :class:`Friction` (default: none).
+    remanence : |Br| of the tail wall's axial remanent magnetisation, T (0: a tail without axial remanence).
+    magnetization_follows : how the deformation carries the remanence, "F" (Zhao's law, the engine's default)
+        or "R" (the rotation of F), as ``material.magnetization_follows`` in a scene.
 
-    Fields are flux densities B0 = mu0 |H| in tesla along the tube axis; pressures in Pa, forces in N.
+    Fields are flux densities B0 = mu0 H in tesla along the tube axis, positive against the tail's remanence
+    (the direction in which the flip term helps growth; the soft-magnetic terms depend on B0^2 only);
+    pressures in Pa, forces in N.
     """
 
     inner_radius: float
@@ -132,6 +156,8 @@ class EversionModel:
     saturation_field: float = 0.1
     axial_stretch: float = 1.0
     friction: Friction = Friction()
+    remanence: float = 0.0
+    magnetization_follows: str = "F"
 
     def __post_init__(self):
         if not (0 < self.inner_radius < self.outer_radius):
@@ -144,6 +170,10 @@ class EversionModel:
             raise ValueError(f"saturation_field must be > 0 T, got {self.saturation_field}")
         if self.magnetic_stiffening <= -1:
             raise ValueError(f"magnetic_stiffening must be > -1 (mu(I4) stays positive), got {self.magnetic_stiffening}")
+        if not self.remanence >= 0:
+            raise ValueError(f"remanence must be >= 0 T (its magnitude; the field's sign gives the direction), got {self.remanence}")
+        if self.magnetization_follows not in ("F", "R"):
+            raise ValueError(f"magnetization_follows must be 'F' or 'R', got {self.magnetization_follows!r}")
 
     # -- kinematics (eq 5) ---------------------------------------------------------------------------------
     def everted_outer_radius(self, a) -> np.ndarray:
@@ -194,18 +224,31 @@ class EversionModel:
         lz = self.axial_stretch
         return 0.5 * np.pi * MU0 * (b * b - a * a) * self.I4(field) * (lz * lz - 1.0 / (lz * lz))
 
+    def flip_force_per_tesla(self) -> float:
+        """dN_flip/dB0 (N/T): the front force the reversal of the tail's axial remanence gives per tesla of
+        axial field against it, (1 + lambda_F) / lambda_z |Br| / mu0 pi (B^2 - A^2)."""
+        lz = self.axial_stretch
+        lam_f = lz if self.magnetization_follows == "F" else 1.0
+        area = np.pi * (self.outer_radius**2 - self.inner_radius**2)
+        return float((1.0 + lam_f) / lz * self.remanence / MU0 * area)
+
+    def flip_force(self, field=0.0) -> np.ndarray:
+        """N_flip (N): front force from the axial remanence of the tail turning round the front, for an axial
+        field ``field`` (T, positive against the tail's remanence). Zero without remanence."""
+        return self.flip_force_per_tesla() * np.asarray(field, dtype=float)
+
     def elastic_force(self, a, field=0.0) -> np.ndarray:
         """Elastic term of eq 11, pi mu(I4) int (2 lz^2 - lt^2 - lt^-2 lz^-2) r dr, N."""
         return self.shear_modulus_at(field) * self._reduced_elastic_force(a)
 
     def tip_force_ideal(self, a, field=0.0, pressure=None) -> np.ndarray:
-        """N_ideal (N) of eq 11 at inner radius ``a`` (m) and axial field ``field`` (T).
+        """N_ideal (N) of eq 11 plus the flip term at inner radius ``a`` (m) and axial field ``field`` (T).
 
         ``pressure`` (Pa) is the fluid pressure acting on the front; default the eq-10 pressure at ``a``.
         """
         P = self.pressure(a, field) if pressure is None else np.asarray(pressure, dtype=float)
         a = np.asarray(a, dtype=float)
-        return self.elastic_force(a, field) + np.pi * a * a * P + self.maxwell_force(a, field)
+        return self.elastic_force(a, field) + np.pi * a * a * P + self.maxwell_force(a, field) + self.flip_force(field)
 
     def tip_force(self, a, field=0.0, bend_angle=0.0, pressure=None) -> np.ndarray:
         """Friction-corrected tip force N (N) of eqs 12-13.
@@ -262,6 +305,26 @@ class EversionModel:
         k = int(above[0])
         return float(brentq(excess, grid[k - 1], grid[k], xtol=1e-12, rtol=1e-12))
 
+    def friction_coefficient_for_growth_field(self, field: float, required_force: float = 0.0, bend_angle: float = 0.0,
+                                              contact_radius: float | None = None, max_coefficient: float = 10.0) -> float | None:
+        """The kinetic friction coefficient mu_k (-) for which ``field`` (T) is exactly the smallest growing field
+        without pressure, the other friction factors (l, alpha_c, phi, gamma) kept: the friction a measured
+        growth threshold implies. None when the front cannot reach ``required_force`` at that field even without
+        friction, or when the friction has no lever (l, alpha_c, phi or the contact pressure zero) or would need
+        mu_k > ``max_coefficient``."""
+        from dataclasses import replace
+
+        from scipy.optimize import brentq
+
+        def excess(mu_k):
+            m = replace(self, friction=replace(self.friction, friction_coefficient=mu_k))
+            return float(m.pressure_free_tip_force(field, bend_angle, contact_radius)) - required_force
+
+        lo, hi = excess(0.0), excess(max_coefficient)
+        if lo < 0.0 or hi > 0.0 or lo == hi:
+            return None
+        return float(brentq(excess, 0.0, max_coefficient, xtol=1e-14, rtol=1e-12))
+
 
 # ------------------------------------------------------------------------------------------- report
 def curves(model_at_stretch: "EversionModel", fields, radii) -> dict:
@@ -315,6 +378,10 @@ def write_report(design, out) -> dict:
     a0 = model.pressure_free_radius()
     a_op = model.operating_radius(op.contact_radius)
     b_min = model.minimum_growth_field(op.required_tip_force, op.bend_angle, op.contact_radius, op.max_field)
+    from dataclasses import replace
+
+    frictionless = replace(model, friction=replace(model.friction, friction_coefficient=0.0))
+    b_min_0 = frictionless.minimum_growth_field(op.required_tip_force, op.bend_angle, op.contact_radius, op.max_field)
     summary = {
         "design": design.name,
         "reference_radii_m": [A, B],
@@ -326,11 +393,19 @@ def write_report(design, out) -> dict:
         "required_tip_force_N": op.required_tip_force,
         "bend_angle_rad": op.bend_angle,
         "minimum_growth_field_T": b_min,
+        "minimum_growth_field_without_friction_T": b_min_0,
         "max_field_searched_T": op.max_field,
+        "remanence_T": model.remanence,
+        "magnetization_follows": model.magnetization_follows,
+        "flip_force_per_tesla_N_per_T": model.flip_force_per_tesla(),
         "perimeter_factor": model.friction.perimeter_factor,
         "capstan_factor": model.friction.capstan_factor,
         "files": ["eversion.csv", "eversion.png", "summary.json"],
     }
+    if op.measured_growth_field is not None:
+        summary["measured_growth_field_T"] = op.measured_growth_field
+        summary["implied_friction_coefficient"] = model.friction_coefficient_for_growth_field(
+            op.measured_growth_field, op.required_tip_force, op.bend_angle, op.contact_radius)
     (out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
 
     import matplotlib

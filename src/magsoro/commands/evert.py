@@ -44,5 +44,15 @@ def run_evert(args) -> int:
         print(f"minimum growth field        : none up to {1e3 * summary['max_field_searched_T']:g} mT")
     else:
         print(f"minimum growth field        : {1e3 * b_min:.6g} mT (lambda_z = {summary['axial_stretch']:g})")
+    b0 = summary["minimum_growth_field_without_friction_T"]
+    print("  without friction          : " + (f"{1e3 * b0:.6g} mT" if b0 is not None else
+                                              f"none up to {1e3 * summary['max_field_searched_T']:g} mT"))
+    if summary["remanence_T"] > 0:
+        print(f"tail remanence (flip term)  : {summary['remanence_T']:.6g} T, "
+              f"{summary['flip_force_per_tesla_N_per_T']:.6g} mN per mT against it (N/T)")
+    if "implied_friction_coefficient" in summary:
+        mu = summary["implied_friction_coefficient"]
+        print("friction for measured field : " + (f"mu_k = {mu:.4g} at {1e3 * summary['measured_growth_field_T']:g} mT"
+              if mu is not None else f"none makes {1e3 * summary['measured_growth_field_T']:g} mT the threshold"))
     print(f"wrote {out / 'eversion.csv'}, {out / 'eversion.png'}, {out / 'summary.json'}")
     return 0
