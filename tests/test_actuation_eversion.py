@@ -249,3 +249,26 @@ def test_evert_cli_seed004_design(tmp_path, capsys):
     assert s["minimum_growth_field_T"] == pytest.approx(0.02026, rel=1e-3)
     assert s["minimum_growth_field_without_friction_T"] == pytest.approx(s["minimum_growth_field_T"], rel=1e-9)
     assert s["implied_friction_coefficient"] == pytest.approx(0.005483, rel=1e-3)
+
+
+def test_axially_magnetised_tail_exerts_no_field_on_the_everted_wall():
+    """The reason wall attraction leaves the flip term alone (docs/actuation.md): a long, uniformly axially
+    magnetised tube (the tail, A = 0.8, B = 0.9 mm, |Br| = 0.1123 T) has no field outside its own wall, so the
+    everted wall around it (0.9-0.99 mm) sits in none at mid-length (magpylib's closed form, 40 mm tube: the ends'
+    poles give 2e-5 T, 2e-4 of Br); the same tube magnetised across its axis (the robot's first half) puts
+    Br (B^2 - A^2) / (2 r^2) there, the 2D dipole's 9 % of Br."""
+    magpylib = pytest.importorskip("magpylib")
+    A, B, Br, L = 0.8e-3, 0.9e-3, 0.1123, 40e-3
+    r = 0.5 * (0.9e-3 + np.sqrt(0.9e-3**2 + B * B - A * A))  # mid-radius of the everted wall resting on the tail
+    phi = np.linspace(0.0, 2 * np.pi, 24, endpoint=False)
+    pts = np.stack([r * np.cos(phi), r * np.sin(phi), np.zeros_like(phi)], axis=1)
+
+    def field(polarization):
+        tube = magpylib.magnet.CylinderSegment(polarization=polarization, dimension=(A, B, L, 0.0, 360.0))
+        return tube.getB(pts)
+
+    axial = np.linalg.norm(field((0.0, 0.0, Br)), axis=1)
+    assert axial.max() < 5e-4 * Br
+    across = np.linalg.norm(field((Br, 0.0, 0.0)), axis=1)
+    expect = Br * (B * B - A * A) / (2 * r * r)
+    assert np.allclose(across, expect, rtol=0.01)
