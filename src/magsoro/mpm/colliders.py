@@ -1,8 +1,8 @@
-"""Rigid colliders: half-space, box, sphere, cylinder; sticky, slip or Coulomb-friction contact; optional
-prescribed motion (position keyframes, whose slope gives the collider velocity used in the contact law).
+"""Rigid colliders: half-space, box, sphere, cylinder; sticky, slip, Coulomb-friction or (half-spaces) symmetry
+contact; optional prescribed motion (position keyframes, whose slope gives the collider velocity used in the contact law).
 
 The device sees a flat float64 table, one row of COLLIDER_STRIDE values per collider:
-    0 type, 1 mode (0 sticky, 1 slip, 2 friction), 2 friction coefficient,
+    0 type, 1 mode (0 sticky, 1 slip, 2 friction, 3 symmetry), 2 friction coefficient,
     3-5 position (m), 6-14 rotation matrix local->world (row-major), 15-17 size, 18-20 velocity (m/s).
 Size: half-space -> outward unit normal; box -> half extents; sphere -> radius; cylinder -> radius, half length
 (axis = local z).
@@ -17,7 +17,7 @@ from magsoro.geometry.transforms import rotation_to_axis
 COLLIDER_STRIDE = wp.constant(24)
 HALF_SPACE, BOX, SPHERE, CYLINDER = 0, 1, 2, 3
 KINDS = {"half_space": HALF_SPACE, "box": BOX, "sphere": SPHERE, "cylinder": CYLINDER}
-MODES = {"sticky": 0, "slip": 1, "friction": 2}
+MODES = {"sticky": 0, "slip": 1, "friction": 2, "symmetry": 3}
 #: the domain walls act on the nodes within this many cells of the domain's edge (:mod:`magsoro.mpm.grid`'s
 #: ``walls``, which writes it as its literal): the builder keeps bodies out of that band, the static solver models
 #: or watches it, runs note a body that comes within its reach
@@ -108,8 +108,10 @@ def _rotation(value) -> np.ndarray:
 class Collider:
     """A rigid obstacle. Build with :meth:`half_space`, :meth:`box`, :meth:`sphere` or :meth:`cylinder`.
 
-    ``mode`` is 'sticky' (contact nodes move with the collider), 'slip' (frictionless) or 'friction'
-    (Coulomb with coefficient ``friction``). ``path`` (Keyframes of positions, m, over s) moves it.
+    ``mode`` is 'sticky' (contact nodes move with the collider), 'slip' (frictionless), 'friction'
+    (Coulomb with coefficient ``friction``) or 'symmetry' (a half-space as a mirror plane: the normal velocity of
+    every node within half a cell of it is removed, approaching or not). ``path`` (Keyframes of positions, m, over
+    s) moves it.
     """
 
     def __init__(self, kind: str, position, size, rotation=None, mode: str = "slip", friction: float = 0.0, path: Keyframes | None = None):

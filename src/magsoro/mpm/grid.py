@@ -70,11 +70,14 @@ def make_grid(dim: int, scalar, two_fields: bool = False, differentiable: bool =
     def project(vel: vec, cvel: vec, normal: vec, mode: int, mu: scalar):
         """Velocity projection against a rigid surface moving at ``cvel`` with outward unit ``normal``:
         sticky -> the node moves with the surface; slip -> the approaching normal component is removed;
-        friction -> also the tangential part shrinks by mu |v_n| (Coulomb), stopping when it would reverse."""
+        friction -> also the tangential part shrinks by mu |v_n| (Coulomb), stopping when it would reverse;
+        symmetry -> the normal component is removed in both directions (a mirror plane: no separation)."""
         if mode == 0:
             return cvel
         vr = vel - cvel
         vn = wp.dot(vr, normal)
+        if mode == 3:
+            return vr - vn * normal + cvel
         if vn >= scalar(0.0):
             return vel  # separating: no contact force
         vt = vr - vn * normal
@@ -100,15 +103,20 @@ def make_grid(dim: int, scalar, two_fields: bool = False, differentiable: bool =
     @wp.func
     def colliders(vel: vec, pos: vec, m: scalar, gs: GridSettings):
         """Rigid colliders: a node with signed distance <= collider_skin is in contact (its momentum change
-        recorded with ``gs.record_impulse``)."""
+        recorded with ``gs.record_impulse``); symmetry planes (mode 3) take every node within half a cell."""
         p3 = wp.vec3d(wp.float64(pos[0]), wp.float64(pos[1]), gs.plane_z)
         if wp.static(dim == 3):
             p3 = wp.vec3d(wp.float64(pos[0]), wp.float64(pos[1]), wp.float64(pos[2]))
         for c in range(gs.n_colliders):
             phi, nrm, cvel = collider_sdf(gs.colliders, c, p3)
-            if phi <= gs.collider_skin:
-                row = c * COLLIDER_STRIDE
-                mode = int(gs.colliders[row + 1])
+            row = c * COLLIDER_STRIDE
+            mode = int(gs.colliders[row + 1])
+            skin = gs.collider_skin
+            if mode == 3:
+                # a mirror plane holds the node layer on it: every node within half a cell of it (a plane through
+                # a node layer is then safe from round-off in phi)
+                skin = wp.max(skin, wp.float64(0.5) * wp.float64(gs.dx))
+            if phi <= skin:
                 mu = scalar(gs.colliders[row + 2])
                 before = vel
                 vel = project(vel, inplane(v3(cvel)), inplane(v3(nrm)), mode, mu)

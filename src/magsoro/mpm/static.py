@@ -383,6 +383,9 @@ def check_supported(sim) -> None:
         # its tangent takes the magnetic stress and the moment as Zhao's law has them (F Br); the R law's dP/dF is not in it
         raise SimulationError("the static solver has no magnetization_follows = 'R' yet (its tangent carries the moment "
                               "with F); give the materials magnetization_follows = 'F', or use --equilibrium (relax)")
+    if any(c.mode == "symmetry" for c in sim.control.colliders):
+        raise SimulationError("the static solver has no symmetry colliders (mirror planes) yet; give them mode = "
+                              "'slip' if the body presses on them, or use --equilibrium (relax)")
     if sim.model.viscous:
         # the equilibrium under held loads is the relaxed one: the law with its isochoric moduli scaled by g_inf
         raise SimulationError("the static solver has no viscoelastic (prony) materials; the equilibrium under held loads "

@@ -499,7 +499,7 @@ class Path(Strict):
 
 
 class ColliderBase(Strict):
-    mode: Literal["sticky", "slip", "friction"] = Field(default="slip", description="Contact law: sticky, slip (frictionless) or friction (Coulomb).")
+    mode: Literal["sticky", "slip", "friction", "symmetry"] = Field(default="slip", description="Contact law: sticky, slip (frictionless), friction (Coulomb) or symmetry (a frictionless mirror plane that also holds material from leaving it: half of a symmetric body, or a wedge of an axisymmetric one; half-space colliders only).")
     friction: float = Field(default=0.0, ge=0, description="Coulomb friction coefficient (mode = 'friction').")
     path: Path | None = Field(default=None, description="Optional motion of the collider's reference point.")
 
@@ -512,7 +512,15 @@ class HalfSpaceCollider(ColliderBase):
     normal: Direction = Field(description="Outward normal (towards the free side).")
 
 
-class BoxCollider(ColliderBase):
+class _SolidCollider(ColliderBase):
+    @model_validator(mode="after")
+    def _no_symmetry(self):
+        if self.mode == "symmetry":
+            raise ValueError("mode 'symmetry' is for half_space colliders (a mirror plane); allowed here: 'sticky', 'slip', 'friction'")
+        return self
+
+
+class BoxCollider(_SolidCollider):
     """Rigid box."""
 
     type: Literal["box"]
@@ -520,7 +528,7 @@ class BoxCollider(ColliderBase):
     size: Sizes = Field(description="Full edge lengths, m.")
 
 
-class SphereCollider(ColliderBase):
+class SphereCollider(_SolidCollider):
     """Rigid sphere (a disc in 2D)."""
 
     type: Literal["sphere"]
@@ -528,7 +536,7 @@ class SphereCollider(ColliderBase):
     radius: float = Field(gt=0, description="Radius, m.")
 
 
-class CylinderCollider(ColliderBase):
+class CylinderCollider(_SolidCollider):
     """Rigid cylinder."""
 
     type: Literal["cylinder"]
