@@ -90,7 +90,8 @@ def make_p2g(dim: int, scalar, two_fields: bool = False, differentiable: bool = 
         if b.n_pressures > 0:
             row = b.pressure_row[p]
             if row >= 0:
-                mv = mv + dts * pressure_force(Fp, b.pressure_area[p], b.pressure_value[row])
+                f = pressure_force(Fp, b.pressure_area[p], b.pressure_value[row]) - b.pressure_share[p] * b.pressure_net[row]
+                mv = mv + dts * f
         return affine * dx, mv
 
     @wp.func
@@ -305,4 +306,18 @@ def make_p2g(dim: int, scalar, two_fields: bool = False, differentiable: bool = 
             if wp.static(two_fields):
                 wp.atomic_add(ct[0].grad_m, slot, (weight * mp) * (o - fx))
 
-    return dict(p2g=p2g, p2g_scatter=p2g_scatter, node_displacement=node_displacement, contact_scan=contact_scan, contact_scatter=contact_scatter)
+    @wp.kernel(enable_backward=False)
+    def pressure_net(bodies: wp.array(dtype=Bodies), F: wp.array(dtype=mat), net: wp.array(dtype=vec)):
+        """Sum each closed-cavity pressure load's force over its particles into ``net`` (zeroed before): the
+        imbalance of the faces' Nanson-mapped areas, which p2g then takes back in proportion to each face's area.
+        (Each particle's J F^-T N dA is its own face's current area vector; the particles' F differ by the
+        method's noise, so round a closed cavity they sum to about 1e-4 of the load instead of zero, and a free
+        pressurised body would drift.)"""
+        p = wp.tid()
+        b = bodies[0]
+        row = b.pressure_row[p]
+        if row >= 0:
+            if b.pressure_share[p] > scalar(0.0):
+                wp.atomic_add(net, row, pressure_force(F[p], b.pressure_area[p], b.pressure_value[row]))
+
+    return dict(p2g=p2g, p2g_scatter=p2g_scatter, pressure_net=pressure_net, node_displacement=node_displacement, contact_scan=contact_scan, contact_scatter=contact_scatter)

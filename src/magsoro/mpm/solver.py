@@ -89,6 +89,9 @@ SPREAD_THREADS_PER_SM = 2048
 #: the grid block is fitted again when it holds more than this many times the nodes a fit to the particles needs
 GRID_SHRINK = 2.0
 COLLIDER_SKIN = 0.1  # cells: total-Lagrangian nodes touch a collider from this signed distance down
+#: A pressure load is on a closed cavity when its reference faces sum to at most this fraction of their total area
+#: (the lattice's faces close up to round-off): its net force is then taken back every step.
+CLOSED_CAVITY = 1e-9
 
 
 def grid_settings(model: "Model", settings: "SolverSettings", gravity, colliders, n_colliders: int, dt: float,
@@ -151,6 +154,7 @@ def bodies_array(model: "Model", cut=lambda arr: arr, step: wp.array | None = No
     # pressure loads: per particle its face area vector and row; the table of values is indexed by row
     b.pressure_area, b.pressure_row = cut(model.pressure_area), cut(model.pressure_row)
     b.pressure_value, b.n_pressures = model.pressure_value, len(model.pressures)
+    b.pressure_share, b.pressure_net = cut(model.pressure_share), model.pressure_net
     if step is not None:
         b.step, b.stepped = step, 1
     return wp.array([b], dtype=k["Bodies"], device=model.device)
@@ -364,6 +368,19 @@ class Model:
         self.pressure_row = wp.array(rows, dtype=wp.int32, device=dev)
         self.pressure_area = wp.array(area.astype(s), dtype=k["vec"], device=dev)
         self.pressure_value = wp.zeros(max(len(self.pressures), 1), dtype=self.scalar, device=dev)
+        # closed cavities (the reference faces sum to zero): each face's share of the load's net force, which the
+        # scatter takes back (pressure_net, summed before it) so the load exerts no net force
+        share = np.zeros(n)
+        self.closed_pressures = []
+        for row in range(len(self.pressures)):
+            mine = rows == row
+            size = np.linalg.norm(area[mine], axis=1)
+            if size.sum() > 0.0 and np.linalg.norm(area[mine].sum(axis=0)) <= CLOSED_CAVITY * size.sum():
+                share[mine] = size / size.sum()
+                self.closed_pressures.append(row)
+        self.host["pressure_share"] = share
+        self.pressure_share = wp.array(share.astype(s), dtype=self.scalar, device=dev)
+        self.pressure_net = wp.zeros(max(len(self.pressures), 1), dtype=k["vec"], device=dev)
         self._pressure_values = None
         self.update_pressures(0.0)
 
@@ -954,6 +971,9 @@ class Solver:
             L["viscous"] = [nodes(make_viscous(m.dim, m.scalar)["viscous_update"], [
                 state_out.F, bodies_array(m, step=self._step_values), viscous_struct(m, state_in.H), state_out.H, sc(0.0)],
                 m.n_particles)]
+        if m.pressures and m.closed_pressures:  # the closed cavities' net pressure force, taken back in p2g
+            L["pressure_net"] = nodes(k["pressure_net"], [bodies_array(m, step=self._step_values), state_in.F,
+                                                          m.pressure_net], m.n_particles)
         if self._total:
             L["node_displacement"] = nodes(k["node_displacement"], [self._X0, state_in.x, m.mass, block, self.grid_u, ct],
                                            m.n_particles)
@@ -1446,6 +1466,9 @@ class Solver:
     def _scatter(self, L: dict) -> None:
         """Contact scan (with contact), p2g on every thread, the threads' grids summed, node displacements (total
         Lagrangian)."""
+        if "pressure_net" in L:
+            self.model.pressure_net.zero_()
+            L["pressure_net"].launch()
         if self._contact and not self._total:
             for v, fill in zip(self._ct_group_views, (2**31 - 1, -1)):
                 v.fill_(fill)

@@ -72,7 +72,10 @@ def make_types(dim: int, scalar) -> SimpleNamespace:
         two tables; -1: none), and per stimulus its current F_s^-1 and stress factor f det F_s, which the host
         updates when the stimulus changes; ``n_stimuli`` 0: no particle has one (the tables are never read).
         Pressure loads: each particle's reference face area vector (m^2, outward into the cavity) and its row
-        of the pressure table (Pa, set by the host; -1: none); ``n_pressures`` 0: none (never read).
+        of the pressure table (Pa, set by the host; -1: none); ``n_pressures`` 0: none (never read). For a load
+        on a closed cavity, ``pressure_net[row]`` is the net force its faces give now (summed before each
+        scatter) and ``pressure_share[p]`` the particle's part of it to take back (|dA| over the load's sum; 0 on
+        open cavities), so that the load exerts no net force, as a pressure in a closed cavity does.
         ``stepped`` 1: the kernels take dt and the uniform field from ``step[0]`` (:class:`Step`) instead of their
         ``dt`` argument and ``Applied.B_uniform`` (the solver's launches); 0: from the arguments (other callers)."""
 
@@ -92,6 +95,8 @@ def make_types(dim: int, scalar) -> SimpleNamespace:
         pressure_area: wp.array(dtype=vec)
         pressure_row: wp.array(dtype=wp.int32)
         pressure_value: wp.array(dtype=scalar)
+        pressure_share: wp.array(dtype=scalar)
+        pressure_net: wp.array(dtype=vec)
         n_pressures: int
         step: wp.array(dtype=Step)
         stepped: int
