@@ -599,6 +599,12 @@ class StaticSolver:
         solver.grid_p.zero_()
         solver.grid_m.zero_()
         solver.error.zero_()
+        if model.pressures and model.closed_pressures:
+            # a closed cavity's net pressure force at the trial F, taken back in p2g as in a step (the tangent
+            # leaves this correction out, as it leaves out the load's own stiffness)
+            model.pressure_net.zero_()
+            wp.launch(k["pressure_net"], dim=model.n_particles, device=self.dev,
+                      inputs=[self.bodies, self.F, model.pressure_net])
         wp.launch(k["p2g"], dim=model.n_particles, device=self.dev,
                   inputs=[self.src, self.bodies, applied, self.block, sc(1.0), self.grid, solver.error, P2G_TOTAL, self.ct,
                           self.no_viscous, solver.particle_affine, solver.particle_momentum])
