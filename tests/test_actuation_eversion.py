@@ -272,3 +272,25 @@ def test_axially_magnetised_tail_exerts_no_field_on_the_everted_wall():
     across = np.linalg.norm(field((Br, 0.0, 0.0)), axis=1)
     expect = Br * (B * B - A * A) / (2 * r * r)
     assert np.allclose(across, expect, rtol=0.01)
+
+
+def test_growth_pressure():
+    """Growth under a fluid pressure: with the wall resting on the tail (a = B) and the whole section pressurised
+    (eq 11's pi a^2 P) the front force is N_el(B) + pi B^2 P, so the start pressure is -N_el(B) / (pi B^2) in closed
+    form (760 Pa for the robot); with only the annulus between tail and wall pressurised the wall must inflate off
+    the tail first (9.17 kPa, a = 1.068 mm); a field against the tail's remanence lowers both; the thick tube
+    (B/A = 1.5) follows the same closed form with the full section (17 kPa)."""
+    m = EversionModel(0.8e-3, 0.9e-3, 120033.33, remanence=0.1123)
+    P = m.growth_pressure(front="full")
+    assert P == pytest.approx(-float(m.elastic_force(0.9e-3)) / (np.pi * 0.9e-3**2), rel=1e-9)
+    assert m.pressurised_radius(P) == pytest.approx(0.9e-3, rel=1e-12)
+    gap = m.growth_pressure(front="gap")
+    assert abs(m.pressurised_tip_force(gap, front="gap")) < 1e-12
+    assert m.pressurised_tip_force(0.99 * gap, front="gap") < 0
+    assert m.pressurised_radius(gap) > 0.9e-3 and float(m.pressure(m.pressurised_radius(gap))) == pytest.approx(gap, rel=1e-9)
+    assert 8e3 < gap < 1e4 and 700 < P < 800
+    assert m.growth_pressure(field=0.01, front="full") < P and m.growth_pressure(field=0.01, front="gap") < gap
+    thick = EversionModel(2e-3, 3e-3, 120033.33)
+    assert thick.growth_pressure(front="full") == pytest.approx(-float(thick.elastic_force(3e-3)) / (np.pi * 9e-6), rel=1e-9)
+    with pytest.raises(ValueError, match="front"):
+        m.pressurised_tip_force(100.0, front="annulus")

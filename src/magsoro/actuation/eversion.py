@@ -260,6 +260,68 @@ class EversionModel:
         b = self.everted_outer_radius(a)
         return self.tip_force_ideal(a, field, pressure) - self.friction.drag(self.friction.contact_factor * P, b, bend_angle)
 
+    # -- growth under pressure -----------------------------------------------------------------------------
+    def _pressure_limit(self, field=0.0) -> tuple[float, float]:
+        """(a, P) where eq 10's P(a) stops rising (the everted wall's inflation limit, beyond which it balloons),
+        searched up to 100 B."""
+        a = np.geomspace(self.pressure_free_radius(), 100.0 * self.outer_radius, 4000)
+        P = self.pressure(a, field)
+        k = int(np.argmax(P))
+        return float(a[k]), float(P[k])
+
+    def pressurised_radius(self, pressure: float, field=0.0) -> float | None:
+        """Everted inner radius (m) under a fluid pressure (Pa) between the tail and the wall: the eq-10 radius
+        when it exceeds the tail's outer radius B, else B (the wall rests on the tail, which carries the rest);
+        None above the inflation limit (the wall balloons)."""
+        from scipy.optimize import brentq
+
+        a0 = self.pressure_free_radius()
+        if pressure <= 0.0:
+            return max(a0, self.outer_radius)
+        a_lim, p_lim = self._pressure_limit(field)
+        if pressure >= p_lim:
+            return None
+        a = float(brentq(lambda x: float(self.pressure(x, field)) - pressure, a0, a_lim, xtol=1e-15, rtol=1e-13))
+        return max(a, self.outer_radius)
+
+    def pressurised_tip_force(self, pressure: float, field=0.0, bend_angle=0.0, front: str = "full") -> float | None:
+        """Tip force N (N) under a fluid pressure (Pa): eqs 11-13 at :meth:`pressurised_radius`, the pressure
+        acting on the front over pi a^2 (``front = "full"``, eq 11: the whole section is pressurised, as with a
+        flat or sealed tail) or pi (a^2 - B^2) (``"gap"``: only the annulus between the tail and the wall, the
+        tail's lumen open to the outside through the tip). Friction is loaded with alpha_c times the eq-10
+        pressure at that radius (the fluid's, or with the wall on the tail the contact's). None above the
+        inflation limit."""
+        if front not in ("full", "gap"):
+            raise ValueError(f"front must be 'full' or 'gap', got {front!r}")
+        a = self.pressurised_radius(pressure, field)
+        if a is None:
+            return None
+        area = np.pi * a * a if front == "full" else np.pi * (a * a - self.outer_radius**2)
+        drag = self.friction.drag(self.friction.contact_factor * float(self.pressure(a, field)),
+                                  float(self.everted_outer_radius(a)), bend_angle)
+        return float(self.elastic_force(a, field) + area * pressure + self.maxwell_force(a, field)
+                     + self.flip_force(field) - drag)
+
+    def growth_pressure(self, field=0.0, bend_angle=0.0, required_force: float = 0.0, front: str = "full") -> float | None:
+        """Smallest fluid pressure (Pa) at which the front reaches ``required_force`` (N): 0 when it does without
+        pressure, None when no pressure below the inflation limit does (see :meth:`pressurised_tip_force`)."""
+        from scipy.optimize import brentq
+
+        def excess(P):
+            N = self.pressurised_tip_force(P, field, bend_angle, front)
+            return -np.inf if N is None else N - required_force
+
+        if excess(0.0) >= 0.0:
+            return 0.0
+        _, p_lim = self._pressure_limit(field)
+        grid = np.linspace(0.0, p_lim, 801)[:-1]
+        values = np.array([excess(P) for P in grid])
+        above = np.flatnonzero(values >= 0.0)
+        if len(above) == 0:
+            return None
+        k = int(above[0])
+        return float(brentq(excess, grid[k - 1], grid[k], xtol=1e-9, rtol=1e-12))
+
     # -- pressure-free growth ------------------------------------------------------------------------------
     def pressure_free_radius(self) -> float:
         """The everted inner radius a0 (m) where eq 10 gives P = 0 (the same for every field)."""
@@ -402,6 +464,8 @@ def write_report(design, out) -> dict:
         "capstan_factor": model.friction.capstan_factor,
         "files": ["eversion.csv", "eversion.png", "summary.json"],
     }
+    for front in ("full", "gap"):
+        summary[f"growth_pressure_{front}_front_Pa"] = model.growth_pressure(0.0, op.bend_angle, op.required_tip_force, front)
     if op.measured_growth_field is not None:
         summary["measured_growth_field_T"] = op.measured_growth_field
         summary["implied_friction_coefficient"] = model.friction_coefficient_for_growth_field(

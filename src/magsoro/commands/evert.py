@@ -50,6 +50,10 @@ def run_evert(args) -> int:
     if summary["remanence_T"] > 0:
         print(f"tail remanence (flip term)  : {summary['remanence_T']:.6g} T, "
               f"{summary['flip_force_per_tesla_N_per_T']:.6g} mN per mT against it (N/T)")
+    for front, what in (("full", "pi a^2"), ("gap", "pi (a^2 - B^2)")):
+        P = summary[f"growth_pressure_{front}_front_Pa"]
+        print("growth pressure, no field   : " + (f"{P:.6g} Pa" if P is not None else "none below the inflation limit")
+              + f" (front area {what})")
     if "implied_friction_coefficient" in summary:
         mu = summary["implied_friction_coefficient"]
         print("friction for measured field : " + (f"mu_k = {mu:.4g} at {1e3 * summary['measured_growth_field_T']:g} mT"
