@@ -27,7 +27,7 @@ Checks:
    K / G = 1e4 the radial model gives eq 10 to 1e-4, so eq 10 is the incompressible limit of the engine's law
    and the K = 20 G material presses 3.5 % less at the same bore.
 
-Measured (float32, two-core CPU, ``magsoro validate everted_wall``, 74 s): free wall, 4 cells through the wall:
+Measured (float32, two-core CPU, ``magsoro validate everted_wall``, 211 s in all): free wall, 4 cells through the wall:
 0.80481 mm against 0.80410 (+0.09 %, 11 s); wall on the tail, 8 cells through the wall (13.7k particles, 62 s):
 P = 4480 Pa at a = 0.9049 mm, -5.9 % from the radial model (4760 Pa) and -9.2 % from eq 10 (4934 Pa); at 4 cells
 -9.0 % and -12 %. The contact acts on grid nodes up to 1.5 cells inside the wall and P(a) is steep (5 kPa per
