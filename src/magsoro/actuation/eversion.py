@@ -305,8 +305,6 @@ class EversionModel:
     def growth_pressure(self, field=0.0, bend_angle=0.0, required_force: float = 0.0, front: str = "full") -> float | None:
         """Smallest fluid pressure (Pa) at which the front reaches ``required_force`` (N): 0 when it does without
         pressure, None when no pressure below the inflation limit does (see :meth:`pressurised_tip_force`)."""
-        from scipy.optimize import brentq
-
         def excess(P):
             N = self.pressurised_tip_force(P, field, bend_angle, front)
             return -np.inf if N is None else N - required_force
@@ -314,13 +312,7 @@ class EversionModel:
         if excess(0.0) >= 0.0:
             return 0.0
         _, p_lim = self._pressure_limit(field)
-        grid = np.linspace(0.0, p_lim, 801)[:-1]
-        values = np.array([excess(P) for P in grid])
-        above = np.flatnonzero(values >= 0.0)
-        if len(above) == 0:
-            return None
-        k = int(above[0])
-        return float(brentq(excess, grid[k - 1], grid[k], xtol=1e-9, rtol=1e-12))
+        return _first_reaching(excess, np.linspace(0.0, p_lim, 801)[:-1], xtol=1e-9)
 
     # -- pressure-free growth ------------------------------------------------------------------------------
     def pressure_free_radius(self) -> float:
@@ -352,20 +344,12 @@ class EversionModel:
                              contact_radius: float | None = None, max_field: float = 2.0) -> float | None:
         """Smallest axial field |B| (T) in [0, max_field] for which the pressure-free tip force reaches
         ``required_force`` (N); 0 when it does so without field, None when no field up to ``max_field`` does."""
-        from scipy.optimize import brentq
-
         def excess(B):
             return float(self.pressure_free_tip_force(B, bend_angle, contact_radius)) - required_force
 
         if excess(0.0) >= 0.0:
             return 0.0
-        grid = np.linspace(0.0, max_field, 401)
-        values = np.array([excess(B) for B in grid])
-        above = np.flatnonzero(values >= 0.0)
-        if len(above) == 0:
-            return None
-        k = int(above[0])
-        return float(brentq(excess, grid[k - 1], grid[k], xtol=1e-12, rtol=1e-12))
+        return _first_reaching(excess, np.linspace(0.0, max_field, 401), xtol=1e-12)
 
     def friction_coefficient_for_growth_field(self, field: float, required_force: float = 0.0, bend_angle: float = 0.0,
                                               contact_radius: float | None = None, max_coefficient: float = 10.0) -> float | None:
@@ -386,6 +370,20 @@ class EversionModel:
         if lo < 0.0 or hi > 0.0 or lo == hi:
             return None
         return float(brentq(excess, 0.0, max_coefficient, xtol=1e-14, rtol=1e-12))
+
+
+def _first_reaching(excess, grid: np.ndarray, xtol: float) -> float | None:
+    """The smallest x at which ``excess(x)`` reaches 0, for an ``excess`` negative at grid[0]: the first grid
+    point where it is >= 0, refined by Brent's method against the point before; None when no grid point reaches
+    it."""
+    from scipy.optimize import brentq
+
+    values = np.array([excess(x) for x in grid])
+    above = np.flatnonzero(values >= 0.0)
+    if len(above) == 0:
+        return None
+    k = int(above[0])
+    return float(brentq(excess, grid[k - 1], grid[k], xtol=xtol, rtol=1e-12))
 
 
 # ------------------------------------------------------------------------------------------- report

@@ -971,7 +971,7 @@ class Solver:
             L["viscous"] = [nodes(make_viscous(m.dim, m.scalar)["viscous_update"], [
                 state_out.F, bodies_array(m, step=self._step_values), viscous_struct(m, state_in.H), state_out.H, sc(0.0)],
                 m.n_particles)]
-        if m.pressures and m.closed_pressures:  # the closed cavities' net pressure force, taken back in p2g
+        if m.closed_pressures:  # the closed cavities' net pressure force, taken back in p2g
             L["pressure_net"] = nodes(k["pressure_net"], [bodies_array(m, step=self._step_values), state_in.F,
                                                           m.pressure_net], m.n_particles)
         if self._total:

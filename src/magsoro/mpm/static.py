@@ -599,7 +599,7 @@ class StaticSolver:
         solver.grid_p.zero_()
         solver.grid_m.zero_()
         solver.error.zero_()
-        if model.pressures and model.closed_pressures:
+        if model.closed_pressures:
             # a closed cavity's net pressure force at the trial F, taken back in p2g as in a step (the tangent
             # leaves this correction out, as it leaves out the load's own stiffness)
             model.pressure_net.zero_()

@@ -55,6 +55,7 @@ import time
 
 import numpy as np
 
+from magsoro.validation.pressure import law_stretch_derivatives, newton_minimise
 from magsoro.validation.registry import CaseResult, Context, Row, register, relative_error
 
 #: Seed 004's robot: reference radii (m) and the material library entry of its wall.
@@ -126,14 +127,7 @@ def everted_ring_pressure(a: float, shear: float, bulk: float, A: float = A_REF,
     def gradient(r):
         l1 = -np.diff(r) / dR  # radial stretch |dr/dR|
         l2 = 0.5 * (r[1:] + r[:-1]) / Rm  # hoop stretch
-        J = l1 * l2 * lz
-        if np.any(J <= 0.0):
-            raise ArithmeticError("the radial model inverted an element")
-        I1 = l1**2 + l2**2 + lz * lz
-        Jm = J ** (-2.0 / 3.0)
-        dW_dJ = -Jm / (3.0 * J) * I1 + k * (J - 1.0)
-        dW_dl1 = Jm * l1 + dW_dJ * l2 * lz
-        dW_dl2 = Jm * l2 + dW_dJ * l1 * lz
+        dW_dl1, dW_dl2 = law_stretch_derivatives(l1, l2, lz, k)
         g = np.zeros_like(r)
         c1 = dW_dl1 * w / dR  # dl1/dr_{i+1} = -1/dR, dl1/dr_i = +1/dR
         g[1:] -= c1
@@ -144,20 +138,8 @@ def everted_ring_pressure(a: float, shear: float, bulk: float, A: float = A_REF,
         return g
 
     r = np.sqrt(1.0 + (R[-1] ** 2 - R**2) / lz)  # the incompressible map as the start, bore 1
-    m = len(r) - 1  # the free nodes: all but the bore's
-    eps = 1e-7
-    for _ in range(60):
-        g = gradient(r)[:m]
-        H = np.empty((m, m))
-        for j in range(m):
-            d = np.zeros_like(r)
-            d[j] = eps
-            H[:, j] = ((gradient(r + d) - gradient(r - d)) / (2 * eps))[:m]
-        step = np.linalg.solve(0.5 * (H + H.T), -g)
-        r[:m] += step
-        if np.max(np.abs(step)) < 1e-13:
-            return float(shear * gradient(r)[-1] / (2.0 * np.pi * lz))  # per unit current length: lambda_z
-    raise ArithmeticError("the radial model did not converge in 60 Newton iterations")
+    r = newton_minimise(gradient, r, free=len(r) - 1, iterations=60)  # the bore's node held
+    return float(shear * gradient(r)[-1] / (2.0 * np.pi * lz))  # per unit current length: lambda_z
 
 
 def run_everted_ring(bore: float, dx: float, tail_radius: float | None = None, settle: float = SETTLE) -> dict:
@@ -171,19 +153,9 @@ def run_everted_ring(bore: float, dx: float, tail_radius: float | None = None, s
     sim = Simulation(parse_scene(everted_ring_scene(bore, dx, tail_radius, duration=settle), "everted_wall"))
     X = sim.model.host["positions"][:, :2].astype(np.float64)
     F0, R = eversion_deformation(X, bore)
-    sim.state.F.assign(F0.astype(sim.model.np_scalar))
-
-    def fitted_bore():
-        xx = sim.state.x.numpy()[:, :2].astype(np.float64)
-        return math.sqrt(float(np.mean(np.sum(xx * xx, axis=1) + R * R - B_REF**2)))
-
-    t0 = time.perf_counter()
-    sim.advance_to(0.8 * settle)
-    a_before = fitted_bore()
-    sim.advance_to(settle)
+    a, a_before, wall_s = _settle(sim, F0, R, 1.0, settle)
     x = sim.state.x.numpy()[:, :2].astype(np.float64)
     r = np.hypot(x[:, 0], x[:, 1])
-    a = math.sqrt(float(np.mean(r * r + R * R - B_REF**2)))
     sigma = cauchy_stress(sim)
     F = sim.state.F.numpy().astype(np.float64)
     area = np.linalg.det(F) * sim.model.host["volumes"] / sim.scene.simulation.depth
@@ -191,15 +163,17 @@ def run_everted_ring(bore: float, dx: float, tail_radius: float | None = None, s
     s_tt = tx * tx * sigma[:, 0, 0] + 2 * tx * ty * sigma[:, 0, 1] + ty * ty * sigma[:, 1, 1]
     pressure = float(np.sum(s_tt * area / r) / (2.0 * math.pi) / a)
     return {"bore_m": a, "drift_m": a - a_before, "pressure_Pa": pressure, "particles": int(len(X)),
-            "steps": int(sim.steps), "wall_s": round(time.perf_counter() - t0, 1), "dx_m": dx,
+            "steps": int(sim.steps), "wall_s": wall_s, "dx_m": dx,
             "innermost_radius_m": float(r.min()), "outermost_radius_m": float(r.max())}
 
 
 def everted_wedge_scene(bore: float, dx: float, axial_stretch: float = 1.0, alpha: float = WEDGE_DEG,
-                        height: float | None = None, A: float = A_REF, B: float = B_REF) -> dict:
+                        height: float | None = None, A: float = A_REF, B: float = B_REF,
+                        duration: float = SETTLE) -> dict:
     """Scene dict of a 3D wedge of the everted tube (an annular sector of ``alpha`` degrees and ``height`` m along
     the axis, bore ``bore``, outer radius from b^2 = bore^2 + (B^2 - A^2) / lambda_z) between four symmetry planes:
-    the sector's two sides (the tube's axisymmetry) and its two ends (the axial stretch held at lambda_z)."""
+    the sector's two sides (the tube's axisymmetry) and its two ends (the axial stretch held at lambda_z); grid
+    damping settles it over ``duration`` (s)."""
     b = math.sqrt(bore * bore + (B * B - A * A) / axial_stretch)
     H = 4 * dx if height is None else height
     sa, ca = math.sin(math.radians(alpha)), math.cos(math.radians(alpha))
@@ -207,7 +181,7 @@ def everted_wedge_scene(bore: float, dx: float, axial_stretch: float = 1.0, alph
     return {
         "name": "everted wall, 3D wedge",
         "simulation": {"dim": 3, "dx": dx, "particles_per_cell": 2, "domain_lo": [-3 * dx, -3 * dx, -3 * dx],
-                       "domain_hi": [b + 3 * dx, b + 3 * dx, H + 3 * dx], "duration": SETTLE, "damping": DAMPING,
+                       "domain_hi": [b + 3 * dx, b + 3 * dx, H + 3 * dx], "duration": duration, "damping": DAMPING,
                        "formulation": "updated"},
         "bodies": [{"name": "wall", "material": MATERIAL,
                     "shape": {"type": "arc", "center": [0.0, 0.0, 0.5 * H], "radius": 0.5 * (bore + b),
@@ -243,22 +217,29 @@ def run_everted_wedge(bore: float, dx: float, axial_stretch: float = 1.0, settle
     from magsoro.simulation import Simulation
 
     lz = axial_stretch
-    sim = Simulation(parse_scene(everted_wedge_scene(bore, dx, lz), "everted_wall"))
+    sim = Simulation(parse_scene(everted_wedge_scene(bore, dx, lz, duration=settle), "everted_wall"))
     X = sim.model.host["positions"].astype(np.float64)
     F0, R = eversion_deformation_3d(X, bore, lz)
-    sim.state.F.assign(F0.astype(sim.model.np_scalar))
+    a, a_before, wall_s = _settle(sim, F0, R, lz, settle)
+    return {"bore_m": a, "drift_m": a - a_before, "axial_stretch": lz, "particles": int(len(X)),
+            "steps": int(sim.steps), "wall_s": wall_s, "dx_m": dx}
+
+
+def _settle(sim, F0: np.ndarray, R: np.ndarray, axial_stretch: float, settle: float) -> tuple[float, float, float]:
+    """Start ``sim``'s particles at the eversion's deformation gradient ``F0``, settle them over ``settle`` s and
+    fit the bore to the eversion map, a^2 = mean(r^2 + (R^2 - B^2) / lambda_z) over the particles' current radii r
+    and reference radii R: (a at the end, a at 0.8 settle, m; wall time, s)."""
 
     def fitted_bore():
         x = sim.state.x.numpy().astype(np.float64)
-        return math.sqrt(float(np.mean(x[:, 0] ** 2 + x[:, 1] ** 2 + (R * R - B_REF**2) / lz)))
+        return math.sqrt(float(np.mean(x[:, 0] ** 2 + x[:, 1] ** 2 + (R * R - B_REF**2) / axial_stretch)))
 
+    sim.state.F.assign(F0.astype(sim.model.np_scalar))
     t0 = time.perf_counter()
     sim.advance_to(0.8 * settle)
     a_before = fitted_bore()
     sim.advance_to(settle)
-    a = fitted_bore()
-    return {"bore_m": a, "drift_m": a - a_before, "axial_stretch": lz, "particles": int(len(X)),
-            "steps": int(sim.steps), "wall_s": round(time.perf_counter() - t0, 1), "dx_m": dx}
+    return fitted_bore(), a_before, round(time.perf_counter() - t0, 1)
 
 
 @register("everted_wall", "seed 004's everted wall (plane strain, lambda_z = 1) in MPM against eq 10: the free "

@@ -47,6 +47,39 @@ def lame_displacement(r, pressure: float, shear: float, bulk: float, a: float = 
     return (1 + nu) * pressure * a**2 / (E * (b**2 - a**2)) * ((1 - 2 * nu) * r + b**2 / r)
 
 
+def law_stretch_derivatives(l1, l2, l3, k: float):
+    """(dW/dl1, dW/dl2) per unit G of the engine's Neo-Hookean W = 1/2 (J^-2/3 I1 - 3) + k/2 (J - 1)^2 (k = K/G)
+    at principal stretches l1, l2 and a held l3 (arrays); raises ArithmeticError on J <= 0."""
+    J = l1 * l2 * l3
+    if np.any(J <= 0.0):
+        raise ArithmeticError("the radial model inverted an element")
+    I1 = l1**2 + l2**2 + l3 * l3
+    Jm = J ** (-2.0 / 3.0)
+    dW_dJ = -Jm / (3.0 * J) * I1 + k * (J - 1.0)
+    return Jm * l1 + dW_dJ * l2 * l3, Jm * l2 + dW_dJ * l1 * l3
+
+
+def newton_minimise(gradient, u: np.ndarray, free: int | None = None, iterations: int = 50) -> np.ndarray:
+    """Minimise an energy from its analytic ``gradient`` by Newton's method, the Hessian by central differences
+    (step 1e-7) and symmetrised, over the first ``free`` unknowns of ``u`` (all by default; the rest held);
+    returns u once a step is below 1e-13, raises ArithmeticError after ``iterations``."""
+    u = np.array(u, dtype=np.float64)
+    m = len(u) if free is None else free
+    eps = 1e-7
+    for _ in range(iterations):
+        g = gradient(u)[:m]
+        H = np.empty((m, m))
+        for j in range(m):
+            du = np.zeros_like(u)
+            du[j] = eps
+            H[:, j] = ((gradient(u + du) - gradient(u - du)) / (2 * eps))[:m]
+        step = np.linalg.solve(0.5 * (H + H.T), -g)
+        u[:m] += step
+        if np.max(np.abs(step)) < 1e-13:
+            return u
+    raise ArithmeticError(f"the radial model did not converge in {iterations} Newton iterations")
+
+
 def radial_displacement(pressure: float, shear: float, bulk: float, a: float = RING_A, b: float = RING_B,
                         n: int = 100) -> tuple[np.ndarray, np.ndarray]:
     """Finite-strain radial displacement of the plane-strain ring (module docstring): node radii R (m) and their
@@ -61,14 +94,7 @@ def radial_displacement(pressure: float, shear: float, bulk: float, a: float = R
         r = R + u
         l1 = np.diff(r) / dR  # radial stretch
         l2 = 0.5 * (r[1:] + r[:-1]) / Rm  # hoop stretch
-        J = l1 * l2
-        if np.any(J <= 0.0):
-            raise ArithmeticError("the radial model inverted an element")
-        I1 = l1**2 + l2**2 + 1.0
-        Jm = J ** (-2.0 / 3.0)
-        dW_dJ = -Jm / (3.0 * J) * I1 + k * (J - 1.0)
-        dW_dl1 = Jm * l1 + dW_dJ * l2
-        dW_dl2 = Jm * l2 + dW_dJ * l1
+        dW_dl1, dW_dl2 = law_stretch_derivatives(l1, l2, 1.0, k)
         g = np.zeros_like(r)
         c1 = dW_dl1 * w / dR
         g[1:] += c1
@@ -79,17 +105,5 @@ def radial_displacement(pressure: float, shear: float, bulk: float, a: float = R
         g[0] -= q * 2.0 * np.pi * r[0]  # d/dr_a of -q pi (r_a^2 - 1)
         return g
 
-    u = np.zeros_like(R)
-    eps = 1e-7
-    for _ in range(50):
-        g = gradient(u)
-        H = np.empty((len(u), len(u)))
-        for j in range(len(u)):
-            du = np.zeros_like(u)
-            du[j] = eps
-            H[:, j] = (gradient(u + du) - gradient(u - du)) / (2 * eps)
-        step = np.linalg.solve(0.5 * (H + H.T), -g)
-        u = u + step
-        if np.max(np.abs(step)) < 1e-13:
-            return R * a, u * a
-    raise ArithmeticError("the radial model did not converge in 50 Newton iterations")
+    u = newton_minimise(gradient, np.zeros_like(R))
+    return R * a, u * a
