@@ -30,6 +30,23 @@ WALL_REACH_CELLS = WALL_CELLS + 1.5
 LATTICE_FILL_NOTE = 0.02
 
 
+def _prepare_implicit(scene: Scene) -> list[str]:
+    """simulation.integrator = 'implicit' solves the total-Lagrangian form in float64: set them on ``scene`` (an
+    'updated' formulation is refused). Returns the notes for run.json."""
+    sim = scene.simulation
+    if sim.integrator != "implicit":
+        return []
+    if sim.formulation == "updated":
+        raise SceneError("simulation.formulation = 'updated': the implicit integrator (simulation.integrator = "
+                         "'implicit') solves the total-Lagrangian form; set simulation.formulation = 'total' or 'auto'")
+    notes = []
+    if sim.precision != "float64":
+        notes.append("simulation.integrator = 'implicit' runs in float64 (simulation.precision = 'float32' is not "
+                     "used: Newton's tolerance needs the digits)")
+    sim.precision, sim.formulation = "float64", "total"
+    return notes
+
+
 @dataclass
 class RunResult:
     status: str  # completed | failed | interrupted
@@ -83,6 +100,7 @@ class Simulation:
 
     def __init__(self, scene: Scene, device: str | None = None, source: str = "scene"):
         self.scene = scene
+        implicit_notes = _prepare_implicit(scene)
         self.built: Built = build(scene, device=device, source=source)
         self.model = self.built.model
         self.control = self.built.control
@@ -123,6 +141,17 @@ class Simulation:
         self._wall_far &= (self.model.host["clamped"] == 0)[:, None]
         self._walls_reached: set = set()
         self._note_lattice_fill()
+        # simulation.integrator = 'implicit': the integrator is made at the first step (after set_sources)
+        self.integrator = scene.simulation.integrator
+        self.implicit = None
+        if self.integrator == "implicit":
+            cfg = scene.implicit
+            self.dt = cfg.dt if cfg.dt is not None else scene.simulation.duration / 200.0
+            self.implicit_dt_max = cfg.dt_max if cfg.dt_max is not None else self.dt
+            self.implicit_dt_min = cfg.dt_min if cfg.dt_min is not None else self.dt / 1000.0
+            self.dt_min, self.dt_max = math.inf, 0.0
+            for text in implicit_notes:
+                self._note(text)
 
     def set_sources(self, sources) -> None:
         """Replace the field sources (call between steps) and bound the time step anew for the largest field they
@@ -342,6 +371,10 @@ class Simulation:
         window (and every step outside windows). Without a callback a window's steps run from drive tables
         (:meth:`magsoro.mpm.solver.Solver.run_window`; on CUDA a captured graph) where the scene allows it."""
         eps = 1e-12 * max(1.0, t_end)
+        if self.integrator == "implicit":
+            self._advance_implicit(t_end, eps, callback, heartbeat)
+            self.check_wall_reach()
+            return
         while self.state.time < t_end - eps:
             if self.check_every <= 1:
                 self._step(self._next_dt(t_end - self.state.time))
@@ -354,6 +387,63 @@ class Simulation:
                 if heartbeat is not None:
                     heartbeat(self)
         self.check_wall_reach()
+
+    def implicit_integrator(self):
+        """The :class:`magsoro.mpm.implicit.ImplicitIntegrator` of simulation.integrator = 'implicit' (made on the
+        first call, from the current state and sources)."""
+        if self.implicit is None:
+            from magsoro.mpm.implicit import ImplicitIntegrator
+
+            cfg = self.scene.implicit
+            self.implicit = ImplicitIntegrator(self, cfg.scheme, cfg.rho_inf, cfg.tolerance, cfg.max_iterations)
+        return self.implicit
+
+    def _advance_implicit(self, t_end: float, eps: float, callback: Callable | None, heartbeat: Callable | None) -> None:
+        """Implicit steps until ``t_end``: each at the current step size (landing on ``t_end``), halved and retried
+        when Newton fails down to implicit.dt_min, grown by implicit.grow after an easy one up to implicit.dt_max."""
+        integ = self.implicit_integrator()
+        cfg = self.scene.implicit
+        while self.state.time < t_end - eps:
+            remaining = t_end - self.state.time
+            dt = min(self.dt, remaining)
+            if remaining - dt < 1e-3 * dt:
+                dt = remaining
+            while True:
+                result = integ.try_step(dt)
+                if result.converged:
+                    break
+                if dt <= self.implicit_dt_min * (1 + 1e-9):
+                    raise SimulationError(
+                        f"the implicit step did not converge at implicit.dt_min = {self.implicit_dt_min:.3g} s "
+                        f"({result.message}; |R| at {result.relative_residual:.3g} of the step's force scale): lower "
+                        f"implicit.dt_min, raise implicit.max_iterations, or check the loads", self.steps, self.state.time)
+                dt = max(0.5 * dt, self.implicit_dt_min)
+                self.dt = dt
+            integ.write_state()
+            self.steps += 1
+            self.last_newton_iterations = result.iterations
+            self.dt_min, self.dt_max = min(self.dt_min, dt), max(self.dt_max, dt)
+            self._static_forces = integ.collider_reactions()
+            if not all(np.isfinite(np.asarray(integ.u_nodes)).ravel()):
+                raise SimulationError("the implicit step produced non-finite displacements", self.steps, self.state.time)
+            if result.iterations <= cfg.easy_iterations and dt >= self.dt * (1 - 1e-9):
+                self.dt = min(self.dt * cfg.grow, self.implicit_dt_max)
+            if callback is not None:
+                callback(self)
+            if heartbeat is not None:
+                heartbeat(self)
+
+    def integrator_info(self) -> dict:
+        """run.json's ``integrator`` entry: which integrator ran; the implicit one's scheme, steps, rejected steps and
+        Newton iterations."""
+        if self.integrator != "implicit":
+            return {"kind": "explicit"}
+        from magsoro.mpm.implicit import integrator_summary
+
+        cfg = self.scene.implicit
+        return {"kind": "implicit", **integrator_summary(self.implicit, cfg),
+                "dt_first": cfg.dt if cfg.dt is not None else self.scene.simulation.duration / 200.0,
+                "dt_min_allowed": self.implicit_dt_min, "dt_max_allowed": self.implicit_dt_max}
 
     def _wall_distances(self, x: np.ndarray) -> np.ndarray:
         """Distances (m) of the points ``x`` to the domain's faces, columns lo_0, hi_0, lo_1, hi_1, ..."""

@@ -65,6 +65,14 @@ def run(args) -> int:
             check_supported(sim)
         except SimulationError as exc:
             raise SceneError(f"{args.scene}: --static: {exc}") from None
+    if sim.integrator == "implicit" and not static and not getattr(args, "equilibrium", False):
+        from magsoro.errors import SimulationError
+        from magsoro.mpm.implicit import check_implicit_supported
+
+        try:
+            check_implicit_supported(sim)
+        except SimulationError as exc:
+            raise SceneError(f"{args.scene}: {exc}") from None
     echo = read_scene_toml(args.scene)
     if preview:
         from magsoro.scene.load import apply_preview
@@ -91,7 +99,10 @@ def run(args) -> int:
             rate = (s.steps - last[1]) / max(now - last[0], 1e-9)
             last[0], last[1] = now, s.steps
             bar.n = min(s.time, duration)
-            bar.set_postfix_str(f"{rate:.0f} steps/s, dt={s.dt:.3g} s")
+            if s.integrator == "implicit":
+                bar.set_postfix_str(f"dt={s.dt:.3g} s, {getattr(s, 'last_newton_iterations', 0)} Newton its")
+            else:
+                bar.set_postfix_str(f"{rate:.0f} steps/s, dt={s.dt:.3g} s")
             bar.refresh()
 
     try:

@@ -370,25 +370,25 @@ class StaticResult:
     residual_evaluations: int = 0
 
 
-def check_supported(sim) -> None:
+def check_supported(sim, who: str = "the static solver") -> None:
     """Raise SimulationError naming what the static solver cannot take in ``sim`` (form, contact, colliders, the
-    bodies' own field, moments that follow R)."""
+    bodies' own field, moments that follow R); ``who`` names the solver in the messages."""
     solver = sim.solver
     if solver.settings.formulation != "total":
-        raise SimulationError("the static solver works on the total-Lagrangian form (simulation.formulation = 'total' or 'auto')")
+        raise SimulationError(f"{who} works on the total-Lagrangian form (simulation.formulation = 'total' or 'auto')")
     if solver._contact:
-        raise SimulationError("the static solver has no contact between bodies yet; give the scene one body (or "
+        raise SimulationError(f"{who} has no contact between bodies yet; give the scene one body (or "
                               "contact.friction = 'sticky')")
     if np.any(sim.model.host["magnetization_follows"] != 0):
         # its tangent takes the magnetic stress and the moment as Zhao's law has them (F Br); the R law's dP/dF is not in it
-        raise SimulationError("the static solver has no magnetization_follows = 'R' yet (its tangent carries the moment "
+        raise SimulationError(f"{who} has no magnetization_follows = 'R' yet (its tangent carries the moment "
                               "with F); give the materials magnetization_follows = 'F', or use --equilibrium (relax)")
     if any(c.mode == "symmetry" for c in sim.control.colliders):
-        raise SimulationError("the static solver has no symmetry colliders (mirror planes) yet; give them mode = "
+        raise SimulationError(f"{who} has no symmetry colliders (mirror planes) yet; give them mode = "
                               "'slip' if the body presses on them, or use --equilibrium (relax)")
     if sim.model.viscous:
         # the equilibrium under held loads is the relaxed one: the law with its isochoric moduli scaled by g_inf
-        raise SimulationError("the static solver has no viscoelastic (prony) materials; the equilibrium under held loads "
+        raise SimulationError(f"{who} has no viscoelastic (prony) materials; the equilibrium under held loads "
                               "is the relaxed one: give the material its long-term moduli (every isochoric modulus times "
                               "1 - sum g) without prony, or use --equilibrium (relax)")
 

@@ -802,6 +802,13 @@ class Simulation(Strict):
         "most accurate contact; loaded slender bodies creep slowly) or 'auto' (total, unless the scene has contact "
         "between bodies or self-contact, then updated; run.json names the one used). docs/engine.md.",
     )
+    integrator: Literal["explicit", "implicit"] = Field(
+        default="explicit",
+        description="Time integration: 'explicit' (MLS-MPM steps bounded by the elastic wave crossing a cell, "
+        "microseconds for silicone) or 'implicit' (each step solved by Newton's method on the static solver's "
+        "total-Lagrangian discretisation with inertia: steps of milliseconds, set by the [implicit] table; float64 "
+        "and the total form; docs/engine.md, 'Implicit integration').",
+    )
     magnetic_interaction: Literal["none", "dipole"] = Field(
         default="none",
         description="'dipole': the field of the bodies' own magnetisation (m = F Br V / mu0 per particle) acts on every "
@@ -880,6 +887,29 @@ class Static(Strict):
         return self
 
 
+class Implicit(Strict):
+    """[implicit] table: the implicit integrator's scheme and step control (simulation.integrator = 'implicit';
+    docs/engine.md, "Implicit integration")."""
+
+    scheme: Literal["generalized_alpha", "backward_euler"] = Field(default="generalized_alpha", description="'generalized_alpha' (second order, numerical damping of unresolved modes set by rho_inf; Chung and Hulbert 1993) or 'backward_euler' (first order, robust, damps every mode: use it to settle).")
+    rho_inf: float = Field(default=0.8, ge=0, le=1, allow_inf_nan=False, description="generalized_alpha: spectral radius for steps much longer than a mode's period; 1 keeps every mode (no numerical damping), 0 removes the unresolved ones in one step.")
+    dt: float | None = Field(default=None, gt=0, allow_inf_nan=False, description="First time step, s. Default: simulation.duration / 200.")
+    dt_min: float | None = Field(default=None, gt=0, allow_inf_nan=False, description="Smallest step, s: a step that fails at it ends the run. Default: dt / 1000.")
+    dt_max: float | None = Field(default=None, gt=0, allow_inf_nan=False, description="Largest step, s (steps also land on every output time). Default: dt.")
+    grow: float = Field(default=1.5, ge=1, le=10, allow_inf_nan=False, description="Factor a step grows by after one that converged within easy_iterations Newton iterations (up to dt_max).")
+    easy_iterations: int = Field(default=4, ge=1, le=100, description="Newton iterations of a step that counts as easy.")
+    tolerance: float = Field(default=1e-6, gt=0, lt=1, allow_inf_nan=False, description="Newton tolerance: largest node force left over the step's force scale (the loads on the undeformed body, the internal forces of the last state, the nodes' weight and inertia).")
+    max_iterations: int = Field(default=20, ge=1, le=1000, description="Newton iterations of a step before it is retried at half the step.")
+
+    @model_validator(mode="after")
+    def _step_bounds(self):
+        if self.dt is not None and self.dt_max is not None and self.dt > self.dt_max:
+            raise ValueError(f"implicit.dt = {self.dt:g} s is above implicit.dt_max = {self.dt_max:g} s")
+        if self.dt is not None and self.dt_min is not None and self.dt < self.dt_min:
+            raise ValueError(f"implicit.dt = {self.dt:g} s is below implicit.dt_min = {self.dt_min:g} s")
+        return self
+
+
 class Output(Strict):
     """What a run writes."""
 
@@ -918,6 +948,7 @@ class Scene(Strict):
     name: str | None = Field(default=None, description="Scene title.")
     preview: Preview | None = Field(default=None, description="[preview] table: coarser settings for `magsoro run --preview`.")
     static: Static = Field(default_factory=Static, description="[static] table: load levels and tolerance of `magsoro run --static`.")
+    implicit: Implicit = Field(default_factory=Implicit, description="[implicit] table: scheme and time steps of simulation.integrator = 'implicit'.")
     _base_dir: object = PrivateAttr(default=None)
     _source_path: object = PrivateAttr(default=None)
     _material_libraries: object = PrivateAttr(default_factory=list)

@@ -1,0 +1,308 @@
+"""Implicit time integration: each step minimises the incremental potential on the static solver's discretisation.
+
+The unknowns are the static solver's (:mod:`magsoro.mpm.static`): the displacements u of the free nodes of the
+reference grid block, the particles at x_p = X_p + sum_i w_ip u_i. The node masses m_i are the particles' masses
+scattered with the same weights (a lumped mass matrix M), and the nodes carry velocities v and accelerations a.
+A step from t_n to t_{n+1} = t_n + dt solves, for u_{n+1},
+
+    R(u_a, t_a) - M (a_m + c v_a) = 0                                                     (balance)
+
+with R the static solver's node force (every elastic law, magnetic stress and gradient force, gravity, colliders
+with Coulomb friction, pressure loads, eigenstrains, clamps as held nodes) and c the scene's mass damping
+(simulation.damping, f = -c p, as in the explicit engine). This is the stationarity condition of the incremental
+potential 1/2 |u - u_pred|^2_M / (beta dt^2) + E(u) - W_ext(u) (Gast et al. 2015) for conservative loads; friction
+enters as the static solver's lagged Coulomb law, its anchors updated after each step.
+
+Two schemes, from one family of Newmark updates
+    u_{n+1} = u_n + dt v_n + dt^2 (b0 a_n + beta a_{n+1}),   v_{n+1} = v_n + dt ((1 - gamma) a_n + gamma a_{n+1})
+evaluated at the intermediate points u_a = (1 - alpha_f) u_{n+1} + alpha_f u_n, t_a = t_n + (1 - alpha_f) dt,
+a_m = (1 - alpha_m) a_{n+1} + alpha_m a_n, v_a = (1 - alpha_f) v_{n+1} + alpha_f v_n:
+
+- ``backward_euler``: beta = gamma = 1, b0 = 0, alpha_m = alpha_f = 0 (a_{n+1} = (v_{n+1} - v_n) / dt,
+  v_{n+1} = (u_{n+1} - u_n) / dt). First order, unconditionally stable, dissipative: a mode of period T loses
+  about 1 - exp(-2 pi^2 dt / T) of its amplitude per period for dt << T.
+- ``generalized_alpha`` (Chung and Hulbert 1993): alpha_m = (2 rho - 1)/(rho + 1), alpha_f = rho/(rho + 1),
+  gamma = 1/2 - alpha_m + alpha_f, beta = (1 - alpha_m + alpha_f)^2 / 4, b0 = 1/2 - beta, with rho = rho_inf the
+  spectral radius at dt/T -> infinity. Second order, unconditionally stable for linear problems; rho_inf = 1 keeps
+  every mode (the trapezoidal rule), smaller values damp the modes the step does not resolve (the light nodes at a
+  body's edge, contact chatter) while those it resolves lose little (third order in dt/T).
+
+Newton's method with the static solver's line search and tangent; the tangent gains the mass term
+-M ((1 - alpha_m)/(beta dt^2) + c (1 - alpha_f) gamma/(beta dt)), which makes it definite for small steps, so
+Newton converges in a few iterations where the static solve needs load increments. A step that does not converge
+is retried at half the step; steps grow after easy ones (:class:`magsoro.simulation.Simulation` drives the step
+size from the ``[implicit]`` table).
+"""
+
+from dataclasses import dataclass
+
+import numpy as np
+import warp as wp
+
+from magsoro.errors import SimulationError
+from magsoro.mpm.static import StaticSolver, check_supported
+
+#: the step's force scale is never below the force of this strain over one cell face of the stiffest material
+#: ((K + 4G/3) dx^(dim-1), 2D times the depth): with the default tolerance 1e-6 Newton then resolves the node forces of
+#: strains of 1e-9, where a body coming to rest, unloaded, would otherwise chase round-off
+FLOOR_STRAIN = 1.0e-3
+#: the schemes of ``[implicit] scheme``
+SCHEMES = ("backward_euler", "generalized_alpha")
+
+
+@dataclass(frozen=True)
+class Scheme:
+    """Coefficients of one member of the Newmark / generalised-alpha family (module docstring)."""
+
+    name: str
+    beta: float
+    gamma: float
+    b0: float  # weight of a_n in the displacement update beside beta's a_{n+1}
+    alpha_m: float
+    alpha_f: float
+
+    @classmethod
+    def make(cls, name: str, rho_inf: float = 0.8) -> "Scheme":
+        if name == "backward_euler":
+            return cls(name, 1.0, 1.0, 0.0, 0.0, 0.0)
+        if name == "generalized_alpha":
+            rho = float(rho_inf)
+            if not 0.0 <= rho <= 1.0:
+                raise ValueError(f"implicit.rho_inf must lie in [0, 1], got {rho_inf}")
+            am, af = (2.0 * rho - 1.0) / (rho + 1.0), rho / (rho + 1.0)
+            gamma = 0.5 - am + af
+            beta = 0.25 * (1.0 - am + af) ** 2
+            return cls(name, beta, gamma, 0.5 - beta, am, af)
+        raise ValueError(f"implicit.scheme must be one of {', '.join(SCHEMES)}, got '{name}'")
+
+
+@dataclass
+class StepResult:
+    """One attempted step: whether it converged, its Newton iterations, the final |R| relative to the step's force
+    scale, and why it failed."""
+
+    converged: bool
+    iterations: int
+    relative_residual: float
+    message: str = ""
+
+
+def check_implicit_supported(sim) -> None:
+    """Raise SimulationError naming the scene key the implicit integrator cannot take yet."""
+    if sim.model.viscous:
+        raise SimulationError("the implicit integrator has no viscoelastic (prony) materials yet: remove the material's "
+                              "prony terms or set simulation.integrator = 'explicit'")
+    check_supported(sim, who="the implicit integrator (simulation.integrator = 'implicit')")
+    if sim.solver.interaction is not None:
+        raise SimulationError("the implicit integrator has no bodies' own field yet: set simulation.magnetic_interaction "
+                              "= 'none' or simulation.integrator = 'explicit'")
+
+
+class ImplicitIntegrator(StaticSolver):
+    _inertia = None  # (scheme, dt, u_n, v_n, a_n) while a step's Newton runs; None: the static solver's residual
+
+    """Steps a :class:`magsoro.simulation.Simulation` built in the total-Lagrangian form by the scheme ``scheme``
+    (``"backward_euler"`` or ``"generalized_alpha"``, spectral radius ``rho_inf``). The fields and colliders follow
+    their paths in time at full level (``field_level`` and ``gravity_level`` scale them, 1 by default). It starts
+    from the simulation's state: at rest in the reference configuration, or from a state placed there (its
+    displacements and velocities projected on the grid nodes by least squares)."""
+
+    def __init__(self, sim, scheme: str = "generalized_alpha", rho_inf: float = 0.8, tolerance: float = 1e-6,
+                 max_iterations: int = 20):
+        check_implicit_supported(sim)
+        super().__init__(sim, sim.state.time, tolerance=tolerance, max_iterations=max_iterations)
+        self.scheme = Scheme.make(scheme, rho_inf)
+        self._set_collider_time(self.t)
+        self.field_time = self.t
+        self.field_level = self.gravity_level = 1.0
+        self.damping = float(self.solver.settings.damping)
+        from scipy import sparse
+
+        free_mass = np.repeat(self.node_mass[self.free], self.dim)
+        self.mass_matrix = (self.E.T @ sparse.diags(free_mass) @ self.E).tocsc()  # on the unknowns
+        self.v_nodes = np.zeros_like(self.u_nodes)
+        self.a_nodes = np.zeros_like(self.u_nodes)
+        self.steps = self.rejected = self.newton_iterations = 0
+        self._start_from_state()
+        self.a_nodes = self.consistent_acceleration()
+
+    # -- the state on the nodes -----------------------------------------------------------------------------
+    def _project(self, values: np.ndarray) -> np.ndarray:
+        """Node values (n_nodes, dim) whose interpolation P v best fits the particles' ``values`` (n_particles, dim)
+        in the mass-weighted least-squares sense, on the unknowns (held nodes zero)."""
+        from scipy.sparse.linalg import splu
+
+        P = self.interpolation()
+        mp = self.model.host["mass"].astype(np.float64)
+        from scipy import sparse
+
+        PE = sparse.kron(P, sparse.identity(self.dim), format="csr")[:, self._free_dofs()] @ self.E
+        A = (PE.T @ sparse.diags(np.repeat(mp, self.dim)) @ PE).tocsc()
+        b = PE.T @ (np.repeat(mp, self.dim) * values.ravel())
+        shift = 1e-12 * float(np.median(np.abs(A.diagonal()))) if A.shape[0] else 0.0
+        sol = splu((A + shift * sparse.identity(A.shape[0], format="csc")).tocsc()).solve(b)
+        return self._expand(sol)
+
+    def _free_dofs(self) -> np.ndarray:
+        return (self.free[:, None] * self.dim + np.arange(self.dim)[None, :]).ravel()
+
+    def _start_from_state(self) -> None:
+        """Displacements and velocities of the simulation's current state on the nodes (zero at the reference)."""
+        h = self.model.host
+        state = self.sim.state
+        dim = self.dim
+        x = state.x.numpy().astype(np.float64)[:, :dim]
+        d = x - h["positions"][:, :dim]
+        v = state.v.numpy().astype(np.float64)[:, :dim]
+        if np.any(d != 0.0):
+            self.u_nodes = self._project(d)
+        if np.any(v != 0.0):
+            self.v_nodes = self._project(v)
+
+    def consistent_acceleration(self) -> np.ndarray:
+        """a = M^-1 R(u) at the current state (the acceleration the loads give; generalised-alpha starts from it)."""
+        from scipy.sparse.linalg import splu
+
+        saved = self._inertia
+        self._inertia = None
+        r = self._reduce(self._scatter(self.u_nodes, self.field_level, self.gravity_level))
+        self._inertia = saved
+        r = r - self.damping * (self.mass_matrix @ self._unknowns(self.v_nodes))
+        if not r.size:
+            return np.zeros_like(self.u_nodes)
+        return self._expand(splu(self.mass_matrix).solve(r))
+
+    def _unknowns(self, node_values: np.ndarray) -> np.ndarray:
+        """The unknowns' values of node values that the slaving reproduces (least squares on E)."""
+        from scipy.sparse.linalg import lsqr
+
+        flat = node_values[self.free].ravel()
+        if self.E.shape[0] == self.E.shape[1]:
+            return flat
+        return lsqr(self.E, flat, atol=1e-14, btol=1e-14)[0]
+
+    # -- the balance of one step ----------------------------------------------------------------------------
+    def _kinematics(self, u_nodes: np.ndarray):
+        """(a_{n+1}, v_{n+1}) of the step in progress for the trial ``u_nodes``."""
+        s, dt, u0, v0, a0 = self._inertia
+        a1 = (u_nodes - u0 - dt * v0 - dt * dt * s.b0 * a0) / (s.beta * dt * dt)
+        v1 = v0 + dt * ((1.0 - s.gamma) * a0 + s.gamma * a1)
+        return a1, v1
+
+    def _scatter(self, u_nodes: np.ndarray, field_level: float, gravity_level: float) -> np.ndarray:
+        if self._inertia is None:
+            return super()._scatter(u_nodes, field_level, gravity_level)
+        s, dt, u0, v0, a0 = self._inertia
+        f = super()._scatter((1.0 - s.alpha_f) * u_nodes + s.alpha_f * u0, field_level, gravity_level)
+        a1, v1 = self._kinematics(u_nodes)
+        am = (1.0 - s.alpha_m) * a1 + s.alpha_m * a0
+        va = (1.0 - s.alpha_f) * v1 + s.alpha_f * v0
+        return f - self.node_mass[:, None] * (am + self.damping * va)
+
+    def tangent(self, u_nodes, field_level, gravity_level):
+        J = super().tangent(u_nodes, field_level, gravity_level)
+        if self._inertia is None:
+            return J
+        s, dt = self._inertia[0], self._inertia[1]
+        c = (1.0 - s.alpha_m) / (s.beta * dt * dt) + self.damping * (1.0 - s.alpha_f) * s.gamma / (s.beta * dt)
+        return ((1.0 - s.alpha_f) * J - c * self.mass_matrix).tocsc()
+
+    def _force_scale(self, t_a: float) -> float:
+        """The step's force scale for the tolerance: the largest of the loads on the undeformed body, the internal
+        forces of the current state and the nodes' weight, at the step's load time (inertia off)."""
+        saved = self._inertia
+        self._inertia = None
+        r0 = self._reduce(self._scatter(np.zeros_like(self.u_nodes), self.field_level, self.gravity_level))
+        rn = self._reduce(self._scatter(self.u_nodes, self.field_level, self.gravity_level))
+        self._inertia = saved
+        weight = float(self.node_mass.max()) * float(np.linalg.norm(self.gravity)) * self.gravity_level
+        inertial = float(np.abs(self.node_mass[:, None] * self.a_nodes).max()) if self.a_nodes.size else 0.0
+        if not r0.size:
+            return 1e-30
+        return max(float(np.abs(r0).max()), float(np.abs(rn - r0).max()), weight, inertial, self._force_floor())
+
+    def _force_floor(self) -> float:
+        h = self.model.host
+        p_wave = float(np.max(h["bulk_modulus"] + 4.0 / 3.0 * h["shear_modulus"]))
+        thickness = float(self.solver.settings.depth) if self.dim == 2 else 1.0
+        return FLOOR_STRAIN * p_wave * float(self.model.dx) ** (self.dim - 1) * thickness
+
+    def _set_time(self, t: float) -> None:
+        """Loads at time ``t``: the fields and colliders along their paths, eigenstrains and pressures."""
+        self.field_time = float(t)
+        self._set_collider_time(t)
+        self.model.update_stimuli(t)
+        self.model.update_pressures(t)
+
+    def try_step(self, dt: float) -> StepResult:
+        """Advance from the current time by ``dt`` (s). On success the nodes' state, the time and the colliders'
+        friction anchors move on; on failure nothing changes."""
+        s = self.scheme
+        t_a = self.t + (1.0 - s.alpha_f) * dt
+        self._set_time(t_a)
+        scale = self._force_scale(t_a)
+        u0, v0, a0 = self.u_nodes, self.v_nodes, self.a_nodes
+        self._inertia = (s, float(dt), u0, v0, a0)
+        # predictor: constant velocity (a_n's term can throw the lightest nodes at a body's edge, whose lumped masses
+        # carry large accelerations, far enough to invert their particles' F)
+        guess = u0 + dt * v0
+        try:
+            u1, ok, its, norm, message = self._newton(guess, self.field_level, self.gravity_level, scale)
+            crossing = self.wall_crossing(u1) if ok else None
+            if crossing is not None:
+                ok, message = False, f"the step puts the body {crossing}"
+            if ok:
+                a1, v1 = self._kinematics(u1)
+        finally:
+            self._inertia = None
+        self.newton_iterations += its
+        if not ok:
+            self.rejected += 1
+            self._set_time(self.t)
+            return StepResult(False, its, norm / scale, message)
+        self.u_nodes, self.v_nodes, self.a_nodes = u1, v1, a1
+        self.t += float(dt)
+        self.steps += 1
+        if self.contact is not None:  # new contacts keep their anchors, sliding ones follow (static_contact)
+            self._inertia = (s, float(dt), u0, v0, a0)
+            self._scatter(u1, self.field_level, self.gravity_level)
+            self._inertia = None
+            self.contact.accept(u1)
+        return StepResult(True, its, norm / scale)
+
+    # -- output -------------------------------------------------------------------------------------------
+    def write_state(self) -> None:
+        """Put the current step into the simulation's state: x and F at u_{n+1}, v interpolated from the nodes,
+        C = dF/dt F^-1 (the velocity gradient), the time."""
+        self._place(self.u_nodes)
+        state = self.sim.state
+        wp.copy(state.x, self.x)
+        wp.copy(state.F, self.F)
+        nodes, w, grad = self._stencil()
+        vn = self.v_nodes[nodes]  # (N, S, dim)
+        clamped = self.model.host["clamped"] != 0
+        v = np.einsum("ps,psa->pa", w, vn)
+        Fdot = np.einsum("psa,psb->pab", vn, grad)
+        v[clamped] = 0.0
+        Fdot[clamped] = 0.0
+        F = self.F.numpy().astype(np.float64)
+        C = np.einsum("pab,pbc->pac", Fdot, np.linalg.inv(F))
+        state.v.assign(v.astype(self.model.np_scalar))
+        state.C.assign(C.astype(self.model.np_scalar))
+        state.time = self.t
+
+    def kinetic_energy(self) -> float:
+        """1/2 v^T M v of the nodes (J; 2D: per the scene's depth as the masses are)."""
+        return 0.5 * float(np.sum(self.node_mass[:, None] * self.v_nodes ** 2))
+
+
+def integrator_summary(integrator: "ImplicitIntegrator | None", settings) -> dict:
+    """run.json's ``implicit`` entry: the scheme and its counts."""
+    out = {"scheme": settings.scheme, "rho_inf": settings.rho_inf if settings.scheme == "generalized_alpha" else None,
+           "tolerance": settings.tolerance}
+    if integrator is not None:
+        out.update(steps=integrator.steps, rejected_steps=integrator.rejected,
+                   newton_iterations=integrator.newton_iterations,
+                   residual_evaluations=integrator.residual_evaluations,
+                   unknowns=int(integrator.E.shape[1]))
+    return out
