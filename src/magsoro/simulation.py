@@ -412,6 +412,8 @@ class Simulation:
                 result = integ.try_step(dt)
                 if result.converged:
                     break
+                if result.fatal:
+                    raise SimulationError(result.message, self.steps, self.state.time)
                 if dt <= self.implicit_dt_min * (1 + 1e-9):
                     raise SimulationError(
                         f"the implicit step did not converge at implicit.dt_min = {self.implicit_dt_min:.3g} s "
