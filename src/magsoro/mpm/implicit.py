@@ -34,6 +34,7 @@ is retried at half the step; steps grow after easy ones (:class:`magsoro.simulat
 size from the ``[implicit]`` table).
 """
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -46,6 +47,8 @@ from magsoro.mpm.static import StaticSolver, check_supported
 #: ((K + 4G/3) dx^(dim-1), 2D times the depth): with the default tolerance 1e-6 Newton then resolves the node forces of
 #: strains of 1e-9, where a body coming to rest, unloaded, would otherwise chase round-off
 FLOOR_STRAIN = 1.0e-3
+#: a kept (factorised) tangent is made anew when a Newton iteration with it lowers |R| by less than this factor
+REFRESH_RATE = 0.25
 #: the schemes of ``[implicit] scheme``
 SCHEMES = ("backward_euler", "generalized_alpha")
 
@@ -123,7 +126,8 @@ class ImplicitIntegrator(StaticSolver):
         self.mass_matrix = (self.E.T @ sparse.diags(free_mass) @ self.E).tocsc()  # on the unknowns
         self.v_nodes = np.zeros_like(self.u_nodes)
         self.a_nodes = np.zeros_like(self.u_nodes)
-        self.steps = self.rejected = self.newton_iterations = 0
+        self.steps = self.rejected = self.newton_iterations = self.factorizations = 0
+        self._kept = None  # (dt, factorised tangent) reused across Newton iterations and steps
         self._start_from_state()
         self.a_nodes = self.consistent_acceleration()
 
@@ -265,7 +269,7 @@ class ImplicitIntegrator(StaticSolver):
         # carry large accelerations, far enough to invert their particles' F)
         guess = u0 + dt * v0
         try:
-            u1, ok, its, norm, message = self._newton(guess, self.field_level, self.gravity_level, scale)
+            u1, ok, its, norm, message = self._step_newton(guess, scale)
             crossing = self.wall_crossing(u1) if ok else None
             if crossing is not None:
                 ok, message = False, (f"the body moved {crossing}; the implicit integrator models only the walls a body "
@@ -288,6 +292,87 @@ class ImplicitIntegrator(StaticSolver):
             self._inertia = None
             self.contact.accept(u1)
         return StepResult(True, its, norm / scale)
+
+    def _step_newton(self, u, scale):
+        """Newton on the step's balance from ``u`` with a kept tangent (module docstring, "Newton"): the factorised
+        tangent of an earlier iteration or step is reused while the residual falls by REFRESH_RATE or more per
+        iteration, and made anew at the current iterate when it does not (or when the step size changed).
+        Returns (u, converged, iterations, |R|_inf, message)."""
+        from magsoro.mpm.static import GROWTH, MAX_STEP, factor
+
+        fl, gl = self.field_level, self.gravity_level
+        contact = self.contact
+        if contact is not None:
+            contact.begin()
+        r_full = self._scatter(u, fl, gl)
+        if not self._valid():
+            u = self._inertia[2]  # the predictor inverted a particle: start from the last state instead
+            r_full = self._scatter(u, fl, gl)
+        if contact is not None:
+            contact.commit()
+        r = self._reduce(r_full)
+        norm = float(np.abs(r).max()) if r.size else 0.0
+        dt = self._inertia[1]
+        if self._kept is not None and self._kept[0] != dt:
+            self._kept = None
+        fresh = False  # whether the kept tangent was made at this solve's current iterate
+        best = norm
+        it = 0
+        while True:
+            if not math.isfinite(norm):
+                return u, False, it, norm, "the residual is not finite"
+            if norm <= self.tolerance * scale:
+                if contact is None or not contact.release():
+                    return u, True, it, norm, ""
+                r = self._reduce(self._scatter(u, fl, gl))  # pulling points left the active set: solve on
+                norm = float(np.abs(r).max())
+                continue
+            if it == self.max_iterations:
+                break
+            if self._kept is None:
+                try:
+                    self._kept = (dt, factor(self.tangent(u, fl, gl)))
+                except RuntimeError as exc:
+                    return u, False, it, norm, f"singular tangent ({exc})"
+                self.factorizations += 1
+                fresh = True
+            step = self._expand(self._kept[1].solve(-r))
+            biggest = float(np.abs(step).max()) if step.size else 0.0
+            alpha = min(1.0, MAX_STEP * self.model.dx / biggest) if biggest > 0.0 else 1.0
+            if contact is not None:
+                alpha = min(alpha, contact.step_limit(u, alpha * step) * alpha)
+            signature = contact.signature() if contact is not None else None
+            accepted = False
+            while alpha >= 1.0 / 256:
+                r_full = self._scatter(u + alpha * step, fl, gl)
+                if self._valid():
+                    r_try = self._reduce(r_full)
+                    n_try = float(np.abs(r_try).max())
+                    changed = contact is not None and contact.signature() != signature
+                    # a tangent made at this iterate: the static solver's non-monotone rule (|R| may rise for an
+                    # iteration: a body's light edge nodes answer the first step nonlinearly); a kept one's full
+                    # step must lower |R| by REFRESH_RATE, else the tangent is made anew here
+                    if math.isfinite(n_try) and (changed or (n_try < GROWTH * best if fresh else n_try < REFRESH_RATE * norm)):
+                        accepted = True
+                        break
+                if not fresh:
+                    break
+                alpha *= 0.5
+            if not accepted:
+                if fresh:
+                    return u, False, it + 1, norm, "the line search found no step that lowers the residual"
+                self._kept = None  # a stale tangent: make it anew at this iterate
+                continue
+            it += 1
+            slow = n_try > REFRESH_RATE * norm
+            u, r, norm = u + alpha * step, r_try, n_try
+            best = min(best, norm)
+            if contact is not None:
+                contact.commit()
+            if slow:
+                self._kept = None  # Newton's own rate is lost: the next iteration makes the tangent anew
+            fresh = False
+        return u, False, self.max_iterations, norm, f"no convergence in {self.max_iterations} Newton iterations"
 
     # -- output -------------------------------------------------------------------------------------------
     def write_state(self) -> None:
@@ -321,7 +406,7 @@ def integrator_summary(integrator: "ImplicitIntegrator | None", settings) -> dic
            "tolerance": settings.tolerance}
     if integrator is not None:
         out.update(steps=integrator.steps, rejected_steps=integrator.rejected,
-                   newton_iterations=integrator.newton_iterations,
+                   newton_iterations=integrator.newton_iterations, factorizations=integrator.factorizations,
                    residual_evaluations=integrator.residual_evaluations,
                    unknowns=int(integrator.E.shape[1]))
     return out
