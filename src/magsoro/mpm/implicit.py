@@ -65,7 +65,7 @@ class Scheme:
     alpha_f: float
 
     @classmethod
-    def make(cls, name: str, rho_inf: float = 0.8) -> "Scheme":
+    def make(cls, name: str, rho_inf: float = 0.0) -> "Scheme":
         if name == "backward_euler":
             return cls(name, 1.0, 1.0, 0.0, 0.0, 0.0)
         if name == "generalized_alpha":
@@ -111,7 +111,7 @@ class ImplicitIntegrator(StaticSolver):
     from the simulation's state: at rest in the reference configuration, or from a state placed there (its
     displacements and velocities projected on the grid nodes by least squares)."""
 
-    def __init__(self, sim, scheme: str = "generalized_alpha", rho_inf: float = 0.8, tolerance: float = 1e-6,
+    def __init__(self, sim, scheme: str = "generalized_alpha", rho_inf: float = 0.0, tolerance: float = 1e-6,
                  max_iterations: int = 20):
         check_implicit_supported(sim)
         super().__init__(sim, sim.state.time, tolerance=tolerance, max_iterations=max_iterations)

@@ -892,7 +892,7 @@ class Implicit(Strict):
     docs/engine.md, "Implicit integration")."""
 
     scheme: Literal["generalized_alpha", "backward_euler"] = Field(default="generalized_alpha", description="'generalized_alpha' (second order, numerical damping of unresolved modes set by rho_inf; Chung and Hulbert 1993) or 'backward_euler' (first order, robust, damps every mode: use it to settle).")
-    rho_inf: float = Field(default=0.8, ge=0, le=1, allow_inf_nan=False, description="generalized_alpha: spectral radius for steps much longer than a mode's period; 1 keeps every mode (no numerical damping), 0 removes the unresolved ones in one step.")
+    rho_inf: float = Field(default=0.0, ge=0, le=1, allow_inf_nan=False, description="generalized_alpha: spectral radius for steps much longer than a mode's period. 0 (default) removes the modes a step does not resolve at once (robust with contact and sudden loads; a mode of period 20 dt loses 6.7 % of its amplitude per period); 0.8 keeps resolved vibrations (0.015 % per period at 20 steps a period) but lets unresolved ones ring, which costs Newton iterations; 1 is the trapezoidal rule.")
     dt: float | None = Field(default=None, gt=0, allow_inf_nan=False, description="First time step, s. Default: simulation.duration / 200.")
     dt_min: float | None = Field(default=None, gt=0, allow_inf_nan=False, description="Smallest step, s: a step that fails at it ends the run. Default: dt / 1000.")
     dt_max: float | None = Field(default=None, gt=0, allow_inf_nan=False, description="Largest step, s (steps also land on every output time). Default: dt.")
