@@ -40,9 +40,9 @@ def numpy_tangent(st, u_nodes, field_level: float):
 
     from magsoro.mpm.static import F_STEP
 
-    st._scatter(u_nodes, field_level, 1.0)
+    st.node_forces(u_nodes, field_level, 1.0)
     dim, n = st.dim, st.model.n_particles
-    nodes, _, g = st._stencil()
+    nodes, _, g = st.particle_stencil()
     V0 = st.model.host["volumes"]
     F0 = st.F.numpy().astype(np.float64)
     Fw = wp.zeros(n, dtype=st.model.kernels["mat"], device=st.dev)

@@ -384,7 +384,7 @@ def test_live_page_in_chromium(chromium, strip, tmp_path):
         np.testing.assert_allclose(st["engine_field"], [0.0, -0.015, 0.0], atol=1e-12)
         sim = srv.session.sim
         # what the solver itself adds as the uniform field at this time (its field evaluator over control.sources)
-        np.testing.assert_allclose(sim.solver._fields(sim.control).uniform_value(sim.time), [0.0, -0.015, 0.0], atol=1e-12)
+        np.testing.assert_allclose(sim.solver.field_evaluator(sim.control).uniform_value(sim.time), [0.0, -0.015, 0.0], atol=1e-12)
         # the particles follow: the strip swings below the axis, on the server and on the page
         _wait_for(lambda: frame_mean_y() < -3e-4, 40, "the strip to bend down")
         _wait_for(lambda: (js("liveView().mean_y") or 0) < -3e-4, 10, "the page's particles to follow")

@@ -59,7 +59,7 @@ def forces(model, moments):
     inter = MagneticInteraction(model)
     F = wp.array(np.tile(np.eye(3), (model.n_particles, 1, 1)), dtype=model.kernels["mat"])
     inter.refresh(model.X0, F)
-    G, B = inter.G.numpy().astype(np.float64), inter.B.numpy().astype(np.float64)
+    G, B = inter.grad_B.numpy().astype(np.float64), inter.B.numpy().astype(np.float64)
     return np.einsum("nij,ni->nj", G, moments), B, inter, F
 
 
@@ -157,7 +157,7 @@ def test_line_dipoles_2d_attract_as_the_closed_form():
     F = wp.array(np.tile(np.eye(2), (len(X), 1, 1)), dtype=model.kernels["mat"])
     inter.refresh(model.X0, F)
     mom = br * V / MU0
-    f = np.einsum("nij,ni->nj", inter.G.numpy().astype(np.float64), mom)[:, :2]
+    f = np.einsum("nij,ni->nj", inter.grad_B.numpy().astype(np.float64), mom)[:, :2]
     per_length = BR * len(P) * a * a / MU0
     ref = MU0 * per_length**2 / (math.pi * d**3)
     assert -f[len(P):, 0].sum() / depth == pytest.approx(ref, rel=0.02)
@@ -191,7 +191,7 @@ def loads(model, moments, correct=True):
     inter.correct_self_torque = correct
     F = wp.array(np.tile(np.eye(3), (model.n_particles, 1, 1)), dtype=model.kernels["mat"])
     inter.refresh(model.X0, F)
-    G, B = inter.G.numpy().astype(np.float64), inter.B.numpy().astype(np.float64)
+    G, B = inter.grad_B.numpy().astype(np.float64), inter.B.numpy().astype(np.float64)
     f = np.einsum("nij,ni->nj", G, moments)
     X, body = model.host["positions"], model.host["body"]
     out = []

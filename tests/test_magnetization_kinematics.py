@@ -223,7 +223,7 @@ def test_stretched_bar_gradient_force_in_a_dipole_field(follows):
     applied.B_uniform = k["v3"](0.0, 0.0, 0.0)
     applied.has_gradient = 1
     applied.B = wp.array(np.array([b for b, _ in BG]), dtype=k["v3"], device="cpu")
-    applied.G = wp.array(np.array([g for _, g in BG]), dtype=k["m3"], device="cpu")
+    applied.grad_B = wp.array(np.array([g for _, g in BG]), dtype=k["m3"], device="cpu")
     shape = (22, 22, 22)
     block = block_struct(model, (0, 0, 0), shape)
     n = int(np.prod(shape))

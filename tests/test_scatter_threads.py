@@ -37,7 +37,7 @@ def _block_on_slab(spread: bool, steps: int = 150, device: str = "cpu") -> dict:
     scene = slope_scene(0.3, "slab", dx=5e-4, precision="float64")
     scene["simulation"]["threads"] = 1
     sim = Simulation(parse_scene(scene), device=device)
-    assert sim.solver._contact  # the two-field variant of the kernels
+    assert sim.solver.contact_active  # the two-field variant of the kernels
     sim.solver.spread_scatter = spread
     for _ in range(steps):
         sim.step(2e-6)

@@ -40,7 +40,7 @@ def test_majority_clamp_holds_the_nodes_up_to_the_clamped_face():
         sim.step()
         s = sim.solver
         n = s.n_active
-        mask = (s._held if form == "total" else s.grid_clamp).numpy()[:n] != 0
+        mask = (s.held_mask if form == "total" else s.grid_clamp).numpy()[:n] != 0
         has_mass = s.grid_m.numpy()[:n] > 0
         held[form] = (_node_x(s), mask, has_mass)
     dx = setup.dx

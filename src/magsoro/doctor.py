@@ -414,8 +414,8 @@ def _parity_run(precision: str, device: str, steps: int = PARITY_STEPS) -> dict:
         "x": x,
         "x0": np.asarray(sim.model.host["positions"], dtype=np.float64),
         "particles": int(sim.model.n_particles),
-        "contact": bool(getattr(sim.solver, "_contact", False)),
-        "field_gradient_max": float(np.abs(sim.solver.G_particle.numpy()).max()) if sim.model.n_particles else 0.0,
+        "contact": bool(sim.solver.contact_active),
+        "field_gradient_max": float(np.abs(sim.solver.grad_B_particle.numpy()).max()) if sim.model.n_particles else 0.0,
         "first_step_s": t1 - t0,
         "steps_per_s": timed / (t2 - t1) if t2 > t1 and timed > 0 else None,
     }

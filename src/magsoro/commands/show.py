@@ -114,7 +114,7 @@ def render(scene, particles, out, width=7.0, dpi=120, arrows=200, max_points=600
         ax.set_xlabel("x (mm)")
         ax.set_ylabel("y (mm)")
         ax.set_zlabel("z (mm)")
-    title = scene.name or Path(getattr(scene, "_source_path", None) or "scene").stem
+    title = scene.name or Path(scene.source_path or "scene").stem
     ax.set_title(f"{title}: {len(X)} particles, arrows = Br direction")
     ax.legend(loc="upper left", fontsize=7, markerscale=4, framealpha=0.8)
     fig.tight_layout()

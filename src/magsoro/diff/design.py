@@ -111,7 +111,7 @@ class Design:
                         self.vars.append(Variable(f"fields[{i}].B", kind, B, max(np.linalg.norm(B), 1e-3), field=i, profile=s))
                         found = True
                     elif kind == "keyframes" and spec.type == "keyframes":
-                        src = make_field(spec, getattr(scene, "_base_dir", None))
+                        src = make_field(spec, scene.base_dir)
                         times = src.profile.table.times
                         vals = src.profile.table.values
                         W = np.array([Keyframes(times, np.eye(len(times))).value(t) for t in rollout.times])
@@ -179,7 +179,7 @@ class Design:
                 src = self.scene.fields[v.info["field"]]
                 Bu += np.outer(v.info["profile"], val - np.asarray(src.B, dtype=np.float64))
             elif v.kind == "keyframes":
-                orig = np.asarray(make_field(self.scene.fields[v.info["field"]], getattr(self.scene, "_base_dir", None)).profile.table.values)
+                orig = np.asarray(make_field(self.scene.fields[v.info["field"]], self.scene.base_dir).profile.table.values)
                 Bu += v.info["weights"] @ (val.reshape(-1, 3) - orig)
             elif v.kind == "epm":
                 rows = np.tile(val, (ro.n_steps, 1))

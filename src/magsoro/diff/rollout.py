@@ -80,13 +80,13 @@ class _Slot:
         self.C = wp.zeros(n, dtype=k["mat"], device=dev, requires_grad=True)
         self.F = wp.zeros(n, dtype=k["mat"], device=dev, requires_grad=True)
         self.B = wp.zeros(n, dtype=k["v3"], device=dev, requires_grad=True)
-        self.G = wp.zeros(n, dtype=k["m3"], device=dev, requires_grad=True) if n_point else None
+        self.grad_B = wp.zeros(n, dtype=k["m3"], device=dev, requires_grad=True) if n_point else None
         self.Btot = wp.zeros(n, dtype=k["v3"], device=dev, requires_grad=True) if n_point else None
-        # per point source: its own (B, G) and the running sums
+        # per point source: its own (B, grad_B) and the running sums
         self.Bs = [wp.zeros(n, dtype=k["v3"], device=dev, requires_grad=True) for _ in range(n_point)]
-        self.Gs = [wp.zeros(n, dtype=k["m3"], device=dev, requires_grad=True) for _ in range(n_point)]
+        self.grad_Bs = [wp.zeros(n, dtype=k["m3"], device=dev, requires_grad=True) for _ in range(n_point)]
         self.Bsum = [wp.zeros(n, dtype=k["v3"], device=dev, requires_grad=True) for _ in range(max(n_point - 1, 0))]
-        self.Gsum = [wp.zeros(n, dtype=k["m3"], device=dev, requires_grad=True) for _ in range(max(n_point - 1, 0))]
+        self.grad_Bsum = [wp.zeros(n, dtype=k["m3"], device=dev, requires_grad=True) for _ in range(max(n_point - 1, 0))]
         self.grid_p = wp.zeros(n_nodes, dtype=k["vec"], device=dev, requires_grad=True)
         self.grid_m = wp.zeros(n_nodes, dtype=sc, device=dev, requires_grad=True)
         self.grid_v = wp.zeros(n_nodes, dtype=k["vec"], device=dev, requires_grad=True)
@@ -111,9 +111,9 @@ class _Slot:
 
     def grad_arrays(self):
         out = [self.x, self.v, self.C, self.F, self.B, self.grid_p, self.grid_m, self.grid_v, self.grid_q]
-        out += self.Bs + self.Gs + self.Bsum + self.Gsum
-        if self.G is not None:
-            out += [self.G, self.Btot]
+        out += self.Bs + self.grad_Bs + self.Bsum + self.grad_Bsum
+        if self.grad_B is not None:
+            out += [self.grad_B, self.Btot]
         return out
 
 
@@ -260,7 +260,7 @@ class Rollout:
         self._checks = wp.array([checks], dtype=k["Checks"], device=dev)
         self._bodies = bodies_array(m)
         self._block = block_struct(m, self.org, self.shape)
-        self.G_zero = wp.zeros(n, dtype=k["m3"], device=dev)
+        self.grad_B_zero = wp.zeros(n, dtype=k["m3"], device=dev)
         f64 = sc == wp.float64
         self._fill = _fill_uniform_f64 if f64 else _fill_uniform_f32
         self._add = _add_field_f64 if f64 else _add_field_f32
@@ -292,24 +292,24 @@ class Rollout:
         dt = sc(self.dt)
         if self.point_sources:
             for i, (kern, views) in enumerate(zip(self._point_kernels, self._param_views)):
-                wp.launch(kern, dim=n, inputs=[src.x, views[step], wp.float64(st.plane_z), 1, dst.Bs[i], dst.Gs[i]], device=dev)
+                wp.launch(kern, dim=n, inputs=[src.x, views[step], wp.float64(st.plane_z), 1, dst.Bs[i], dst.grad_Bs[i]], device=dev)
             wp.launch(self._fill, dim=n, inputs=[self.B_uniform, step, dst.B], device=dev)
-            # B = uniform + sum of point sources; G = sum of point sources (out of place for the tape)
-            b_acc, g_acc = dst.B, self.G_zero
+            # B = uniform + sum of point sources; grad_B = sum of point sources (out of place for the tape)
+            b_acc, g_acc = dst.B, self.grad_B_zero
             n_point = len(self.point_sources)
             for i in range(n_point):
                 last = i == n_point - 1
                 b_out = dst.Btot if last else dst.Bsum[i]
-                g_out = dst.G if last else dst.Gsum[i]
-                wp.launch(self._add, dim=n, inputs=[b_acc, g_acc, dst.Bs[i], dst.Gs[i], b_out, g_out], device=dev)
+                g_out = dst.grad_B if last else dst.grad_Bsum[i]
+                wp.launch(self._add, dim=n, inputs=[b_acc, g_acc, dst.Bs[i], dst.grad_Bs[i], b_out, g_out], device=dev)
                 b_acc, g_acc = b_out, g_out
-            B_particle, G_particle = b_acc, g_acc
+            B_particle, grad_B_particle = b_acc, g_acc
         else:
             wp.launch(self._fill, dim=n, inputs=[self.B_uniform, step, dst.B], device=dev)
-            B_particle, G_particle = dst.B, self.G_zero
+            B_particle, grad_B_particle = dst.B, self.grad_B_zero
         applied = k["Applied"]()
         applied.has_gradient = 1
-        applied.B, applied.G = B_particle, G_particle
+        applied.B, applied.grad_B = B_particle, grad_B_particle
         structs = dst.structs(k, self)
         wp.launch(
             k["p2g"], dim=n,

@@ -141,7 +141,7 @@ class StaticProblem:
                     message = f"level {level:g}: {res.message}"
                     break
             if not message:
-                self.solver._scatter(self.solver.u_nodes, self.solver.field_level, self.solver.gravity_level)
+                self.solver.node_forces(self.solver.u_nodes, self.solver.field_level, self.solver.gravity_level)
                 return
         self.solver = None
         raise MagsoroError(f"the static solve did not converge for the design {self.design.values().tolist()} "
@@ -166,7 +166,7 @@ class StaticProblem:
     def _node_gradient(self, gx, gF) -> np.ndarray:
         """dL/du (n_nodes, dim) from dL/dx and dL/dF of the particles (clamped ones do not follow the nodes)."""
         st = self.solver
-        nodes, w, g = st._stencil()
+        nodes, w, g = st.particle_stencil()
         free = ~self.sim.model.host["clamped"]
         dim = st.dim
         out = np.zeros((st.n_nodes, dim))
@@ -195,7 +195,7 @@ class StaticProblem:
         st = self.solver
         level, gravity = st.field_level, st.gravity_level
         J = st.tangent(st.u_nodes, level, gravity)
-        lam = splu(J.T.tocsc()).solve(-st._reduce(self._node_gradient(gx, gF)))
+        lam = splu(J.T.tocsc()).solve(-st.forces_on_unknowns(self._node_gradient(gx, gF)))
         scales = self.design.scales()
         out = np.zeros(values.size)
         for k in range(values.size):
@@ -208,7 +208,7 @@ class StaticProblem:
                 rs.append(st.residual(st.u_nodes, level, gravity))
             out[k] = float(lam @ ((rs[0] - rs[1]) / (2.0 * h)))
         self.design.apply(values)
-        st._scatter(st.u_nodes, level, gravity)  # the solver's x and F back at the design's equilibrium
+        st.node_forces(st.u_nodes, level, gravity)  # the solver's x and F back at the design's equilibrium
         return float(L), out
 
     def write_scene(self, path) -> Path:

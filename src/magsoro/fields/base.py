@@ -40,7 +40,7 @@ class FieldSource:
         raise NotImplementedError
 
     def grad_B(self, points, t: float = 0.0) -> np.ndarray:
-        """Gradient ``G[n, i, j] = dB_i/dx_j`` at ``points`` ((N, 3) metres), as (N, 3, 3) tesla per metre."""
+        """Gradient ``grad_B[n, i, j] = dB_i/dx_j`` at ``points`` ((N, 3) metres), as (N, 3, 3) tesla per metre."""
         raise NotImplementedError
 
     # uniform sources

@@ -99,10 +99,10 @@ def _unit_z_np(x, y, z, a, b, c):
                     gyz -= s * W * inv_ur / R
     gzz = -(gxx + gyy)
     B = np.stack([bx, by, bz], axis=1)
-    G = np.stack(
+    grad_B = np.stack(
         [np.stack([gxx, gxy, gxz], 1), np.stack([gxy, gyy, gyz], 1), np.stack([gxz, gyz, gzz], 1)], axis=1
     )
-    return B, G
+    return B, grad_B
 
 
 def cuboid_body_field_np(pb, half, J, with_grad=True):
@@ -114,7 +114,7 @@ def cuboid_body_field_np(pb, half, J, with_grad=True):
     q = np.abs(pb)
     Jr = S * J[None, :]  # reflected polarisation per point
     B = np.zeros_like(pb)
-    G = np.zeros((len(pb), 3, 3))
+    grad_B = np.zeros((len(pb), 3, 3))
     for comp, perm in ((2, _PERM_Z), (0, _PERM_X), (1, _PERM_Y)):
         if J[comp] == 0.0:
             continue
@@ -122,12 +122,12 @@ def cuboid_body_field_np(pb, half, J, with_grad=True):
         b_loc, g_loc = _unit_z_np(q[:, p[0]], q[:, p[1]], q[:, p[2]], half[p[0]], half[p[1]], half[p[2]])
         w = Jr[:, comp] / (4.0 * np.pi)
         B[:, p] += w[:, None] * b_loc
-        G[:, np.array(p)[:, None], np.array(p)[None, :]] += w[:, None, None] * g_loc
+        grad_B[:, np.array(p)[:, None], np.array(p)[None, :]] += w[:, None, None] * g_loc
     B = S * B
-    G = S[:, :, None] * G * S[:, None, :]
+    grad_B = S[:, :, None] * grad_B * S[:, None, :]
     inside = np.all(np.abs(pb) < half[None, :], axis=1)
     B[inside] += J
-    return B, G
+    return B, grad_B
 
 
 @wp.func
@@ -226,17 +226,17 @@ def cuboid_field(p: wp.vec3d, prm: wp.array(dtype=wp.float64)):
     Jz = sz * J[2]
     inv4pi = wp.float64(0.25) / PI_F64
     B = wp.vec3d(zero, zero, zero)
-    G = wp.mat33d(zero, zero, zero, zero, zero, zero, zero, zero, zero)
+    grad_B = wp.mat33d(zero, zero, zero, zero, zero, zero, zero, zero, zero)
     if Jz != zero:
         bl, gl = _cuboid_unit_z_wp(x, y, z, a, b, c)
         B = B + (Jz * inv4pi) * bl
-        G = G + (Jz * inv4pi) * gl
+        grad_B = grad_B + (Jz * inv4pi) * gl
     if Jx != zero:
         # local (x', y', z') = (y, z, x)
         bl, gl = _cuboid_unit_z_wp(y, z, x, b, c, a)
         w = Jx * inv4pi
         B = B + w * wp.vec3d(bl[2], bl[0], bl[1])
-        G = G + w * wp.mat33d(
+        grad_B = grad_B + w * wp.mat33d(
             gl[2, 2], gl[2, 0], gl[2, 1],
             gl[0, 2], gl[0, 0], gl[0, 1],
             gl[1, 2], gl[1, 0], gl[1, 1],
@@ -246,17 +246,17 @@ def cuboid_field(p: wp.vec3d, prm: wp.array(dtype=wp.float64)):
         bl, gl = _cuboid_unit_z_wp(z, x, y, c, a, b)
         w = Jy * inv4pi
         B = B + w * wp.vec3d(bl[1], bl[2], bl[0])
-        G = G + w * wp.mat33d(
+        grad_B = grad_B + w * wp.mat33d(
             gl[1, 1], gl[1, 2], gl[1, 0],
             gl[2, 1], gl[2, 2], gl[2, 0],
             gl[0, 1], gl[0, 2], gl[0, 0],
         )  # fmt: skip
     Sd = wp.mat33d(sx, zero, zero, zero, sy, zero, zero, zero, sz)
     B = Sd * B
-    G = Sd * G * Sd
+    grad_B = Sd * grad_B * Sd
     if x < a and y < b and z < c:
         B = B + J
-    return Rm * B, Rm * G * wp.transpose(Rm)
+    return Rm * B, Rm * grad_B * wp.transpose(Rm)
 
 
 class CuboidMagnet(MovingSource):

@@ -28,7 +28,7 @@ def accumulate_kernel(func, dim: int, scalar, differentiable: bool = False):
         plane_z: wp.float64,
         overwrite: int,
         B: wp.array(dtype=v3),
-        G: wp.array(dtype=m3),
+        grad_B: wp.array(dtype=m3),
     ):
         i = wp.tid()
         xp = x[i]
@@ -40,10 +40,10 @@ def accumulate_kernel(func, dim: int, scalar, differentiable: bool = False):
         gs = m3(g)
         if overwrite == 1:
             B[i] = bs
-            G[i] = gs
+            grad_B[i] = gs
         else:
             B[i] = B[i] + bs
-            G[i] = G[i] + gs
+            grad_B[i] = grad_B[i] + gs
 
     return accumulate
 
@@ -95,23 +95,24 @@ class FieldEvaluator:
             out.append(values)
         return np.concatenate(out) if out else np.zeros(0)
 
-    def record_launches(self, x: wp.array, B: wp.array, G: wp.array) -> list:
+    def record_launches(self, x: wp.array, B: wp.array, grad_B: wp.array) -> list:
         """The launches of :meth:`evaluate` for positions ``x``, recorded (``wp.Launch``) for a check window: they
         read the parameters the arrays of :attr:`param_arrays` hold when they run (the window's drive table
         fills them), not those of a time given here."""
-        return [wp.launch(kern, dim=x.shape[0], inputs=[x, prm, wp.float64(self.plane_z), 1 if k == 0 else 0, B, G],
+        return [wp.launch(kern, dim=x.shape[0], inputs=[x, prm, wp.float64(self.plane_z), 1 if k == 0 else 0, B, grad_B],
                           device=self.device, record_cmd=True)
                 for k, (kern, prm) in enumerate(zip(self._kernels, self._params))]
 
-    def evaluate(self, x: wp.array, B: wp.array, G: wp.array, t: float) -> None:
-        """Write the non-uniform sources' B and grad B at positions ``x`` into ``B`` and ``G`` (device arrays)."""
+    def evaluate(self, x: wp.array, B: wp.array, grad_B: wp.array, t: float) -> None:
+        """Write the non-uniform sources' B (T) and grad B (T/m) at positions ``x`` into ``B`` and ``grad_B`` (device
+        arrays)."""
         n = x.shape[0]
         for k, (src, kern, prm) in enumerate(zip(self.point_sources, self._kernels, self._params)):
             values = np.asarray(src.device_params(t), dtype=np.float64)
             if values.shape != tuple(prm.shape):
                 raise ValueError(f"{type(src).__name__}.device_params changed length during the run")
             prm.assign(values)
-            wp.launch(kern, dim=n, inputs=[x, prm, wp.float64(self.plane_z), 1 if k == 0 else 0, B, G], device=self.device)
+            wp.launch(kern, dim=n, inputs=[x, prm, wp.float64(self.plane_z), 1 if k == 0 else 0, B, grad_B], device=self.device)
 
     def evaluate_host(self, points: np.ndarray, t: float = 0.0):
         """Device evaluation of all sources (uniform included) at (N, dim) points, returned as numpy (B, grad B).
@@ -124,7 +125,7 @@ class FieldEvaluator:
         pts = np.asarray(points, dtype=np.float64)
         x = wp.array(pts[:, : self.dim], dtype=vec, device=self.device)
         B = wp.zeros(len(pts), dtype=v3, device=self.device)
-        G = wp.zeros(len(pts), dtype=m3, device=self.device)
+        grad_B = wp.zeros(len(pts), dtype=m3, device=self.device)
         if self.has_gradient:
-            self.evaluate(x, B, G, t)
-        return B.numpy().astype(np.float64) + self.uniform_value(t), G.numpy().astype(np.float64)
+            self.evaluate(x, B, grad_B, t)
+        return B.numpy().astype(np.float64) + self.uniform_value(t), grad_B.numpy().astype(np.float64)

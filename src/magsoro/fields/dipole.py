@@ -33,8 +33,8 @@ def dipole_field(p: wp.vec3d, prm: wp.array(dtype=wp.float64)):
     B = k * inv3 * (wp.float64(3.0) * mr / r2 * r - m)
     c = wp.float64(3.0) * k * inv3 / r2
     eye = wp.identity(n=3, dtype=wp.float64)
-    G = c * (mr * eye + wp.outer(m, r) + wp.outer(r, m) - wp.float64(5.0) * mr / r2 * wp.outer(r, r))
-    return B, G
+    grad_B = c * (mr * eye + wp.outer(m, r) + wp.outer(r, m) - wp.float64(5.0) * mr / r2 * wp.outer(r, r))
+    return B, grad_B
 
 
 def dipole_B(points, moment, position=(0.0, 0.0, 0.0)) -> np.ndarray:
@@ -58,14 +58,14 @@ def dipole_grad_B(points, moment, position=(0.0, 0.0, 0.0)) -> np.ndarray:
     mr = r @ m
     with np.errstate(divide="ignore", invalid="ignore"):
         c = 3 * MU0 / (4 * np.pi) / r2**2.5
-        G = (
+        grad_B = (
             mr[:, None, None] * np.eye(3)
             + m[None, :, None] * r[:, None, :]
             + r[:, :, None] * m[None, None, :]
             - 5 * (mr / r2)[:, None, None] * r[:, :, None] * r[:, None, :]
         ) * c[:, None, None]
-    G[r2 == 0] = 0.0
-    return G
+    grad_B[r2 == 0] = 0.0
+    return grad_B
 
 
 def dipole_field_force(points, moments, moment, position):

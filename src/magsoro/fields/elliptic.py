@@ -214,13 +214,13 @@ def axisym_assemble_np(axis, rhat, b_rho, b_z, b_rho_over_rho, dbz_dz, dbz_drho)
     perp = np.eye(3) - np.outer(a, a)
     ra = rhat[:, :, None] * a[None, None, :]
     ar = a[None, :, None] * rhat[:, None, :]
-    G = (
+    grad_B = (
         dbr_drho[:, None, None] * rr
         + b_rho_over_rho[:, None, None] * (perp[None] - rr)
         + dbz_drho[:, None, None] * (ra + ar)
         + dbz_dz[:, None, None] * np.outer(a, a)[None]
     )
-    return B, G
+    return B, grad_B
 
 
 @wp.func
@@ -239,5 +239,5 @@ def axisym_assemble_wp(
     rr = wp.outer(rhat, rhat)
     aa = wp.outer(a, a)
     perp = wp.identity(n=3, dtype=wp.float64) - aa
-    G = dbr_drho * rr + b_rho_over_rho * (perp - rr) + dbz_drho * (wp.outer(rhat, a) + wp.outer(a, rhat)) + dbz_dz * aa
-    return B, G
+    grad_B = dbr_drho * rr + b_rho_over_rho * (perp - rr) + dbz_drho * (wp.outer(rhat, a) + wp.outer(a, rhat)) + dbz_dz * aa
+    return B, grad_B

@@ -136,7 +136,7 @@ class MagpylibSource(FieldSource):
         w, dw = _catmull_rom(s - cell)  # (N, 3, 4)
         dw = dw / self.spacing[None, :, None]
         B = np.zeros((len(p), 3))
-        G = np.zeros((len(p), 3, 3))
+        grad_B = np.zeros((len(p), 3, 3))
         # padded index of stencil node i (node -1 of the cell) is cell + i
         for i in range(4):
             for j in range(4):
@@ -144,10 +144,10 @@ class MagpylibSource(FieldSource):
                     v = lattice[cell[:, 0] + i, cell[:, 1] + j, cell[:, 2] + k]
                     wx, wy, wz = w[:, 0, i], w[:, 1, j], w[:, 2, k]
                     B += (wx * wy * wz)[:, None] * v
-                    G[:, :, 0] += (dw[:, 0, i] * wy * wz)[:, None] * v
-                    G[:, :, 1] += (wx * dw[:, 1, j] * wz)[:, None] * v
-                    G[:, :, 2] += (wx * wy * dw[:, 2, k])[:, None] * v
-        return B, G
+                    grad_B[:, :, 0] += (dw[:, 0, i] * wy * wz)[:, None] * v
+                    grad_B[:, :, 1] += (wx * dw[:, 1, j] * wz)[:, None] * v
+                    grad_B[:, :, 2] += (wx * wy * dw[:, 2, k])[:, None] * v
+        return B, grad_B
 
     def _checked(self, points):
         p = as_points(points)
@@ -223,7 +223,7 @@ def lattice_field(p: wp.vec3d, prm: wp.array(dtype=wp.float64)):
     ny = int(prm[7])
     nz = int(prm[8])
     B = wp.vec3d(zero, zero, zero)
-    G = wp.mat33d(zero, zero, zero, zero, zero, zero, zero, zero, zero)
+    grad_B = wp.mat33d(zero, zero, zero, zero, zero, zero, zero, zero, zero)
     cell = wp.vec3i(0, 0, 0)
     frac = wp.vec3d(zero, zero, zero)
     for d in range(3):
@@ -251,5 +251,5 @@ def lattice_field(p: wp.vec3d, prm: wp.array(dtype=wp.float64)):
                 v = wp.vec3d(prm[idx], prm[idx + 1], prm[idx + 2])
                 B = B + (wx[i] * wy[j] * wz[k]) * v
                 col = wp.vec3d(dwx[i] * wy[j] * wz[k], wx[i] * dwy[j] * wz[k], wx[i] * wy[j] * dwz[k])
-                G = G + wp.outer(v, col)
-    return B, G
+                grad_B = grad_B + wp.outer(v, col)
+    return B, grad_B

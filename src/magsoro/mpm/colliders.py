@@ -1,11 +1,11 @@
 """Rigid colliders: half-space, box, sphere, cylinder; sticky, slip, Coulomb-friction or (half-spaces) symmetry
 contact; optional prescribed motion (position keyframes, whose slope gives the collider velocity used in the contact law).
 
-The device sees a flat float64 table, one row of COLLIDER_STRIDE values per collider:
-    0 type, 1 mode (0 sticky, 1 slip, 2 friction, 3 symmetry), 2 friction coefficient,
-    3-5 position (m), 6-14 rotation matrix local->world (row-major), 15-17 size, 18-20 velocity (m/s).
-Size: half-space -> outward unit normal; box -> half extents; sphere -> radius; cylinder -> radius, half length
-(axis = local z).
+The device sees a flat float64 table, one row of COLLIDER_STRIDE values per collider, laid out as
+:class:`magsoro.mpm.settings.ColliderRow` says: kind (:class:`~magsoro.mpm.settings.ColliderKind`), mode
+(:class:`~magsoro.mpm.settings.ColliderMode`), friction coefficient, position (m), rotation matrix local->world
+(row-major), size, velocity (m/s). Size: half-space -> outward unit normal; box -> half extents; sphere -> radius;
+cylinder -> radius, half length (axis = local z).
 """
 
 import numpy as np
@@ -13,11 +13,18 @@ import warp as wp
 
 from magsoro.fields.profiles import Keyframes
 from magsoro.geometry.transforms import rotation_to_axis
+from magsoro.mpm.settings import COLLIDER_MODES, ColliderKind, ColliderMode, ColliderModeName, ColliderRow
+from magsoro.mpm.settings import COLLIDER_STRIDE as _STRIDE
 
-COLLIDER_STRIDE = wp.constant(24)
-HALF_SPACE, BOX, SPHERE, CYLINDER = 0, 1, 2, 3
-KINDS = {"half_space": HALF_SPACE, "box": BOX, "sphere": SPHERE, "cylinder": CYLINDER}
-MODES = {"sticky": 0, "slip": 1, "friction": 2, "symmetry": 3}
+# the table's layout and codes as the kernels' ints
+COLLIDER_STRIDE = wp.constant(_STRIDE)
+HALF_SPACE, BOX, SPHERE, CYLINDER = (wp.constant(int(k)) for k in ColliderKind)
+ROW_KIND, ROW_MODE, ROW_FRICTION = wp.constant(int(ColliderRow.KIND)), wp.constant(int(ColliderRow.MODE)), wp.constant(int(ColliderRow.FRICTION))
+ROW_POSITION, ROW_ROTATION = wp.constant(int(ColliderRow.POSITION)), wp.constant(int(ColliderRow.ROTATION))
+ROW_SIZE, ROW_VELOCITY = wp.constant(int(ColliderRow.SIZE)), wp.constant(int(ColliderRow.VELOCITY))
+#: kind name -> code, mode name -> code
+KINDS = {k.name.lower(): int(k) for k in ColliderKind}
+MODES = COLLIDER_MODES
 #: the domain walls act on the nodes within this many cells of the domain's edge (:mod:`magsoro.mpm.grid`'s
 #: ``walls``, which writes it as its literal): the builder keeps bodies out of that band, the static solver models
 #: or watches it, runs note a body that comes within its reach
@@ -53,22 +60,23 @@ def _box_sdf(q: wp.vec3d, h: wp.vec3d):
 def collider_sdf(table: wp.array(dtype=wp.float64), c: int, p: wp.vec3d):
     """Signed distance (m, negative inside), outward unit normal and surface velocity of collider c at p."""
     row = c * COLLIDER_STRIDE
-    kind = int(table[row])
-    centre = wp.vec3d(table[row + 3], table[row + 4], table[row + 5])
+    kind = int(table[row + ROW_KIND])
+    at, rot = row + ROW_POSITION, row + ROW_ROTATION
+    centre = wp.vec3d(table[at], table[at + 1], table[at + 2])
     R = wp.mat33d(
-        table[row + 6], table[row + 7], table[row + 8],
-        table[row + 9], table[row + 10], table[row + 11],
-        table[row + 12], table[row + 13], table[row + 14],
+        table[rot], table[rot + 1], table[rot + 2],
+        table[rot + 3], table[rot + 4], table[rot + 5],
+        table[rot + 6], table[rot + 7], table[rot + 8],
     )
-    size = wp.vec3d(table[row + 15], table[row + 16], table[row + 17])
-    vel = wp.vec3d(table[row + 18], table[row + 19], table[row + 20])
+    size = wp.vec3d(table[row + ROW_SIZE], table[row + ROW_SIZE + 1], table[row + ROW_SIZE + 2])
+    vel = wp.vec3d(table[row + ROW_VELOCITY], table[row + ROW_VELOCITY + 1], table[row + ROW_VELOCITY + 2])
     zero = wp.float64(0.0)
     phi = zero
     n = wp.vec3d(zero, zero, zero)
-    if kind == 0:
+    if kind == HALF_SPACE:
         n = size
         phi = wp.dot(p - centre, n)
-    elif kind == 2:
+    elif kind == SPHERE:
         r = p - centre
         rl = wp.length(r)
         phi = rl - size[0]
@@ -78,7 +86,7 @@ def collider_sdf(table: wp.array(dtype=wp.float64), c: int, p: wp.vec3d):
     else:
         q = wp.transpose(R) * (p - centre)
         nl = wp.vec3d(zero, zero, zero)
-        if kind == 1:
+        if kind == BOX:
             phi, nl = _box_sdf(q, size)
         else:
             # cylinder: a 2D box in (radial, axial) coordinates
@@ -114,7 +122,8 @@ class Collider:
     s) moves it.
     """
 
-    def __init__(self, kind: str, position, size, rotation=None, mode: str = "slip", friction: float = 0.0, path: Keyframes | None = None):
+    def __init__(self, kind: str, position, size, rotation=None, mode: ColliderModeName = "slip", friction: float = 0.0,
+                 path: Keyframes | None = None):
         if kind not in KINDS:
             raise ValueError(f"collider kind must be one of {sorted(KINDS)}, got {kind!r}")
         if mode not in MODES:
@@ -151,24 +160,35 @@ class Collider:
             R = rotation_to_axis(axis)
         return cls("cylinder", center, (radius, half_length, 0.0), rotation=R, **kw)
 
+    @property
+    def mode_code(self) -> ColliderMode:
+        """The contact mode as the kernels' code."""
+        return ColliderMode.named(self.mode)
+
+    def position_at(self, t: float) -> np.ndarray:
+        """Position (m, 3) at time ``t`` (s): along its path, else where it was placed."""
+        return self.path.value(t) if self.path is not None else self.position
+
+    def velocity_at(self, t: float) -> np.ndarray:
+        """Velocity (m/s, 3) at time ``t`` (s): the slope of its path (zero without one)."""
+        return self.path.rate(t) if self.path is not None else np.zeros(3)
+
     def row(self, t: float) -> np.ndarray:
+        """The collider's row of the device table at time ``t`` (s): :class:`magsoro.mpm.settings.ColliderRow`."""
         r = np.zeros(COLLIDER_STRIDE)
-        r[0] = KINDS[self.kind]
-        r[1] = MODES[self.mode]
-        r[2] = self.friction
+        r[ColliderRow.KIND] = KINDS[self.kind]
+        r[ColliderRow.MODE] = self.mode_code
+        r[ColliderRow.FRICTION] = self.friction
+        r[ColliderRow.POSITION : ColliderRow.POSITION + 3] = self.position_at(t)
         if self.path is not None:
-            r[3:6] = self.path.value(t)
-            r[18:21] = self.path.rate(t)
-        else:
-            r[3:6] = self.position
-        r[6:15] = self.rotation.ravel()
-        r[15:18] = self.size
+            r[ColliderRow.VELOCITY : ColliderRow.VELOCITY + 3] = self.velocity_at(t)
+        r[ColliderRow.ROTATION : ColliderRow.ROTATION + 9] = self.rotation.ravel()
+        r[ColliderRow.SIZE : ColliderRow.SIZE + 3] = self.size
         return r
 
     def signed_distance(self, points, t: float = 0.0) -> np.ndarray:
         """Host-side signed distance (m) of (N, 3) points; negative inside."""
-        r = self.row(t)
-        p = np.asarray(points, dtype=np.float64) - r[3:6]
+        p = np.asarray(points, dtype=np.float64) - self.position_at(t)
         if self.kind == "half_space":
             return p @ self.size
         if self.kind == "sphere":

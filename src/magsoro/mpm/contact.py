@@ -36,10 +36,12 @@ import functools
 
 import warp as wp
 
-#: Node classes of the classify pass
-SINGLE = wp.constant(0)  # one velocity field
-BODIES = wp.constant(1)  # two contact groups meet
-FOLD = wp.constant(2)  # two layers of one body (self-contact)
+from magsoro.mpm.settings import NodeClass
+
+#: Node classes of the classify pass (:class:`magsoro.mpm.settings.NodeClass`)
+SINGLE = wp.constant(int(NodeClass.SINGLE))  # one velocity field
+BODIES = wp.constant(int(NodeClass.BODIES))  # two contact groups meet
+FOLD = wp.constant(int(NodeClass.FOLD))  # two layers of one body (self-contact)
 
 #: Smallest share of a node's mass each field must hold for the node to resolve contact (step 4)
 MIN_FRACTION = wp.constant(0.1)

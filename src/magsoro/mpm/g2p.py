@@ -5,16 +5,18 @@ import functools
 
 import warp as wp
 
+from magsoro.mpm.settings import FUpdate
 from magsoro.mpm.stencil import make_stencil
 
 # Unroll the 3^dim-node stencil loops (27 in 3D): constant offsets let the compiler fold the weight selection.
 wp.set_module_options({"max_unroll": 32})
 
-#: How g2p updates F: from the gathered node velocities, left to the remap, or on the reference grid
-F_FROM_GRID = wp.constant(0)
-F_FROM_REMAP = wp.constant(1)
-F_TOTAL = wp.constant(2)
-F_REMAP_APART = wp.constant(3)  # F from the remap, whose scatter runs in remap_scatter (Solver.spread_scatter)
+#: How g2p updates F (:class:`magsoro.mpm.settings.FUpdate`): from the gathered node velocities, left to the remap,
+#: or on the reference grid
+F_FROM_GRID = wp.constant(int(FUpdate.FROM_GRID))
+F_FROM_REMAP = wp.constant(int(FUpdate.FROM_REMAP))
+F_TOTAL = wp.constant(int(FUpdate.TOTAL))
+F_REMAP_APART = wp.constant(int(FUpdate.REMAP_APART))  # F from the remap, whose scatter runs in remap_scatter (Solver.spread_scatter)
 
 
 @functools.cache

@@ -1,17 +1,21 @@
 """Grid kernels: node velocities from the scattered momenta (damping, gravity, domain walls, rigid colliders,
 contact between velocity fields), and the sum of the CPU threads' private grids.
 
-Colliders come as a flat float64 table, one row of ``COLLIDER_STRIDE`` values each (:mod:`magsoro.mpm.colliders`,
-which also holds the boundary modes: 0 sticky, 1 slip, 2 friction).
+Colliders come as a flat float64 table, one row of ``COLLIDER_STRIDE`` values each (:mod:`magsoro.mpm.colliders`);
+the contact modes of colliders and walls are :class:`magsoro.mpm.settings.ColliderMode`'s codes.
 """
 
 import functools
 
 import warp as wp
 
-from magsoro.mpm.colliders import COLLIDER_STRIDE, collider_sdf
+from magsoro.mpm.colliders import COLLIDER_STRIDE, ROW_FRICTION, ROW_MODE, collider_sdf
 from magsoro.mpm.contact import BODIES, make_contact
+from magsoro.mpm.settings import ColliderMode
 from magsoro.mpm.stencil import make_stencil, make_types
+
+# the contact modes as the kernels' ints
+STICKY, FRICTION, SYMMETRY = (wp.constant(int(m)) for m in (ColliderMode.STICKY, ColliderMode.FRICTION, ColliderMode.SYMMETRY))
 
 
 @functools.cache
@@ -72,16 +76,16 @@ def make_grid(dim: int, scalar, two_fields: bool = False, differentiable: bool =
         sticky -> the node moves with the surface; slip -> the approaching normal component is removed;
         friction -> also the tangential part shrinks by mu |v_n| (Coulomb), stopping when it would reverse;
         symmetry -> the normal component is removed in both directions (a mirror plane: no separation)."""
-        if mode == 0:
+        if mode == STICKY:
             return cvel
         vr = vel - cvel
         vn = wp.dot(vr, normal)
-        if mode == 3:
+        if mode == SYMMETRY:
             return vr - vn * normal + cvel
         if vn >= scalar(0.0):
             return vel  # separating: no contact force
         vt = vr - vn * normal
-        if mode == 2:
+        if mode == FRICTION:
             vt_norm = wp.length(vt)
             if vt_norm > scalar(0.0):
                 vt = vt * (wp.max(vt_norm + mu * vn, scalar(0.0)) / vt_norm)
@@ -103,21 +107,21 @@ def make_grid(dim: int, scalar, two_fields: bool = False, differentiable: bool =
     @wp.func
     def colliders(vel: vec, pos: vec, m: scalar, gs: GridSettings):
         """Rigid colliders: a node with signed distance <= collider_skin is in contact (its momentum change
-        recorded with ``gs.record_impulse``); symmetry planes (mode 3) take every node within half a cell."""
+        recorded with ``gs.record_impulse``); symmetry planes take every node within half a cell."""
         p3 = wp.vec3d(wp.float64(pos[0]), wp.float64(pos[1]), gs.plane_z)
         if wp.static(dim == 3):
             p3 = wp.vec3d(wp.float64(pos[0]), wp.float64(pos[1]), wp.float64(pos[2]))
         for c in range(gs.n_colliders):
             phi, nrm, cvel = collider_sdf(gs.colliders, c, p3)
             row = c * COLLIDER_STRIDE
-            mode = int(gs.colliders[row + 1])
+            mode = int(gs.colliders[row + ROW_MODE])
             skin = gs.collider_skin
-            if mode == 3:
+            if mode == SYMMETRY:
                 # a mirror plane holds the node layer on it: every node within half a cell of it (a plane through
                 # a node layer is then safe from round-off in phi)
                 skin = wp.max(skin, wp.float64(0.5) * wp.float64(gs.dx))
             if phi <= skin:
-                mu = scalar(gs.colliders[row + 2])
+                mu = scalar(gs.colliders[row + ROW_FRICTION])
                 before = vel
                 vel = project(vel, inplane(v3(cvel)), inplane(v3(nrm)), mode, mu)
                 if gs.record_impulse != 0:

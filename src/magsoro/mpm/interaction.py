@@ -25,12 +25,13 @@ import numpy as np
 import warp as wp
 
 from magsoro.constants import MU0
+from magsoro.mpm.settings import INTERACTION_MODES
 from magsoro.mpm.stencil import host_bspline, make_stencil
 
 # No kernel here runs under wp.Tape (only magsoro.diff's rollout does): Warp need not build their adjoints.
 wp.set_module_options({"enable_backward": False})
 
-MODES = ("none", "dipole")
+MODES = INTERACTION_MODES
 MARGIN = 2  # nodes kept between the magnetised particles' box and the grid's edge (the stencil's reach)
 
 
@@ -144,7 +145,7 @@ def make_interaction_kernels(dim: int, scalar) -> dict:
         fields: wp.array(dtype=scalar),
         mu0: scalar,
         B: wp.array(dtype=v3),
-        G: wp.array(dtype=m3),
+        grad_B: wp.array(dtype=m3),
     ):
         """B = mu0 H and grad B = mu0 grad H at particle ``p`` from the node fields (H: components 0 .. dim-1,
         then the symmetric grad H in :func:`sym_pairs` order); zero outside the grid."""
@@ -173,18 +174,19 @@ def make_interaction_kernels(dim: int, scalar) -> dict:
                     g[e, a] = value
                     c += 1
         B[p] = b
-        G[p] = g
+        grad_B[p] = g
 
     @wp.kernel
-    def add_field(B_int: wp.array(dtype=v3), G_int: wp.array(dtype=m3), keep: int, B: wp.array(dtype=v3), G: wp.array(dtype=m3)):
-        """B += B_int, G += G_int (``keep`` = 0: B = B_int, G = G_int)."""
+    def add_field(B_int: wp.array(dtype=v3), grad_B_int: wp.array(dtype=m3), keep: int, B: wp.array(dtype=v3),
+                  grad_B: wp.array(dtype=m3)):
+        """B += B_int, grad_B += grad_B_int (``keep`` = 0: B = B_int, grad_B = grad_B_int)."""
         p = wp.tid()
         if keep != 0:
             B[p] = B[p] + B_int[p]
-            G[p] = G[p] + G_int[p]
+            grad_B[p] = grad_B[p] + grad_B_int[p]
         else:
             B[p] = B_int[p]
-            G[p] = G_int[p]
+            grad_B[p] = grad_B_int[p]
 
     return {"deposit_moments": deposit_moments, "gather_field": gather_field, "add_field": add_field}
 
@@ -215,8 +217,8 @@ class MagneticInteraction:
     """The bodies' own field at the particles of a :class:`~magsoro.mpm.solver.Model`, refreshed on demand.
 
     ``depth`` (2D): the out-of-plane thickness the particle volumes include; the 2D field is that of line dipoles
-    of moment m / depth per unit length. After :meth:`refresh`, ``B`` and ``G`` (device arrays, the model's
-    scalar) hold mu0 H and mu0 grad H at the particles, ``G`` with the self-torque correction folded in
+    of moment m / depth per unit length. After :meth:`refresh`, ``B`` and ``grad_B`` (device arrays, the model's
+    scalar) hold mu0 H and mu0 grad H at the particles, ``grad_B`` with the self-torque correction folded in
     (:meth:`refresh`); :meth:`field_at` gives the total B of the bodies at any points (a magnetometer's reading).
     """
 
@@ -230,7 +232,7 @@ class MagneticInteraction:
         self.bodies = tuple(int(b) for b in np.unique(self.body[self.magnetised]))  # the magnetised bodies
         n = model.n_particles
         self.B = wp.zeros(n, dtype=model.kernels["v3"], device=model.device)
-        self.G = wp.zeros(n, dtype=model.kernels["m3"], device=model.device)
+        self.grad_B = wp.zeros(n, dtype=model.kernels["m3"], device=model.device)
         self.refreshes = 0
         self.host_reads = 0
         self.correct_self_torque = True
@@ -241,7 +243,7 @@ class MagneticInteraction:
         self._on_cpu = wp.get_device(model.device).is_cpu
         if len(self.bodies) > 1:  # each body's own field alone, for its self-torque
             self._B_own = wp.zeros(n, dtype=model.kernels["v3"], device=model.device)
-            self._G_own = wp.zeros(n, dtype=model.kernels["m3"], device=model.device)
+            self._grad_B_own = wp.zeros(n, dtype=model.kernels["m3"], device=model.device)
 
     @property
     def active(self) -> bool:
@@ -316,11 +318,11 @@ class MagneticInteraction:
             self._fields[:size].assign(fields.ravel())
         self._M_host = M
 
-    def _gather(self, x: wp.array, B: wp.array, G: wp.array) -> None:
+    def _gather(self, x: wp.array, B: wp.array, grad_B: wp.array) -> None:
         m = self.model
         lo, inv_h, shape, total = self._grid_args()
         wp.launch(self.k["gather_field"], dim=m.n_particles, device=m.device,
-                  inputs=[x, lo, inv_h, shape, total, self._fields, m.scalar(MU0), B, G])
+                  inputs=[x, lo, inv_h, shape, total, self._fields, m.scalar(MU0), B, grad_B])
 
     # -- the self-torque -------------------------------------------------------------------------------------
     def moments(self, F_np: np.ndarray) -> np.ndarray:
@@ -338,7 +340,7 @@ class MagneticInteraction:
         return m * (h["volumes"][:, None] / MU0)
 
     def _remove_self_torque(self, x: wp.array, F: wp.array, x_np: np.ndarray) -> None:
-        """Fold into ``G`` the force field that cancels, body by body, the net torque the body's own lattice
+        """Fold into ``grad_B`` the force field that cancels, body by body, the net torque the body's own lattice
         field exerts on it (docs/engine.md, "Self-torque").
 
         A body's own field exerts no net torque on it in physics; the lattice of node dipoles is not invariant
@@ -349,7 +351,7 @@ class MagneticInteraction:
         w_p = |m_p| and c the w-weighted centroid, which sum to zero and whose torque I alpha = -tau
         (I = sum_p w_p (|r_p|^2 1 - r_p r_p^T)), so magnetised material bears the correction and the net force
         stays zero. The engine's gradient force is (grad B)^T m at the particle's current moment, so the force
-        enters ``G`` as the rank-one term m f^T / |m|^2, exact at the refresh. Torques between bodies are not
+        enters ``grad_B`` as the rank-one term m f^T / |m|^2, exact at the refresh. Torques between bodies are not
         touched. ``x_np``: the positions ``x`` on the host (the refresh read them already)."""
         dim = self.dim
         x_np = x_np.astype(np.float64)
@@ -358,7 +360,7 @@ class MagneticInteraction:
             self.host_reads += 1
         m = self.moments(F_np)
         w = np.linalg.norm(m, axis=1)
-        G_all = self.G.numpy()  # on the CPU a view: the correction is written in place
+        grad_B_all = self.grad_B.numpy()  # on the CPU a view: the correction is written in place
         B_all = None if len(self.bodies) > 1 else self.B.numpy()
         own = B_all is None
         for b in self.bodies:
@@ -366,16 +368,16 @@ class MagneticInteraction:
             if own:
                 self._fit(x_np, b)
                 self._solve(x, F)
-                self._gather(x, self._B_own, self._G_own)
-                Bb, Gb = self._B_own.numpy()[sel], self._G_own.numpy()[sel]
+                self._gather(x, self._B_own, self._grad_B_own)
+                Bb, grad_Bb = self._B_own.numpy()[sel], self._grad_B_own.numpy()[sel]
             else:
-                Bb, Gb = B_all[sel], G_all[sel]
-            Bb, Gb = Bb.astype(np.float64), Gb.astype(np.float64)
+                Bb, grad_Bb = B_all[sel], grad_B_all[sel]
+            Bb, grad_Bb = Bb.astype(np.float64), grad_Bb.astype(np.float64)
             ms, ws = m[sel], w[sel]
             c = (ws[:, None] * x_np[sel]).sum(axis=0) / ws.sum()
             r = np.zeros((len(sel), 3))
             r[:, :dim] = x_np[sel] - c
-            f = np.einsum("pij,pi->pj", Gb, ms)
+            f = np.einsum("pij,pi->pj", grad_Bb, ms)
             tau = np.cross(r, f).sum(axis=0) + np.cross(ms, Bb).sum(axis=0)
             if dim == 2:
                 inertia = np.sum(ws * np.sum(r * r, axis=1))
@@ -387,13 +389,13 @@ class MagneticInteraction:
                 alpha = -np.linalg.pinv(inertia) @ tau
                 self.self_torque[b] = tau
             fc = ws[:, None] * np.cross(alpha, r)
-            G_all[sel] = G_all[sel] + (np.einsum("pi,pj->pij", ms, fc) / (ws * ws)[:, None, None]).astype(G_all.dtype)
+            grad_B_all[sel] = grad_B_all[sel] + (np.einsum("pi,pj->pij", ms, fc) / (ws * ws)[:, None, None]).astype(grad_B_all.dtype)
         if not self._on_cpu:
-            self.G.assign(G_all)
+            self.grad_B.assign(grad_B_all)
 
     # -- public ---------------------------------------------------------------------------------------------
     def refresh(self, x: wp.array, F: wp.array) -> None:
-        """Recompute ``B`` and ``G`` at the particles for positions ``x`` and deformation gradients ``F``, with
+        """Recompute ``B`` and ``grad_B`` at the particles for positions ``x`` and deformation gradients ``F``, with
         each body's spurious self-torque removed (:meth:`_remove_self_torque`; ``correct_self_torque`` False:
         the lattice's field as it is)."""
         if not self.active:
@@ -403,15 +405,15 @@ class MagneticInteraction:
         x_np = x.numpy()
         self._fit(x_np)
         self._solve(x, F)
-        self._gather(x, self.B, self.G)
+        self._gather(x, self.B, self.grad_B)
         if self.correct_self_torque:
             self._remove_self_torque(x, F, x_np)
         self.refreshes += 1
 
-    def add_to(self, B: wp.array, G: wp.array, keep: bool) -> None:
+    def add_to(self, B: wp.array, grad_B: wp.array, keep: bool) -> None:
         """Add the last refresh's field into the engine's per-particle arrays (``keep`` False: overwrite)."""
         wp.launch(self.k["add_field"], dim=self.model.n_particles, device=self.model.device,
-                  inputs=[self.B, self.G, 1 if keep else 0, B, G])
+                  inputs=[self.B, self.grad_B, 1 if keep else 0, B, grad_B])
 
     def field_at(self, points, x: wp.array, F: wp.array) -> np.ndarray:
         """Flux density B = mu0 (H + M) (T, (P, 3)) of the bodies' magnetisation at ``points`` (P, dim or 3) m, for

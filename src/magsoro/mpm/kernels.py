@@ -40,12 +40,14 @@ def _stress_kernel(dim: int, scalar) -> dict:
 
     @wp.kernel(enable_backward=False)  # never under wp.Tape
     def stress_kernel(
-        F: wp.array(dtype=mat), model: int, G: scalar, K: scalar, prm: vprm, P: wp.array(dtype=mat), psi: wp.array(dtype=scalar)
+        F: wp.array(dtype=mat), model: int, shear_modulus: scalar, bulk_modulus: scalar, prm: vprm, P: wp.array(dtype=mat),
+        psi: wp.array(dtype=scalar)
     ):
-        """First Piola stress and energy density of one law at each F (tests and closed-form checks)."""
+        """First Piola stress and energy density of one law (shear and bulk moduli in Pa) at each F (tests and
+        closed-form checks)."""
         i = wp.tid()
-        P[i] = elastic_stress(F[i], model, G, K, prm)
-        psi[i] = elastic_energy(F[i], model, G, K, prm)
+        P[i] = elastic_stress(F[i], model, shear_modulus, bulk_modulus, prm)
+        psi[i] = elastic_energy(F[i], model, shear_modulus, bulk_modulus, prm)
 
     @wp.kernel(enable_backward=False)
     def body_stress_kernel(

@@ -6,12 +6,14 @@ import functools
 import warp as wp
 
 from magsoro.constants import MU0
+from magsoro.mpm.settings import P2GFlag
 from magsoro.mpm.stencil import make_stencil
 from magsoro.mpm.viscous import make_viscous
 
-#: bits of p2g's ``flags``: the total-Lagrangian form; the affine matrix and momentum stored for p2g_scatter
-P2G_TOTAL = 1
-P2G_APART = 2
+#: bits of p2g's ``flags`` (:class:`magsoro.mpm.settings.P2GFlag`): the total-Lagrangian form; the affine matrix
+#: and momentum stored for p2g_scatter
+P2G_TOTAL = wp.constant(int(P2GFlag.TOTAL))
+P2G_APART = wp.constant(int(P2GFlag.APART))
 
 # Unroll the 3^dim-node stencil loops (27 in 3D): constant offsets let the compiler fold the weight selection.
 wp.set_module_options({"max_unroll": 32})
@@ -48,7 +50,7 @@ def make_p2g(dim: int, scalar, two_fields: bool = False, differentiable: bool = 
         return body_elastic_stress(Fp, b, p) - scalar(inv_mu0) * wp.outer(inplane(B), inplane(br))
 
     @wp.func
-    def gradient_force(Fp: mat, b: Bodies, p: int, G: m3):
+    def gradient_force(Fp: mat, b: Bodies, p: int, grad_B: m3):
         """Gradient force (seed 000 eqs 15-16) on particle ``p``: f = (grad B)^T m with m = F Br V0 / mu0 its
         current moment (R Br V0 / mu0 when it follows R); summing w f over nodes gives the node form since the
         weights sum to one."""
@@ -60,7 +62,7 @@ def make_p2g(dim: int, scalar, two_fields: bool = False, differentiable: bool = 
         if wp.static(dim == 2):
             m3d[2] = br[2]  # plane strain: F_zz = 1
         m3d = m3d * (b.vol0[p] * scalar(inv_mu0))
-        return inplane(wp.transpose(G) * m3d)
+        return inplane(wp.transpose(grad_B) * m3d)
 
     @wp.func
     def pressure_force(Fp: mat, area: vec, pressure: scalar):
@@ -86,7 +88,7 @@ def make_p2g(dim: int, scalar, two_fields: bool = False, differentiable: bool = 
         affine = stress + mp * sp.C[p]
         mv = mp * sp.v[p]
         if applied.has_gradient != 0:
-            mv = mv + dts * gradient_force(Fp, b, p, applied.G[p])
+            mv = mv + dts * gradient_force(Fp, b, p, applied.grad_B[p])
         if b.n_pressures > 0:
             row = b.pressure_row[p]
             if row >= 0:
@@ -160,8 +162,8 @@ def make_p2g(dim: int, scalar, two_fields: bool = False, differentiable: bool = 
         dts, B = step_values(b, applied, dt)
         if applied.has_gradient != 0:
             B = B + applied.B[p]
-        A, mv = affine_momentum(sp, b, applied, p, dts, B, dx, inv_dx, flags % 2, vs)
-        if (flags // 2) % 2 != 0:
+        A, mv = affine_momentum(sp, b, applied, p, dts, B, dx, inv_dx, flags & P2G_TOTAL, vs)
+        if (flags & P2G_APART) != 0:
             affine[p] = A
             momentum[p] = mv
             return

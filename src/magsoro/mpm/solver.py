@@ -25,11 +25,12 @@ import warp as wp
 from magsoro.constants import MU0
 from magsoro.errors import SimulationError
 from magsoro.fields.device import FieldEvaluator
-from magsoro.mpm.colliders import COLLIDER_STRIDE, MODES, Collider, collider_table
-from magsoro.mpm.interaction import MODES as INTERACTION_MODES
+from magsoro.mpm.colliders import COLLIDER_STRIDE, Collider, collider_table
 from magsoro.mpm.interaction import MagneticInteraction
-from magsoro.mpm.kernels import F_FROM_GRID, F_FROM_REMAP, F_REMAP_APART, F_TOTAL, make_kernels
-from magsoro.mpm.p2g import P2G_APART, P2G_TOTAL
+from magsoro.mpm.kernels import make_kernels
+from magsoro.mpm.settings import (COLLIDER_MODES, FORMULATIONS, INTERACTION_MODES, VELOCITY_GRADIENTS, ColliderMode,
+                                  ColliderModeName, Formulation, FUpdate, InteractionMode, MagnetizationFollows, P2GFlag,
+                                  VelocityGradient)
 from magsoro.mpm.materials import LAW_PARAM_COUNT, LAWS, describe_codes
 from magsoro.mpm.stencil import host_bspline
 from magsoro.mpm.timestep import cfl_time_step
@@ -110,7 +111,7 @@ def grid_settings(model: "Model", settings: "SolverSettings", gravity, colliders
     gs.dx = sc(model.dx)
     gs.domain_lo = vec(*[sc(v) for v in model.domain_lo])
     gs.domain_hi = vec(*[sc(v) for v in model.domain_hi])
-    gs.wall_mode = MODES[settings.walls]
+    gs.wall_mode = int(ColliderMode.named(settings.walls))
     gs.wall_friction = sc(settings.wall_friction)
     gs.colliders = colliders
     gs.n_colliders = n_colliders
@@ -123,16 +124,12 @@ def grid_settings(model: "Model", settings: "SolverSettings", gravity, colliders
     # 40 ms); a skin of a tenth of a cell keeps it in contact (0.15 cells, as the updated form).
     gs.collider_skin = wp.float64(COLLIDER_SKIN * model.dx if total else 0.0)
     if step is None:  # an array all the same: Warp's tape looks at every array of a struct argument
-        step = getattr(model, "_unused_step", None)
-        if step is None:
-            step = model._unused_step = wp.zeros(1, dtype=model.kernels["Step"], device=model.device)
+        step = model.placeholder_step
     else:
         gs.stepped = 1
     gs.step = step
     if impulse is None:  # as for step: an array all the same, not written
-        impulse = getattr(model, "_unused_impulse", None)
-        if impulse is None:
-            impulse = model._unused_impulse = wp.zeros(3, dtype=wp.float64, device=model.device)
+        impulse = model.placeholder_impulse
     else:
         gs.record_impulse = 1
     gs.collider_impulse = impulse
@@ -335,7 +332,7 @@ class Model:
         if not np.all(np.isin(h["material_model"], list(self.MATERIAL_MODELS.values()))):
             raise ValueError(f"material_model must be {describe_codes()}")
         self.material_model = wp.array(h["material_model"], dtype=wp.int32, device=dev)
-        if not np.all(np.isin(h["magnetization_follows"], (0, 1))):
+        if not np.all(np.isin(h["magnetization_follows"], [int(m) for m in MagnetizationFollows])):
             raise ValueError("magnetization_follows must be 0 (F) or 1 (R)")
         self.follows = wp.array(h["magnetization_follows"], dtype=wp.int32, device=dev)
         self.material_params = wp.array(h["material_params"].astype(s), dtype=k["vprm"], device=dev)
@@ -350,6 +347,24 @@ class Model:
         self._init_stimuli(stimulus, stimuli)
         self._init_prony(prony, pronies)
         self._init_pressures(pressure_area, pressure_row, pressures)
+        self._placeholder_step = self._placeholder_impulse = None
+
+    @property
+    def placeholder_step(self) -> wp.array:
+        """A one-element Step array (:mod:`magsoro.mpm.stencil`) that no kernel reads: a struct's step where the
+        kernels take dt and the field from their arguments. Always the same array (Warp's tape looks at every array
+        of a struct argument)."""
+        if self._placeholder_step is None:
+            self._placeholder_step = wp.zeros(1, dtype=self.kernels["Step"], device=self.device)
+        return self._placeholder_step
+
+    @property
+    def placeholder_impulse(self) -> wp.array:
+        """A float64 array of 3 that no kernel writes: the collider impulse of a grid update that records none.
+        Always the same array, as :attr:`placeholder_step`."""
+        if self._placeholder_impulse is None:
+            self._placeholder_impulse = wp.zeros(3, dtype=wp.float64, device=self.device)
+        return self._placeholder_impulse
 
     def _init_pressures(self, area, rows, pressures) -> None:
         """Pressure loads (:func:`magsoro.scene.build.pressure_faces`): per particle its reference face area vector
@@ -576,17 +591,17 @@ class SolverSettings:
 
     damping: float = 0.0
     gravity: tuple = (0.0, 0.0, 0.0)
-    walls: str = "slip"
+    walls: ColliderModeName = "slip"
     wall_friction: float = 0.0
     cfl: float = 0.4
     grid_margin: int = 4
     plane_z: float = 0.0
-    velocity_gradient: str = "remap"
-    formulation: str = "updated"
+    velocity_gradient: VelocityGradient = "remap"
+    formulation: Formulation = "updated"
     formulation_auto: bool = False  # the scene left the formulation to the builder ("auto"), which chose this one
     threads: int | None = None
     contact: ContactSettings | None = None
-    magnetic_interaction: str = "none"  # "dipole": the bodies' own field acts on them (magsoro.mpm.interaction)
+    magnetic_interaction: InteractionMode = "none"  # "dipole": the bodies' own field acts on them (magsoro.mpm.interaction)
     interaction_every: int = 1  # steps between refreshes of the bodies' field
     depth: float = 1.0  # 2D: the out-of-plane thickness the particle volumes include (m), for the 2D field
 
@@ -598,11 +613,11 @@ class Solver:
         self.model = model
         self.settings = settings or SolverSettings()
         st = self.settings
-        if st.walls not in MODES:
-            raise ValueError(f"walls must be one of {sorted(MODES)}, got {st.walls!r}")
-        if st.velocity_gradient not in ("remap", "grid"):
+        if st.walls not in COLLIDER_MODES:
+            raise ValueError(f"walls must be one of {sorted(COLLIDER_MODES)}, got {st.walls!r}")
+        if st.velocity_gradient not in VELOCITY_GRADIENTS:
             raise ValueError(f"velocity_gradient must be 'remap' or 'grid', got {st.velocity_gradient!r}")
-        if st.formulation not in ("updated", "total"):
+        if st.formulation not in FORMULATIONS:
             raise ValueError(f"formulation must be 'updated' or 'total', got {st.formulation!r}")
         if st.magnetic_interaction not in INTERACTION_MODES:
             raise ValueError(f"magnetic_interaction must be one of {INTERACTION_MODES}, got {st.magnetic_interaction!r}")
@@ -634,9 +649,10 @@ class Solver:
         # own grid update; the total form in a pass over a grid of the current configuration (_contact_pass).
         groups = int(model.host["contact_group"].max()) + 1
         contact_on = st.contact is not None and st.contact.active(groups)
-        # two velocity fields per node on the step's grid. In the total form they only keep the contact groups
-        # apart on the reference grid (classified once, never resolved there); contact itself acts in _contact_pass
-        self._contact = contact_on
+        #: two velocity fields per node on the step's grid (contact between contact groups, or within one, is
+        #: resolved). In the total form they only keep the contact groups apart on the reference grid (classified
+        #: once, never resolved there); contact itself acts in _contact_pass
+        self.contact_active = contact_on
         self._tcontact = contact_on and self._total
         if contact_on:
             fr = st.contact.friction
@@ -644,11 +660,11 @@ class Solver:
                 raise ValueError(f"contact friction table is {fr.shape[0]} x {fr.shape[0]}, the model has {groups} contact groups")
             self._contact_friction = wp.array(fr[:groups, :groups].ravel().astype(model.np_scalar), dtype=sc, device=dev)
             self._contact_groups = groups
-        if self._contact:
+        if self.contact_active:
             self.threads = 1
             self.k = make_kernels(dim, sc, contact=True)
         self._tc = None  # the total form's contact grid (allocated at the first pass)
-        self._fields_per_node = 2 if self._contact else 1
+        self._fields_per_node = 2 if self.contact_active else 1
         cuts = np.linspace(0, model.n_particles, self.threads + 1).round().astype(int)
         self._ranges = [(int(cuts[t]), int(cuts[t + 1])) for t in range(self.threads)]
         self._workers = _Workers(self.threads - 1) if self.threads > 1 else None
@@ -680,7 +696,7 @@ class Solver:
         self._evaluator_key = None
         n = model.n_particles
         self.B_particle = wp.zeros(n, dtype=self.k["v3"], device=dev)
-        self.G_particle = wp.zeros(n, dtype=self.k["m3"], device=dev)
+        self.grad_B_particle = wp.zeros(n, dtype=self.k["m3"], device=dev)
         # p2g -> p2g_scatter with the scatter threads (allocated by the first launch set that spreads; else empty)
         self.particle_affine = wp.zeros(0, dtype=self.k["mat"], device=dev)
         self.particle_momentum = wp.zeros(0, dtype=self.k["vec"], device=dev)
@@ -717,10 +733,11 @@ class Solver:
         self.capture_failure = None  # why a capture failed (then graph_capture is False)
         self._grid_views = []
         self.phase_times = None
-        # total Lagrangian: the reference positions the kernels take the grid weights at, and the held-node mask
-        # of the (fixed) grid block
+        # total Lagrangian: the reference positions the kernels take the grid weights at
         self._X0 = wp.array(model.host["positions"].astype(model.np_scalar), dtype=self.k["vec"], device=dev) if self._total else None
-        self._held = None
+        #: total Lagrangian: the held-node mask of the (fixed) grid block (int32 per node, 1 held; set with the
+        #: block, :meth:`_majority_held_nodes`); None in the updated form, whose clamps mark grid_clamp every step
+        self.held_mask = None
 
     # -- states -------------------------------------------------------------------------------------------
     def new_state(self, velocity=None) -> State:
@@ -781,7 +798,7 @@ class Solver:
             self.grid_clamp = wp.zeros(cap, dtype=wp.int32, device=dev)
             # total Lagrangian: mass-weighted node displacements (where walls and colliders act), per field
             self.grid_u = wp.zeros(nf * cap if self._total else 1, dtype=k["vec"], device=dev)
-            if self._contact:
+            if self.contact_active:
                 self._ct = contact_node_arrays(self.model, cap, self.settings.contact.self_contact)
             self._thread_grids = [
                 (wp.zeros(cap, dtype=k["vec"], device=dev), wp.zeros(cap, dtype=sc, device=dev)) for _ in range(self.threads - 1)
@@ -795,7 +812,7 @@ class Solver:
         self._grid_views = [self.grid_p[:slots], self.grid_m[:slots], self.grid_clamp[:need]]
         if self._total:
             self._grid_views += [self.grid_u[:slots]]
-        if self._contact:
+        if self.contact_active:
             # zeroed each step (the views after the first three); the group bounds are reset apart
             self._grid_views += [self._ct["grad"][: 2 * need]]
             if self.settings.contact.self_contact:
@@ -805,7 +822,7 @@ class Solver:
         if self._on_cpu:
             self._grid_np = [v.numpy() for v in self._grid_views] + [a.numpy() for pair in self._thread_grid_views for a in pair]
         if self._total:
-            self._held = wp.array(self._majority_held_nodes(), dtype=wp.int32, device=self.device)
+            self.held_mask = wp.array(self._majority_held_nodes(), dtype=wp.int32, device=self.device)
         # The box in which a particle needs neither a refit nor a domain check: the inverse of _fits (first node
         # >= org + 1, last node < org + shape - 1) intersected with the domain. Particle bounds inside it skip
         # the checks of the next step.
@@ -899,15 +916,14 @@ class Solver:
         gs = grid_settings(m, st, self.gravity, self._collider_array, len(control.colliders), 0.0, step=self._step_values,
                            impulse=self.collider_impulse)
         ct = contact_grid(m)
-        if self._contact:  # the total form's reference grid keeps the fields apart but never resolves (gap 0)
+        if self.contact_active:  # the total form's reference grid keeps the fields apart but never resolves (gap 0)
             ct = self._contact_grid(self._ct, n_act, 0.0 if self._total else st.contact.gap)
-        f_update = F_TOTAL if self._total else (F_FROM_REMAP if self._remap else F_FROM_GRID)
         threads = []  # per thread: its slice of the particle arrays and its argument structs
         for t, (a, b) in enumerate(self._ranges):
             cut = (lambda arr, a=a, b=b: arr[a:b]) if self.threads > 1 else (lambda arr: arr)
             applied = k["Applied"]()
             applied.has_gradient = 1 if has_gradient else 0
-            applied.B, applied.G = cut(self.B_particle), cut(self.G_particle)
+            applied.B, applied.grad_B = cut(self.B_particle), cut(self.grad_B_particle)
             grid = k["GridArrays"]()
             grid.p, grid.m, grid.clamp = grid_p[t], grid_m[t], self.grid_clamp
             out = k["Particles"]()
@@ -930,6 +946,10 @@ class Solver:
                     for th in threads]
 
         spread = 1 if self.spread_scatter else 0
+        f_update = FUpdate.TOTAL if self._total else (FUpdate.FROM_REMAP if self._remap else FUpdate.FROM_GRID)
+        if spread and f_update == FUpdate.FROM_REMAP:
+            f_update = FUpdate.REMAP_APART  # the remap's scatter in remap_scatter
+        p2g_flags = (P2GFlag.TOTAL if self._total else 0) | (P2GFlag.APART if spread else 0)
         if spread and self.particle_affine.shape[0] != m.n_particles:
             self.particle_affine = wp.zeros(m.n_particles, dtype=k["mat"], device=dev)
             self.particle_momentum = wp.zeros(m.n_particles, dtype=k["vec"], device=dev)
@@ -943,7 +963,7 @@ class Solver:
             # and momentum, and p2g_scatter spreads them with one thread per (particle, node)
             "p2g": particles(k["p2g"], lambda th, cut: [
                 th["src"], th["bodies"], th["applied"], block, sc(0.0), th["grid"], self.error,
-                (P2G_TOTAL if self._total else 0) | (P2G_APART if spread else 0), ct, viscous_struct(m, state_in.H, cut),
+                int(p2g_flags), ct, viscous_struct(m, state_in.H, cut),
                 # read only when spread; otherwise empty, and not sliced per thread
                 cut(self.particle_affine) if spread else self.particle_affine,
                 cut(self.particle_momentum) if spread else self.particle_momentum]),
@@ -951,11 +971,11 @@ class Solver:
                 cut(x_grid), th["bodies"], block, cut(self.particle_affine), cut(self.particle_momentum), th["grid"], ct,
                 spread], spread_threads) if spread else [],
             "grid_update": nodes(k["grid_update"], [
-                self.grid_p, self.grid_m, self._held if self._total else self.grid_clamp, org, block.shape, gs,
+                self.grid_p, self.grid_m, self.held_mask if self._total else self.grid_clamp, org, block.shape, gs,
                 self.grid_v, ct, self.grid_u]),
             "g2p": particles(k["g2p"], lambda th, cut: [
                 self.grid_v, th["bodies"], block, sc(0.0), cut(x_grid), cut(state_in.x), cut(state_in.F), th["out"],
-                th["checks"], F_REMAP_APART if (spread and f_update == F_FROM_REMAP) else f_update, grid_p[th["t"]],
+                th["checks"], int(f_update), grid_p[th["t"]],
                 ct]),
             "sum_mass": [nodes(k["add_grid"], [self.grid_p, grid_p[t], self.grid_m, grid_m[t], 1]) for t in range(1, self.threads)],
             "sum_momentum": [nodes(k["add_grid"], [self.grid_p, grid_p[t], self.grid_m, grid_m[t], 0]) for t in range(1, self.threads)],
@@ -977,7 +997,7 @@ class Solver:
         if self._total:
             L["node_displacement"] = nodes(k["node_displacement"], [self._X0, state_in.x, m.mass, block, self.grid_u, ct],
                                            m.n_particles)
-        if self._contact and not self._total:
+        if self.contact_active and not self._total:
             scan, classify = self._classify_inputs(state_in.x, block, 1 if st.contact.self_contact else 0, self._ct)
             L["contact"] = [nodes(k["contact_scan"], scan, m.n_particles), nodes(k["contact_classify"], classify)]
         if self._remap:
@@ -1031,7 +1051,8 @@ class Solver:
         return x.min(axis=0).astype(np.float64), x.max(axis=0).astype(np.float64)
 
     # -- control --------------------------------------------------------------------------------------------
-    def _fields(self, control: Control) -> FieldEvaluator:
+    def field_evaluator(self, control: Control) -> FieldEvaluator:
+        """The device evaluator of ``control``'s field sources (made again when the control or its sources change)."""
         key = id(control), tuple(id(s) for s in control.sources)
         if self._evaluator_key != key:
             self._evaluator = FieldEvaluator(control.sources, self.dim, self.scalar, self.device, self.settings.plane_z)
@@ -1079,7 +1100,7 @@ class Solver:
         t = state_in.time
         tick = time.perf_counter() if self.phase_times is not None else 0.0
         if check or not self._window_open:
-            self._check_and_fit(state_in, 0.0 if check or self._total else reach)
+            self.check_and_fit(state_in, 0.0 if check or self._total else reach)
             self.open_window()
         b0, has_gradient = self._particle_fields(control, state_in)
         self._update_colliders(control, t)
@@ -1160,7 +1181,7 @@ class Solver:
     def start_window(self, state: State, reach: float = 0.0) -> None:
         """Start a check window at ``state`` for :meth:`run_window`: the checks and the refit a window's first step
         makes (:meth:`step`; ``reach`` as there), then :meth:`open_window`."""
-        self._check_and_fit(state, 0.0 if self._total else reach)
+        self.check_and_fit(state, 0.0 if self._total else reach)
         self.open_window()
 
     def graph_refusal(self, control: Control) -> str | None:
@@ -1213,7 +1234,7 @@ class Solver:
             times.append(times[-1] + dt)
         step0 = state_a.step
         self._update_colliders(control, times[0])
-        gradient = self._fields(control).has_gradient
+        gradient = self.field_evaluator(control).has_gradient
         L = (self._launch_set(state_a, state_b, control, gradient), self._launch_set(state_b, state_a, control, gradient))
         moving = self._fill_drive(control, dts, times)
         F = (self._window_fields(state_a), self._window_fields(state_b))
@@ -1246,7 +1267,7 @@ class Solver:
         n, dev, st = len(dts), self.device, self.settings
         moving = any(c.path is not None for c in control.colliders)
         n_values = COLLIDER_STRIDE * len(control.colliders) if moving else 0
-        fields = self._fields(control)
+        fields = self.field_evaluator(control)
         prm = fields.param_arrays
         width = 5 + n_values + sum(int(a.shape[0]) for a in prm)
         d = self._drive
@@ -1301,7 +1322,7 @@ class Solver:
                 cache.clear()
                 self._graphs.clear()
             launches = cache[id(state.x)] = d["param_loads"] + d["fields"].record_launches(
-                state.x, self.B_particle, self.G_particle)
+                state.x, self.B_particle, self.grad_B_particle)
         return launches
 
     def _window_step(self, L: dict, load, fields=()) -> None:
@@ -1374,8 +1395,8 @@ class Solver:
         return err
 
     # -- the phases of a step -------------------------------------------------------------------------------
-    def _check_and_fit(self, state_in: State, reach: float = 0.0) -> None:
-        """Particles inside the safe box of the current grid block (NaN compares false) need no refit and no
+    def check_and_fit(self, state_in: State, reach: float = 0.0) -> None:
+        """The first phase of a step, also the static solver's start (the grid block, its held nodes). Particles inside the safe box of the current grid block (NaN compares false) need no refit and no
         domain check; otherwise check them and refit the block when they do not fit it. ``reach`` (m) grows the
         particles' box (within the domain) for the fit: room for the motion of a check window."""
         m, t = self.model, state_in.time
@@ -1402,10 +1423,10 @@ class Solver:
     def _particle_fields(self, control: Control, state_in: State):
         """The field at the particles at the state's time: the uniform part (returned, T) and, when there is a
         non-uniform one (field sources with a gradient, the bodies' own field), B and grad B per particle in
-        B_particle and G_particle. Returns (uniform B, whether there is a non-uniform part)."""
-        fields = self._fields(control)
+        B_particle and grad_B_particle. Returns (uniform B, whether there is a non-uniform part)."""
+        fields = self.field_evaluator(control)
         if fields.has_gradient:
-            fields.evaluate(state_in.x, self.B_particle, self.G_particle, state_in.time)
+            fields.evaluate(state_in.x, self.B_particle, self.grad_B_particle, state_in.time)
         if self.interaction is not None:
             self._interact(state_in, keep=fields.has_gradient)
         return fields.uniform_value(state_in.time), fields.has_gradient or self.interaction is not None
@@ -1420,7 +1441,7 @@ class Solver:
             self.interaction.refresh(state_in.x, state_in.F)
             self._interaction_step = step
         if fresh or keep:  # without other non-uniform fields the particle arrays keep it between refreshes
-            self.interaction.add_to(self.B_particle, self.G_particle, keep)
+            self.interaction.add_to(self.B_particle, self.grad_B_particle, keep)
 
     def _update_colliders(self, control: Control, t: float) -> None:
         """The collider table at time t, copied to the device only when it changed (resting colliders: no copy)."""
@@ -1469,7 +1490,7 @@ class Solver:
         if "pressure_net" in L:
             self.model.pressure_net.zero_()
             L["pressure_net"].launch()
-        if self._contact and not self._total:
+        if self.contact_active and not self._total:
             for v, fill in zip(self._ct_group_views, (2**31 - 1, -1)):
                 v.fill_(fill)
             for one in L["contact"]:

@@ -245,12 +245,12 @@ def make_static_kernels(dim: int, scalar) -> dict:
     @wp.struct
     class FieldTerms:
         """Per particle, what a non-uniform field adds to the tangent (StaticSolver.tangent): V0 / mu0, the field's
-        gradient G (T/m), the in-plane remanence Br (T), and H_ae = sum_b dG_ba/dx_e m_b (m the moment, A m^2);
-        ``active`` 0: no non-uniform field (the arrays are not read)."""
+        gradient grad_B (G below, T/m), the in-plane remanence Br (T), and H_ae = sum_b dG_ba/dx_e m_b (m the moment,
+        A m^2); ``active`` 0: no non-uniform field (the arrays are not read)."""
 
         active: int
         coef: wp.array(dtype=scalar)
-        G: wp.array(dtype=mat)
+        grad_B: wp.array(dtype=mat)
         br: wp.array(dtype=vec)
         H: wp.array(dtype=mat)
 
@@ -299,7 +299,7 @@ def make_static_kernels(dim: int, scalar) -> dict:
         H = mat()
         c = scalar(0.0)
         if fterms.active != 0:
-            G = fterms.G[p]
+            G = fterms.grad_B[p]
             H = fterms.H[p]
             c = fterms.coef[p]
         for t in range(NS):
@@ -376,7 +376,7 @@ def check_supported(sim, who: str = "the static solver") -> None:
     solver = sim.solver
     if solver.settings.formulation != "total":
         raise SimulationError(f"{who} works on the total-Lagrangian form (simulation.formulation = 'total' or 'auto')")
-    if solver._contact:
+    if solver.contact_active:
         raise SimulationError(f"{who} has no contact between bodies yet; give the scene one body (or "
                               "contact.friction = 'sticky')")
     if np.any(sim.model.host["magnetization_follows"] != 0):
@@ -423,7 +423,7 @@ class StaticSolver:
         state = sim.state
         model.update_stimuli(self.t)  # eigenstrains (material.stimulus) at the solve's time
         model.update_pressures(self.t)  # pressure loads at the solve's time
-        solver._check_and_fit(state, 0.0)  # the reference grid block, its held nodes
+        solver.check_and_fit(state, 0.0)  # the reference grid block, its held nodes
         self.block = block_struct(model, solver.org, solver.shape)
         self.n_nodes = int(solver.n_active)
         n = model.n_particles
@@ -444,7 +444,7 @@ class StaticSolver:
         g = np.zeros(self.dim)
         g[:] = np.asarray(st.gravity, dtype=np.float64).ravel()[: self.dim]
         self.gravity = g
-        self.fields = solver._fields(sim.control)
+        self.fields = solver.field_evaluator(sim.control)
         self.residual_evaluations = 0
         self.extra_force = None  # (n_nodes, dim) N: the imperfection force of a branch switch
         self.contact = None  # the colliders' penalty (magsoro.mpm.static_contact), set up below
@@ -455,7 +455,7 @@ class StaticSolver:
         # free nodes: carrying mass, not held
         self._scatter(np.zeros((self.n_nodes, self.dim)), 0.0, 0.0)
         mass = solver.grid_m.numpy()[: self.n_nodes].astype(np.float64)
-        held = solver._held.numpy()[: self.n_nodes] != 0
+        held = solver.held_mask.numpy()[: self.n_nodes] != 0
         self.node_mass = mass
         self.held_nodes = held  # nodes the clamps hold (read once: the clamps do not change during a solve)
         self.free = np.flatnonzero((mass > 0) & ~held)
@@ -512,7 +512,7 @@ class StaticSolver:
                 pts = part.X[part.touchable]
                 point_labels = label[part.touchable] if part.W is not P else particle_label[part.touchable]
                 for ci, (c, lvl) in enumerate(zip(part.colliders, part.level)):
-                    clearance = part._sdf(c, pts, 0.0)[0] - lvl - part.touch
+                    clearance = part.signed_distance(c, pts, 0.0)[0] - lvl - part.touch
                     supported |= set(np.unique(point_labels[clearance <= 0.0]).tolist())
                     if part is self._scene_contact:
                         for lab in np.unique(point_labels):
@@ -577,15 +577,15 @@ class StaticSolver:
         has_gradient = self.fields.has_gradient or solver.interaction is not None
         applied.has_gradient = 1 if has_gradient else 0
         if has_gradient:
-            B, G = solver.B_particle, solver.G_particle
+            B, grad_B = solver.B_particle, solver.grad_B_particle
             B.zero_()
-            G.zero_()
+            grad_B.zero_()
             if self.fields.has_gradient:
-                self.fields.evaluate(self.x, B, G, self.field_time)
+                self.fields.evaluate(self.x, B, grad_B, self.field_time)
                 if field_level != 1.0:
-                    Bn, Gn = B.numpy(), G.numpy()
+                    Bn, Gn = B.numpy(), grad_B.numpy()
                     B.assign(Bn * field_level)
-                    G.assign(Gn * field_level)
+                    grad_B.assign(Gn * field_level)
             if solver.interaction is not None:
                 # the bodies' own field is not scaled by the field level: it is on at every level, like gravity,
                 # and ramps with gravity_level from the unloaded state (so load increments can take it in steps)
@@ -593,9 +593,9 @@ class StaticSolver:
                 inter.refresh(self.x, self.F)
                 if gravity_level != 1.0:
                     inter.B.assign(inter.B.numpy() * gravity_level)
-                    inter.G.assign(inter.G.numpy() * gravity_level)
-                inter.add_to(B, G, keep=True)
-        applied.B, applied.G = solver.B_particle, solver.G_particle
+                    inter.grad_B.assign(inter.grad_B.numpy() * gravity_level)
+                inter.add_to(B, grad_B, keep=True)
+        applied.B, applied.grad_B = solver.B_particle, solver.grad_B_particle
         solver.grid_p.zero_()
         solver.grid_m.zero_()
         solver.error.zero_()
@@ -619,6 +619,20 @@ class StaticSolver:
     def residual(self, u_nodes, field_level, gravity_level) -> np.ndarray:
         """Out-of-balance force on the unknowns (the free nodes' forces gathered by the slaving), flat."""
         return self._reduce(self._scatter(u_nodes, field_level, gravity_level))
+
+    def node_forces(self, u_nodes, field_level, gravity_level) -> np.ndarray:
+        """Node forces (n_nodes, dim), N, at the node displacements ``u_nodes`` under the given load levels; the
+        solver's particle positions x and deformation gradients F are left at ``u_nodes``."""
+        return self._scatter(u_nodes, field_level, gravity_level)
+
+    def forces_on_unknowns(self, node_forces: np.ndarray) -> np.ndarray:
+        """The node forces (n_nodes, dim) gathered onto the unknowns (E^T f over the free nodes: virtual work), flat."""
+        return self._reduce(node_forces)
+
+    def particle_stencil(self):
+        """Per particle: flat node indices (N, 3^dim), weights (N, 3^dim) and reference weight gradients (N, 3^dim,
+        dim, 1/m) of the engine's quadratic B-splines on the reference grid block (computed once)."""
+        return self._stencil()
 
     def interpolation(self):
         """P (n_particles x n_nodes, sparse CSR): the particles' B-spline weights on the reference grid block, so
@@ -715,7 +729,7 @@ class StaticSolver:
                                          minlength=self.n_nodes) for a in range(dim)], axis=1)
         X = (self.model.domain_lo + self.solver.org * self.model.dx) + self.coords * self.model.dx
         light = np.zeros(self.n_nodes, bool)
-        light[self.free] = mass[self.free] < LIGHT[dim] * mass.max()
+        light[self.free] = mass[self.free] < self.light_fraction() * mass.max()
         unknown = self.free[~light[self.free]]
         column = np.full(self.n_nodes, -1, dtype=np.int64)
         column[unknown] = np.arange(len(unknown))
@@ -752,7 +766,12 @@ class StaticSolver:
                     cols.append(col * dim + a)
                     vals.append(v)
         self.n_light = int(light.sum())
+        self.unknown_nodes = unknown  # the node of each unknown's dim components, in their order
         return sparse.csr_matrix((vals, (rows, cols)), shape=(len(self.free) * dim, len(unknown) * dim))
+
+    def light_fraction(self) -> float:
+        """Free nodes lighter than this fraction of the heaviest node are slaved (:meth:`_slaving`): LIGHT[dim]."""
+        return LIGHT[self.dim]
 
     def _reduce(self, node_forces: np.ndarray) -> np.ndarray:
         """Forces on the unknowns, E^T f over the free nodes (virtual work), flat."""
@@ -843,7 +862,7 @@ class StaticSolver:
             npsc = self.model.np_scalar
             fterms.active = 1
             fterms.coef = wp.array((V0 / MU0).astype(npsc), dtype=self.sc, device=dev)
-            fterms.G = wp.array(G0.astype(npsc), dtype=k["mat"], device=dev)
+            fterms.grad_B = wp.array(G0.astype(npsc), dtype=k["mat"], device=dev)
             fterms.br = wp.array(br.astype(npsc), dtype=k["vec"], device=dev)
             fterms.H = wp.array(np.einsum("pbae,pb->pae", dG, m).astype(npsc), dtype=k["mat"], device=dev)
         data.zero_()
@@ -1070,14 +1089,14 @@ class StaticSolver:
         u = self.u_nodes
         f = self._scatter(u, *load) - self.contact.forces(u)  # the contacts' part out: fields, gravity, stresses
         net = f.sum(axis=0)  # the stresses' node forces sum to zero
-        touched = [(ci, c) for ci, c in enumerate(part.colliders) if len(part._touching[ci])]
+        touched = [(ci, c) for ci, c in enumerate(part.colliders) if len(part.touching[ci])]
         if len(touched) != 1 or touched[0][1].mode != "friction":
             return ""
         if flat_only and touched[0][1].kind != "half_space":
             return ""
         ci, c = touched[0]
-        pts = part.positions(u)[part._touching[ci]]
-        n = part._sdf(c, pts)[1].mean(axis=0)
+        pts = part.positions(u)[part.touching[ci]]
+        n = part.signed_distance(c, pts)[1].mean(axis=0)
         n /= np.linalg.norm(n)
         f_n = -float(net @ n)  # pressing the bodies onto the collider
         f_t = float(np.linalg.norm(net + f_n * n))

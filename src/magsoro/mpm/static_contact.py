@@ -38,7 +38,7 @@ change is left out). The forces enter the node residual as W^T f, and the tangen
 import numpy as np
 from scipy import sparse
 
-from magsoro.mpm.colliders import MODES
+from magsoro.mpm.settings import ColliderMode
 
 #: penalty stiffness per cell, as a multiple of the stiffest particle's P-wave modulus K + 4G/3
 PENALTY = 10.0
@@ -109,7 +109,7 @@ class ColliderPenalty:
         # node's inward motion there; it does not push it out), with the colliders where they are at the scene's
         # start (a collider that a path moves into a body later pushes it)
         X_touch = self.X[self.touchable]
-        self.level = [np.minimum(reach, self._sdf(c, X_touch, 0.0)[0]) for c in self.colliders]
+        self.level = [np.minimum(reach, self.signed_distance(c, X_touch, 0.0)[0]) for c in self.colliders]
         self.anchor = [dict() for _ in self.colliders]  # node -> anchor point relative to the collider's position
         self.sticking = [dict() for _ in self.colliders]  # node -> whether it stuck in the last evaluation
         self._active = []  # per collider: nodes, normals, stiffness blocks of the last evaluation
@@ -117,7 +117,8 @@ class ColliderPenalty:
         # join when they reach their level and leave only at a converged state where they pull
         self.held = [np.zeros(0, np.int64) for _ in self.colliders]
         self._held_accepted = [np.zeros(0, np.int64) for _ in self.colliders]
-        self._touching = [np.zeros(0, np.int64) for _ in self.colliders]
+        #: per collider: the points within touching reach of it (level + touch) at the last forces() evaluation
+        self.touching = [np.zeros(0, np.int64) for _ in self.colliders]
         self._gaps = [None for _ in self.colliders]
         self.penetration = 0.0
         self._last_x = self.X.copy()  # the nodes' contact positions at the last accepted increment
@@ -128,7 +129,7 @@ class ColliderPenalty:
         """x~ (n_nodes, dim): the nodes where the colliders act."""
         return self.X + self.W @ u_nodes
 
-    def _sdf(self, c, pts: np.ndarray, t: float | None = None):
+    def signed_distance(self, c, pts: np.ndarray, t: float | None = None):
         """Signed distance (m) and outward unit normal (in-plane) of collider ``c`` at ``pts`` (P, dim), the collider
         where its path has it at ``t`` (default: the current time): the distance exactly, the normal by central
         differences of it (1e-6 cells)."""
@@ -151,7 +152,7 @@ class ColliderPenalty:
         return phi, grad / np.where(norm > 0, norm, 1.0)[:, None]
 
     def _origin(self, c) -> np.ndarray:
-        return c.row(self.t)[3 : 3 + self.dim]
+        return c.position_at(self.t)[: self.dim]
 
     # -- forces and tangent -------------------------------------------------------------------------------------
     def forces(self, u_nodes: np.ndarray) -> np.ndarray:
@@ -163,14 +164,14 @@ class ColliderPenalty:
         self.reaction = np.zeros((len(self.colliders), 3))  # N: the force on each collider (minus the points')
         for ci, c in enumerate(self.colliders):
             nodes = self.touchable
-            phi, nrm = self._sdf(c, xt[nodes])
-            mode = MODES[c.mode]
-            tied = np.array(list(self.anchor[ci]), dtype=np.int64) if mode != MODES["slip"] else np.zeros(0, np.int64)
+            phi, nrm = self.signed_distance(c, xt[nodes])
+            mode = c.mode_code
+            tied = np.array(list(self.anchor[ci]), dtype=np.int64) if mode != ColliderMode.SLIP else np.zeros(0, np.int64)
             touching = nodes[phi <= self.level[ci] + self.touch]
             act = np.union1d(touching, self.held[ci])
-            if mode == MODES["sticky"]:
+            if mode == ColliderMode.STICKY:
                 act = np.union1d(act, tied)
-            self._touching[ci] = touching
+            self.touching[ci] = touching
             self._gaps[ci] = None
             if len(act) == 0:
                 self._active.append(None)
@@ -186,7 +187,7 @@ class ColliderPenalty:
             blocks = kc[:, None, None] * np.einsum("pi,pj->pij", n, n)
             fn_mag = np.maximum(fn_mag, 0.0)
             inside = gap >= -self.touch  # touching (a body placed on the collider: to rounding)
-            if mode != MODES["slip"]:
+            if mode != ColliderMode.SLIP:
                 # the tangential law, on every point at once (module docstring)
                 origin = self._origin(c)
                 dim = self.dim
@@ -199,12 +200,12 @@ class ColliderPenalty:
                 first = ~known & inside  # first touch: the surface point under the point's last converged position
                 if first.any():
                     last = self._last_x[act[first]]
-                    phl, nl = self._sdf(c, last)
+                    phl, nl = self.signed_distance(c, last)
                     anchors[first] = last - (phl - self.level[ci][sel[first]])[:, None] * nl - origin
                 anchored = known | first  # the others (not touching, never anchored) carry no tangential force
                 stuck = np.zeros(len(act), bool)
                 d = xt[act] - (anchors + origin)
-                if mode == MODES["sticky"]:
+                if mode == ColliderMode.STICKY:
                     force[anchored] = -kc[anchored, None] * d[anchored]
                     blocks[anchored] = kc[anchored, None, None] * np.eye(dim)[None]
                     stuck[anchored] = True
@@ -251,7 +252,7 @@ class ColliderPenalty:
 
     def commit(self) -> None:
         """The last evaluation's touching nodes join the active set (after an accepted Newton iterate)."""
-        self.held = [np.union1d(h, t) for h, t in zip(self.held, self._touching)]
+        self.held = [np.union1d(h, t) for h, t in zip(self.held, self.touching)]
 
     def release(self) -> bool:
         """At a converged state: nodes of the active set that pull (gap below -RELEASE cells) leave it.
@@ -273,7 +274,7 @@ class ColliderPenalty:
         before it drives nodes, and the particles next to them, deep into a collider."""
         def depth(alpha):
             xt = self.positions(u_nodes + alpha * step)[self.touchable]
-            return max(float(np.max(lvl - self._sdf(c, xt)[0])) for c, lvl in zip(self.colliders, self.level))
+            return max(float(np.max(lvl - self.signed_distance(c, xt)[0])) for c, lvl in zip(self.colliders, self.level))
 
         limit = STEP_DEPTH * self.dx
         if depth(1.0) <= limit:
@@ -317,11 +318,11 @@ class ColliderPenalty:
         onto the Coulomb cone, nodes that left a friction or slip collider forget theirs."""
         xt = self.positions(u_nodes)
         for ci, c in enumerate(self.colliders):
-            mode = MODES[c.mode]
-            if mode == MODES["slip"]:
+            mode = c.mode_code
+            if mode == ColliderMode.SLIP:
                 continue
             origin = self._origin(c)
-            phi, nrm = self._sdf(c, xt[self.touchable])
+            phi, nrm = self.signed_distance(c, xt[self.touchable])
             touching = set(int(v) for v in self.touchable[phi <= self.level[ci] + self.touch])
             last = self._last_x
             new = {}
@@ -331,9 +332,9 @@ class ColliderPenalty:
                 if a is None:
                     if node not in touching:
                         continue
-                    phl, nl = self._sdf(c, last[node : node + 1])
+                    phl, nl = self.signed_distance(c, last[node : node + 1])
                     a = last[node] - (phl[0] - self.level[ci][j]) * nl[0] - origin
-                if mode == MODES["friction"]:
+                if mode == ColliderMode.FRICTION:
                     if node not in touching:
                         continue  # separated: free again
                     if not self.sticking[ci].get(node, True):  # slid: the anchor follows to the elastic slip

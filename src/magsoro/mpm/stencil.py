@@ -18,6 +18,7 @@ import warp as wp
 from magsoro.constants import MU0
 from magsoro.mpm.contact import make_contact
 from magsoro.mpm.materials import LAW_PARAM_COUNT, make_material_functions
+from magsoro.mpm.settings import MagnetizationFollows
 
 
 def host_bspline(X, lo, dx: float):
@@ -104,12 +105,12 @@ def make_types(dim: int, scalar) -> SimpleNamespace:
     @wp.struct
     class Applied:
         """The applied field at the particles: the uniform part ``B_uniform`` (T) and, when ``has_gradient``,
-        the non-uniform part ``B`` (T) and its gradient ``G`` (T/m, G[i, j] = dB_i/dx_j) per particle."""
+        the non-uniform part ``B`` (T) and its gradient ``grad_B`` (T/m, grad_B[i, j] = dB_i/dx_j) per particle."""
 
         B_uniform: v3
         has_gradient: int
         B: wp.array(dtype=v3)
-        G: wp.array(dtype=m3)
+        grad_B: wp.array(dtype=m3)
 
     @wp.struct
     class GridArrays:
@@ -190,7 +191,8 @@ def make_body_elastic(dim: int, scalar) -> SimpleNamespace:
 
 
 #: codes of a material's magnetisation kinematics (scene key material.magnetization_follows)
-MAGNETIZATION_FOLLOWS = {"F": 0, "R": 1}
+MAGNETIZATION_FOLLOWS = {m.name: int(m) for m in MagnetizationFollows}
+FOLLOWS_F = wp.constant(int(MagnetizationFollows.F))
 
 
 @functools.cache
@@ -288,7 +290,7 @@ def make_magnetization(dim: int, scalar) -> SimpleNamespace:
     @wp.func
     def moment_map(F: mat, follows: int):
         M = F
-        if follows != 0:
+        if follows != FOLLOWS_F:
             M = polar_rotation(F)
         return M
 

@@ -121,7 +121,7 @@ def scene(name: str, data: dict | None = None, preview: bool = False):
     if preview:
         data = apply_preview(data, str(path))
     sc = parse_scene(data, str(path), path.parent)
-    sc._source_path = path
+    sc.source_path = path
     return sc
 
 

@@ -227,7 +227,7 @@ def _engine_particle_loads(sim):
     F = sim.state.F.numpy().astype(np.float64)
     m = np.einsum("pij,pj->pi", F, h["remanence"][:, :dim]) * h["volumes"][:, None] / MU0
     B = inter.B.numpy().astype(np.float64)[:, :dim]
-    G = inter.G.numpy().astype(np.float64)[:, :dim, :dim]
+    G = inter.grad_B.numpy().astype(np.float64)[:, :dim, :dim]
     return x, m, B, np.einsum("pac,pa->pc", G, m)
 
 

@@ -369,14 +369,14 @@ def fill_bodies(scene: Scene, source: str = "scene", magnetization=None) -> Part
     lo, hi = np.asarray(sim.domain_lo, dtype=np.float64), np.asarray(sim.domain_hi, dtype=np.float64)
     depth = sim.depth if dim == 2 else 1.0
     h = dx / ppc
-    libs = getattr(scene, "_material_libraries", None) or []
+    libs = scene.material_library_paths
     try:
         library = load_library(libs) if libs else None
     except MaterialLibraryError as exc:
         raise SceneError(f"{source}: material_library: {exc}") from None
     names = [b.name for b in scene.bodies]
-    if magnetization is None and getattr(scene, "_magnetization", None):
-        magnetization = dict(scene._magnetization)  # set by Scene.set_magnetization
+    if magnetization is None and scene.magnetization_functions:
+        magnetization = scene.magnetization_functions  # set by Scene.set_magnetization
     if isinstance(magnetization, dict):
         unknown = [k for k in magnetization if k not in names]
         if unknown:
@@ -384,11 +384,11 @@ def fill_bodies(scene: Scene, source: str = "scene", magnetization=None) -> Part
     per_body = []
     report = []
     for i, b in enumerate(scene.bodies):
-        bsrc = getattr(b, "_source", None) or source
-        bkey = getattr(b, "_key", None) or f"bodies[{i}]"
-        base_dir = getattr(b, "_base_dir", None)
+        bsrc = b.source or source
+        bkey = b.key or f"bodies[{i}]"
+        base_dir = b.base_dir
         if base_dir is None:
-            base_dir = getattr(scene, "_base_dir", None)
+            base_dir = scene.base_dir
         try:
             shape = make_shape(b.shape, base_dir, dim)
             # the domain and the size are checked before the lattice is filled: a mesh in mm read as m would
@@ -457,7 +457,7 @@ def fill_bodies(scene: Scene, source: str = "scene", magnetization=None) -> Part
         n_b = len(pb["pts"])
         if b.pressure is not None:
             key = f"{pb['src']}: {pb['key']}.pressure.cavity"
-            base_dir = getattr(b, "_base_dir", None) or getattr(scene, "_base_dir", None)
+            base_dir = b.base_dir or scene.base_dir
             try:
                 cavity = make_shape(b.pressure.cavity, base_dir, dim)
             except MeshError as exc:
@@ -610,7 +610,7 @@ def contact_groups(scene: Scene, X: np.ndarray, body_id: np.ndarray) -> np.ndarr
     def unite(a, b):
         parent[root(b)] = root(a)
 
-    parts = [i for i, b in enumerate(scene.bodies) if not (getattr(b, "_key", None) or "bodies[").startswith("bodies[")]
+    parts = [i for i, b in enumerate(scene.bodies) if not (b.key or "bodies[").startswith("bodies[")]
     for i in parts[1:]:
         unite(parts[0], i)
     sites = [_lattice_index(X[body_id == i], lo, h) for i in range(n)]
@@ -657,7 +657,7 @@ def held_particles(scene: Scene, p: Particles, source: str = "scene") -> np.ndar
     """(N,) bool: the particles of ``p`` (from :func:`fill_bodies`) that are held, those of clamped bodies and
     those inside a ``[[clamps]]`` region (of its body, when it names one). SceneError for a region that holds no
     particle."""
-    base_dir = getattr(scene, "_base_dir", None)
+    base_dir = scene.base_dir
     clamped = p.clamped.copy()
     for i, c in enumerate(scene.clamps):
         try:
@@ -686,7 +686,7 @@ def build(scene: Scene, device: str | None = None, source: str = "scene", magnet
     p = fill_bodies(scene, source, magnetization)
     X, body_id = p.positions, p.body
     names = p.body_names
-    base_dir = getattr(scene, "_base_dir", None)
+    base_dir = scene.base_dir
     def region_shape(spec, key):
         try:
             return make_shape(spec, base_dir, dim)
@@ -709,7 +709,7 @@ def build(scene: Scene, device: str | None = None, source: str = "scene", magnet
     sources = []
     for i, f in enumerate(scene.fields):
         try:
-            sources.append(make_field(f, getattr(scene, "_base_dir", None)))
+            sources.append(make_field(f, scene.base_dir))
         except ValueError as exc:
             raise SceneError(f"{source}: fields[{i}]: {exc}") from None
     colliders = [make_collider(c, dim, sim.plane_z) for c in scene.colliders]

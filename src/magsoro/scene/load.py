@@ -131,13 +131,13 @@ def parse_scene(data: dict, source: str = "scene", base_dir: Path | None = None)
         scene = Scene.model_validate(data)
     except ValidationError as exc:
         raise SceneError(format_validation_error(exc, source)) from None
-    scene._base_dir = base_dir  # where relative file names resolve
+    scene.base_dir = base_dir  # where relative file names resolve
     for i, b in enumerate(scene.bodies):
-        b._key, b._source, b._base_dir = f"bodies[{i}]", source, base_dir
-    scene._material_libraries = [_rel(base_dir, f) for f in scene.material_library]
+        b.key, b.source, b.base_dir = f"bodies[{i}]", source, base_dir
+    scene.material_library_paths = [_rel(base_dir, f) for f in scene.material_library]
     for i, f in enumerate(scene.material_library):
-        if not scene._material_libraries[i].is_file():
-            raise SceneError(f"{source}: material_library[{i}]: file '{scene._material_libraries[i]}' not found")
+        if not scene.material_library_paths[i].is_file():
+            raise SceneError(f"{source}: material_library[{i}]: file '{scene.material_library_paths[i]}' not found")
     _expand_robot(scene, source, base_dir)
     check_scene(scene, source, base_dir)
     return scene
@@ -157,7 +157,7 @@ def _expand_robot(scene: Scene, source: str, base_dir) -> None:
     if isinstance(robot, str):
         robot = Robot(file=robot)
     for j, part in enumerate(robot.parts):
-        part._key, part._source, part._base_dir = f"robot.parts[{j}]", source, base_dir
+        part.key, part.source, part.base_dir = f"robot.parts[{j}]", source, base_dir
         scene.bodies.append(part)
     if robot.file is None:
         if not robot.parts:
@@ -176,9 +176,9 @@ def _expand_robot(scene: Scene, source: str, base_dir) -> None:
         lib = _rel(path.parent, f)
         if not lib.is_file():
             raise SceneError(f"{path}: material_library[{i}]: file '{lib}' not found")
-        scene._material_libraries.append(lib)
+        scene.material_library_paths.append(lib)
     for j, part in enumerate(rf.parts):
-        part._key, part._source, part._base_dir = f"parts[{j}]", str(path), path.parent
+        part.key, part.source, part.base_dir = f"parts[{j}]", str(path), path.parent
         scene.bodies.append(part)
 
 
@@ -220,7 +220,7 @@ def load_scene(path, preview: bool = False) -> Scene:
     if preview:
         data = apply_preview(data, str(path))
     scene = parse_scene(data, str(path), path.parent)
-    scene._source_path = path
+    scene.source_path = path
     return scene
 
 
@@ -287,10 +287,10 @@ def check_scene(scene: Scene, source: str, base_dir: Path | None) -> None:
         raise SceneError(f"{source}: bodies: a scene needs at least one body ([[bodies]]) or robot part")
     names = [b.name for b in scene.bodies]
     for i, b in enumerate(scene.bodies):
-        bsrc, bkey = b._source or source, b._key or f"bodies[{i}]"
+        bsrc, bkey = b.source or source, b.key or f"bodies[{i}]"
         if b.name in names[:i]:
             raise SceneError(f"{bsrc}: {bkey}.name: duplicate body name '{b.name}'")
-        _check_shape(b.shape, dim, f"{bkey}.shape", bsrc, b._base_dir)
+        _check_shape(b.shape, dim, f"{bkey}.shape", bsrc, b.base_dir)
         _vec_len(b.velocity, dim, f"{bkey}.velocity", bsrc)
         stim = getattr(b.material, "stimulus", None)
         if stim is not None:
@@ -298,8 +298,8 @@ def check_scene(scene: Scene, source: str, base_dir: Path | None) -> None:
         mag = b.magnetization
         if b.magnetic and isinstance(mag, list) and all(c == 0 for c in mag):
             raise SceneError(f"{bsrc}: {bkey}.magnetization: body '{b.name}' is marked magnetic but its magnetisation is zero; give a non-zero vector (T) or a profile")
-        if not isinstance(mag, list) and mag.type == "file" and not _rel(b._base_dir, mag.file).is_file():
-            raise SceneError(f"{bsrc}: {bkey}.magnetization.file: file '{_rel(b._base_dir, mag.file)}' not found")
+        if not isinstance(mag, list) and mag.type == "file" and not _rel(b.base_dir, mag.file).is_file():
+            raise SceneError(f"{bsrc}: {bkey}.magnetization.file: file '{_rel(b.base_dir, mag.file)}' not found")
     for i, c in enumerate(scene.clamps):
         _check_shape(c.region, dim, f"clamps[{i}].region", source, base_dir)
         if c.body is not None and c.body not in names:

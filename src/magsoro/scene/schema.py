@@ -445,6 +445,35 @@ class Body(Strict):
     _key: object = PrivateAttr(default=None)
     _source: object = PrivateAttr(default=None)
 
+    # where the body was read (set by the loader; None for a body made in Python)
+    @property
+    def key(self) -> str | None:
+        """The body's table in error messages: 'bodies[2]', 'robot.parts[0]', 'parts[1]' (of a robot file)."""
+        return self._key
+
+    @key.setter
+    def key(self, value: str | None) -> None:
+        self._key = value
+
+    @property
+    def source(self) -> str | None:
+        """The scene or robot file the body's table is in (or the scene's source name)."""
+        return self._source
+
+    @source.setter
+    def source(self, value: str | None) -> None:
+        self._source = value
+
+    @property
+    def base_dir(self):
+        """The directory the body's relative file names (meshes, magnetisation tables) resolve against; None: the
+        scene's."""
+        return self._base_dir
+
+    @base_dir.setter
+    def base_dir(self, value) -> None:
+        self._base_dir = value
+
     @model_validator(mode="after")
     def _lengths(self):
         if isinstance(self.magnetization, list):
@@ -953,6 +982,40 @@ class Scene(Strict):
     _source_path: object = PrivateAttr(default=None)
     _material_libraries: object = PrivateAttr(default_factory=list)
     _magnetization: object = PrivateAttr(default_factory=dict)
+
+    # where the scene was read (set by the loader; None for a scene made in Python)
+    @property
+    def base_dir(self):
+        """The directory relative file names resolve against (the scene file's); None: the working directory."""
+        return self._base_dir
+
+    @base_dir.setter
+    def base_dir(self, value) -> None:
+        self._base_dir = value
+
+    @property
+    def source_path(self):
+        """The scene file the scene was loaded from (None: made from a dict)."""
+        return self._source_path
+
+    @source_path.setter
+    def source_path(self, value) -> None:
+        self._source_path = value
+
+    @property
+    def material_library_paths(self) -> list:
+        """The material library files as paths resolved by the loader: the scene's material_library, then those of
+        its robot file (a list the loader appends to)."""
+        return self._material_libraries
+
+    @material_library_paths.setter
+    def material_library_paths(self, value: list) -> None:
+        self._material_libraries = value
+
+    @property
+    def magnetization_functions(self) -> dict:
+        """Body name -> the callable :meth:`set_magnetization` gave it (a copy)."""
+        return dict(self._magnetization)
 
     @model_validator(mode="after")
     def _bounded_output(self):

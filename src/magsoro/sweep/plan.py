@@ -48,15 +48,15 @@ def _check_materials(scene, source: str) -> None:
     from magsoro.materials.library import MaterialLibraryError, load_library
     from magsoro.scene.build import resolve_material
 
-    libs = getattr(scene, "_material_libraries", None) or []
+    libs = scene.material_library_paths
     try:
         library = load_library(libs) if libs else None
     except MaterialLibraryError as exc:
         raise SceneError(f"{source}: material_library: {exc}") from None
     for i, b in enumerate(scene.bodies):
-        base_dir = getattr(b, "_base_dir", None) or getattr(scene, "_base_dir", None)
-        key = getattr(b, "_key", None) or f"bodies[{i}]"
-        resolve_material(b.material, base_dir, f"{getattr(b, '_source', None) or source}: {key}.material", library)
+        base_dir = b.base_dir or scene.base_dir
+        key = b.key or f"bodies[{i}]"
+        resolve_material(b.material, base_dir, f"{b.source or source}: {key}.material", library)
 
 
 def _validate(data: dict, source: str, base_dir: Path) -> str | None:

@@ -286,9 +286,8 @@ class Overlays:
         t, _ = self.time_of(stamp)
         out = []
         for c in self.colliders:
-            row = c.row(t)
-            out.append({"kind": c.kind, "centre": row[3:6].copy(), "R": row[6:15].reshape(3, 3).copy(),
-                        "size": row[15:18].copy(), "collider": c, "t": t})
+            out.append({"kind": c.kind, "centre": np.array(c.position_at(t), dtype=np.float64), "R": c.rotation.copy(),
+                        "size": c.size.copy(), "collider": c, "t": t})
         return out
 
 
@@ -665,7 +664,7 @@ class MatplotlibBackend:
         y0, y1 = ax.get_ylim()
         gx, gy = np.meshgrid(np.linspace(x0, x1, 300), np.linspace(y0, y1, 300))
         for c in colliders:
-            z = np.full(gx.size, c["collider"].row(c["t"])[5])
+            z = np.full(gx.size, c["collider"].position_at(c["t"])[2])
             pts = np.stack([gx.ravel() * 1e-3, gy.ravel() * 1e-3, z], axis=1)
             sd = c["collider"].signed_distance(pts, c["t"]).reshape(gx.shape)
             if sd.min() < 0:
