@@ -143,7 +143,6 @@ def test_free_vibration_against_the_explicit_engine():
     from magsoro.simulation import Simulation
 
     T1, ts, qs, sim = _released("generalized_alpha", 0.8, periods=2)
-    tip_implicit = []
     # the released state again, for the explicit engine
     sim2 = _cantilever()
     integ = sim2.implicit_integrator()
@@ -166,7 +165,6 @@ def test_free_vibration_against_the_explicit_engine():
     period_explicit, _ = _period_and_loss(np.array(times), np.array(tips))
     period_implicit, _ = _period_and_loss(ts, qs)
     assert abs(period_implicit / period_explicit - 1.0) < 0.01
-    del tip_implicit
 
 
 def test_slow_field_ramp_ends_at_the_static_shape(tmp_path):
