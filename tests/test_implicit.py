@@ -15,85 +15,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from magsoro.validation.implicit import (block_run, cantilever, euler_bernoulli_period, period_and_loss,
+                                        released)
+
 ROOT = Path(__file__).resolve().parents[1]
 CANTILEVER = ROOT / "scenes" / "cantilever_2d.toml"
-#: the cantilever's free length from the clamp's face (m) and the thickness its 8 particle rows fill (m)
-LENGTH, THICKNESS = 0.0178, 0.0008
-#: first root of the clamped-free beam's frequency equation, cos(x) cosh(x) = -1
-BETA1 = 1.8751040687
-
-
-def euler_bernoulli_period(G=303e3, bulk_ratio=20.0, density=1030.0):
-    """First-mode period (s) of the plane-strain Euler-Bernoulli cantilever: E' = E / (1 - nu^2)."""
-    K = bulk_ratio * G
-    E = 9.0 * K * G / (3.0 * K + G)
-    nu = (3.0 * K - 2.0 * G) / (2.0 * (3.0 * K + G))
-    E_plane = E / (1.0 - nu * nu)
-    omega = BETA1 ** 2 / LENGTH ** 2 * math.sqrt(E_plane * THICKNESS ** 2 / (12.0 * density))
-    return 2.0 * math.pi / omega
-
-
-def _cantilever(scheme="generalized_alpha", rho_inf=0.8, gravity=(0.0, -5.0)):
-    """The cantilever without its field, damping 0, under gravity (the deflecting load, taken off at release)."""
-    from magsoro.scene import load_scene
-    from magsoro.simulation import Simulation
-
-    scene = load_scene(CANTILEVER)
-    scene.simulation.integrator = "implicit"
-    scene.simulation.damping = 0.0
-    scene.simulation.gravity = list(gravity)
-    scene.fields = []
-    scene.implicit.scheme = scheme
-    scene.implicit.rho_inf = rho_inf
-    return Simulation(scene, source=str(CANTILEVER))
-
-
-def _first_mode(integ):
-    """(omega_1 rad/s, its mode on the unknowns) of the unloaded discretisation: K phi = omega^2 M phi."""
-    from scipy.sparse.linalg import eigsh
-
-    K = -integ.tangent(np.zeros_like(integ.u_nodes), 0.0, 0.0)
-    vals, vecs = eigsh(K, k=1, M=integ.mass_matrix, sigma=0.0, which="LM")
-    return math.sqrt(vals[0]), vecs[:, 0]
-
-
-def _released(scheme, rho_inf, periods, steps_per_period=20):
-    """Release the gravity-deflected cantilever and follow its first-mode coordinate q = phi^T M u over
-    ``periods`` periods at dt = T1 / steps_per_period. Returns (T1 discrete, times, q, simulation)."""
-    sim = _cantilever(scheme, rho_inf)
-    integ = sim.implicit_integrator()
-    omega, phi = _first_mode(integ)
-    T1 = 2.0 * math.pi / omega
-    assert integ.solve_level(0.0, 1.0).converged  # the static shape under gravity
-    integ.gravity_level = 0.0  # release
-    integ.a_nodes = integ.consistent_acceleration()
-    integ.write_state()
-    dt = T1 / steps_per_period
-    sim.dt = sim.implicit_dt_max = dt
-    sim.implicit_dt_min = dt / 100
-
-    def q():
-        return float(phi @ (integ.mass_matrix @ integ._unknowns(integ.u_nodes)))
-
-    ts, qs = [0.0], [q()]
-    sim.advance_to(periods * T1, callback=lambda s: (ts.append(s.time), qs.append(q())))
-    return T1, np.array(ts), np.array(qs), sim
-
-
-def _period_and_loss(ts, qs):
-    """Period (s, from the zero crossings) and the amplitude lost per period (fraction) of a decaying oscillation."""
-    from scipy.interpolate import CubicSpline
-
-    tt = np.linspace(0.0, ts[-1], 40000)
-    yy = CubicSpline(ts, qs)(tt)
-    crossings = tt[1:][np.sign(yy[1:]) != np.sign(yy[:-1])]
-    period = 2.0 * float(np.mean(np.diff(crossings)))
-    peaks = np.array([np.abs(yy[(tt >= a) & (tt < b)]).max() for a, b in zip(crossings[:-1], crossings[1:])])
-    half_periods = len(peaks) - 1
-    loss = 1.0 - (peaks[-1] / peaks[0]) ** (2.0 / half_periods)
-    return period, loss
-
-
 def test_scheme_coefficients():
     """Generalised-alpha is second order (gamma = 1/2 - alpha_m + alpha_f) for every rho_inf and is the
     trapezoidal rule at rho_inf = 1; backward Euler is its own first-order member."""
@@ -114,8 +40,8 @@ def test_free_vibration_generalized_alpha():
     within 1 % of the Euler-Bernoulli beam's (measured +0.42 %) and within the scheme's period elongation of the
     discrete eigenperiod (Omega^2/12 = 0.82 % at Omega = 2 pi/20; measured +0.86 %); it loses under 2 % of its
     amplitude per period (measured 0.015 %)."""
-    T1, ts, qs, _ = _released("generalized_alpha", 0.8, periods=4)
-    period, loss = _period_and_loss(ts, qs)
+    T1, ts, qs, _ = released("generalized_alpha", 0.8, periods=4)
+    period, loss = period_and_loss(ts, qs)
     T_eb = euler_bernoulli_period()
     assert abs(T1 / T_eb - 1.0) < 0.01  # the discretisation's own first mode (measured -0.44 %)
     assert abs(period / T_eb - 1.0) < 0.01
@@ -128,8 +54,8 @@ def test_free_vibration_backward_euler_loss_matches_its_closed_form():
     """Backward Euler at dt = T1/20 multiplies a mode's amplitude by (1 + Omega^2)^(-1/2) per step (Omega =
     omega dt): a loss of 1 - (1 + Omega^2)^(-10) = 61.0 % per period. Measured 62.1 % (the mode's period also
     lengthens, so a period holds a little more than 20 steps)."""
-    T1, ts, qs, _ = _released("backward_euler", 0.8, periods=3)
-    _, loss = _period_and_loss(ts, qs)
+    T1, ts, qs, _ = released("backward_euler", 0.8, periods=3)
+    _, loss = period_and_loss(ts, qs)
     omega_dt = 2.0 * math.pi / 20
     expected = 1.0 - (1.0 + omega_dt ** 2) ** (-10)
     assert loss == pytest.approx(expected, abs=0.02)
@@ -142,9 +68,9 @@ def test_free_vibration_against_the_explicit_engine():
     from magsoro.scene import load_scene
     from magsoro.simulation import Simulation
 
-    T1, ts, qs, sim = _released("generalized_alpha", 0.8, periods=2)
+    T1, ts, qs, sim = released("generalized_alpha", 0.8, periods=2)
     # the released state again, for the explicit engine
-    sim2 = _cantilever()
+    sim2 = cantilever()
     integ = sim2.implicit_integrator()
     assert integ.solve_level(0.0, 1.0).converged
     integ.write_state()
@@ -162,8 +88,8 @@ def test_free_vibration_against_the_explicit_engine():
         explicit.advance_to(k * 2 * T1 / 40)
         times.append(explicit.time)
         tips.append(explicit.probe_values()["tip_y"])
-    period_explicit, _ = _period_and_loss(np.array(times), np.array(tips))
-    period_implicit, _ = _period_and_loss(ts, qs)
+    period_explicit, _ = period_and_loss(np.array(times), np.array(tips))
+    period_implicit, _ = period_and_loss(ts, qs)
     assert abs(period_implicit / period_explicit - 1.0) < 0.01
 
 
@@ -193,63 +119,12 @@ def test_slow_field_ramp_ends_at_the_static_shape(tmp_path):
     assert np.linalg.norm(tip - ref) < 0.005 * np.linalg.norm(ref - start)
 
 
-BLOCK = """
-name = "block_on_incline"
-[simulation]
-dim = 2
-dx = 5.0e-4
-particles_per_cell = 2
-domain_lo = [-0.006, -0.003]
-domain_hi = [0.1, 0.006]
-duration = 0.2
-gravity = [{gx}, {gy}]
-depth = 1.0e-3
-integrator = "implicit"
-
-[implicit]
-scheme = "{scheme}"
-dt = 1.0e-3
-dt_max = 1.0e-3
-
-[[bodies]]
-name = "block"
-shape = {{ type = "rectangle", center = [0.0, 0.001], size = [0.004, 0.002] }}
-material = {{ density = 1000.0, shear_modulus = 1.0e4 }}
-
-[[colliders]]
-type = "half_space"
-point = [0.0, 0.0]
-normal = [0.0, 1.0]
-mode = "friction"
-friction = {mu}
-
-[[probes]]
-type = "centroid"
-name = "c"
-body = "block"
-"""
-
-
-def _block(tmp_path, mu, scheme):
-    """A 4 x 2 mm block resting on a friction floor, gravity tilted 30 degrees: the centroid's x over 0.2 s."""
-    from magsoro.scene import load_scene
-    from magsoro.simulation import Simulation
-
-    g, a = 9.81, math.radians(30.0)
-    path = tmp_path / f"block_{mu}_{scheme}.toml"
-    path.write_text(BLOCK.format(gx=g * math.sin(a), gy=-g * math.cos(a), mu=mu, scheme=scheme))
-    sim = Simulation(load_scene(path), source=str(path))
-    ts, xs = [0.0], [sim.probe_values()["c_x"]]
-    sim.advance_to(0.2, callback=lambda s: (ts.append(s.time), xs.append(s.probe_values()["c_x"])))
-    return np.array(ts), np.array(xs) - xs[0], sim
-
-
 @pytest.mark.parametrize("scheme", ["backward_euler", "generalized_alpha"])
 def test_block_slides_at_coulomb_acceleration(tmp_path, scheme):
     """mu = 0.2, dt = 1 ms: the acceleration (a parabola fitted from 0.05 s on) within 2 % of g (sin 30 - mu cos
     30) = 3.206 m/s^2 (measured: backward Euler 3.2058582, to 1e-9; generalised-alpha 3.2040, -0.06 %)."""
     g, a = 9.81, math.radians(30.0)
-    ts, xs, _ = _block(tmp_path, 0.2, scheme)
+    ts, xs, _ = block_run(tmp_path, 0.2, scheme)
     late = ts > 0.05
     accel = 2.0 * np.polyfit(ts[late], xs[late], 2)[0]
     assert accel == pytest.approx(g * (math.sin(a) - 0.2 * math.cos(a)), rel=0.02)
@@ -259,7 +134,7 @@ def test_block_slides_at_coulomb_acceleration(tmp_path, scheme):
 def test_block_sticks_above_the_friction_angle(tmp_path, scheme):
     """mu = 0.7 > tan 30: the block stays, moving less than a quarter cell in 0.2 s (measured 2.7 um with backward
     Euler, 9.4 um with generalised-alpha: the friction law's elastic slip, 5e-3 cells, and the contact's spring)."""
-    ts, xs, sim = _block(tmp_path, 0.7, scheme)
+    ts, xs, sim = block_run(tmp_path, 0.7, scheme)
     assert np.abs(xs).max() < 0.25 * sim.model.dx
 
 

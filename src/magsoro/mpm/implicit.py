@@ -179,12 +179,12 @@ class ImplicitIntegrator(StaticSolver):
         self._inertia = None
         r = self._reduce(self._scatter(self.u_nodes, self.field_level, self.gravity_level))
         self._inertia = saved
-        r = r - self.damping * (self.mass_matrix @ self._unknowns(self.v_nodes))
+        r = r - self.damping * (self.mass_matrix @ self.unknowns_of(self.v_nodes))
         if not r.size:
             return np.zeros_like(self.u_nodes)
         return self._expand(splu(self.mass_matrix).solve(r))
 
-    def _unknowns(self, node_values: np.ndarray) -> np.ndarray:
+    def unknowns_of(self, node_values: np.ndarray) -> np.ndarray:
         """The unknowns' values of node values that the slaving reproduces (least squares on E)."""
         from scipy.sparse.linalg import lsqr
 
