@@ -8,7 +8,7 @@ __version__ = "0.1.0"
 
 # What the package declares when its metadata cannot be read (run from a source tree that was never installed)
 _FALLBACK_REQUIREMENTS = ("warp-lang", "numpy", "scipy", "pydantic", "tqdm", "trimesh", "matplotlib", "networkx",
-                          "dask", "pyarrow", "pyyaml")
+                          "dask", "pyarrow", "pyyaml", "pyamg")
 # Imported by the package without being named in its requirements (dask[distributed] brings it)
 _ALSO_IMPORTED = ("distributed",)
 

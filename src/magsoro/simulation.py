@@ -395,7 +395,8 @@ class Simulation:
             from magsoro.mpm.implicit import ImplicitIntegrator
 
             cfg = self.scene.implicit
-            self.implicit = ImplicitIntegrator(self, cfg.scheme, cfg.rho_inf, cfg.tolerance, cfg.max_iterations)
+            self.implicit = ImplicitIntegrator(self, cfg.scheme, cfg.rho_inf, cfg.tolerance, cfg.max_iterations,
+                                               linear_solver=cfg.linear_solver)
         return self.implicit
 
     def _advance_implicit(self, t_end: float, eps: float, callback: Callable | None, heartbeat: Callable | None) -> None:

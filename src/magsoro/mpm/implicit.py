@@ -112,9 +112,10 @@ class ImplicitIntegrator(StaticSolver):
     displacements and velocities projected on the grid nodes by least squares)."""
 
     def __init__(self, sim, scheme: str = "generalized_alpha", rho_inf: float = 0.0, tolerance: float = 1e-6,
-                 max_iterations: int = 20):
+                 max_iterations: int = 20, linear_solver: str = "auto"):
         check_implicit_supported(sim)
-        super().__init__(sim, sim.state.time, tolerance=tolerance, max_iterations=max_iterations)
+        super().__init__(sim, sim.state.time, tolerance=tolerance, max_iterations=max_iterations,
+                         linear_solver=linear_solver)
         self.scheme = Scheme.make(scheme, rho_inf)
         self._set_collider_time(self.t)
         self.field_time = self.t
@@ -126,8 +127,8 @@ class ImplicitIntegrator(StaticSolver):
         self.mass_matrix = (self.E.T @ sparse.diags(free_mass) @ self.E).tocsc()  # on the unknowns
         self.v_nodes = np.zeros_like(self.u_nodes)
         self.a_nodes = np.zeros_like(self.u_nodes)
-        self.steps = self.rejected = self.newton_iterations = self.factorizations = 0
-        self._kept = None  # (dt, factorised tangent) reused across Newton iterations and steps
+        self.steps = self.rejected = self.newton_iterations = self.tangents = 0
+        self._kept = None  # (dt, LinearSolver of a tangent) reused across Newton iterations and steps
         self._start_from_state()
         self.a_nodes = self.consistent_acceleration()
 
@@ -301,11 +302,15 @@ class ImplicitIntegrator(StaticSolver):
         return StepResult(True, its, norm / scale)
 
     def _step_newton(self, u, scale):
-        """Newton on the step's balance from ``u`` with a kept tangent (module docstring, "Newton"): the factorised
-        tangent of an earlier iteration or step is reused while the residual falls by REFRESH_RATE or more per
-        iteration, and made anew at the current iterate when it does not (or when the step size changed).
+        """Newton on the step's balance from ``u`` with a kept tangent (module docstring, "Newton"): the tangent of
+        an earlier iteration or step, with its linear solver (a factorisation, or a multigrid hierarchy:
+        ``implicit.linear_solver``, magsoro.mpm.linear), is reused while the residual falls by REFRESH_RATE or more
+        per iteration, and made anew at the current iterate when it does not (or when the step size changed). An
+        iterative solve is asked for Eisenstat and Walker's forcing term (loose far from the solution), never
+        tighter than what leaves a tenth of the tolerance in the linear residual.
         Returns (u, converged, iterations, |R|_inf, message)."""
-        from magsoro.mpm.static import GROWTH, MAX_STEP, factor
+        from magsoro.mpm.linear import forcing_term
+        from magsoro.mpm.static import GROWTH, MAX_STEP
 
         fl, gl = self.field_level, self.gravity_level
         contact = self.contact
@@ -323,6 +328,7 @@ class ImplicitIntegrator(StaticSolver):
         if self._kept is not None and self._kept[0] != dt:
             self._kept = None
         fresh = False  # whether the kept tangent was made at this solve's current iterate
+        forcing = (None, None)  # the last linear solve's residual norm and tolerance (Eisenstat-Walker)
         best = norm
         it = 0
         while True:
@@ -338,12 +344,18 @@ class ImplicitIntegrator(StaticSolver):
                 break
             if self._kept is None:
                 try:
-                    self._kept = (dt, factor(self.tangent(u, fl, gl)))
+                    self._kept = (dt, self._linear_solver(self.tangent(u, fl, gl), u))
                 except RuntimeError as exc:
                     return u, False, it, norm, f"singular tangent ({exc})"
-                self.factorizations += 1
+                self.tangents += 1
                 fresh = True
-            step = self._expand(self._kept[1].solve(-r))
+            lin = self._kept[1]
+            norm2 = float(np.linalg.norm(r))
+            rtol = forcing_term(norm2, *forcing, floor=0.1 * self.tolerance * scale / max(norm2, 1e-300))
+            forcing = (norm2, rtol)
+            before = (lin.total_iterations, lin.solves, lin.fallbacks)
+            step = self._expand(lin.solve(-r, rtol=rtol))
+            self._count_linear(lin, before)
             biggest = float(np.abs(step).max()) if step.size else 0.0
             alpha = min(1.0, MAX_STEP * self.model.dx / biggest) if biggest > 0.0 else 1.0
             if contact is not None:
@@ -413,7 +425,10 @@ def integrator_summary(integrator: "ImplicitIntegrator | None", settings) -> dic
            "tolerance": settings.tolerance}
     if integrator is not None:
         out.update(steps=integrator.steps, rejected_steps=integrator.rejected,
-                   newton_iterations=integrator.newton_iterations, factorizations=integrator.factorizations,
+                   newton_iterations=integrator.newton_iterations, tangents=integrator.tangents,
+                   linear_solver="+".join(sorted(integrator.linear_kinds)), linear_solves=integrator.linear_solves,
+                   linear_iterations=integrator.linear_iterations, linear_setups=integrator.linear_setups,
+                   linear_fallbacks=integrator.linear_fallbacks,
                    residual_evaluations=integrator.residual_evaluations,
                    unknowns=int(integrator.E.shape[1]))
     return out

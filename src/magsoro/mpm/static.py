@@ -54,6 +54,9 @@ import warp as wp
 from magsoro.errors import SimulationError
 from magsoro.constants import MU0
 from magsoro.mpm.colliders import WALL_CELLS, Collider
+from magsoro.mpm.linear import (FACTOR_CHECK, DirectSolver, IterativeSolver, factor, forcing_term,  # noqa: F401 (re-exported)
+                                make_linear_solver, rigid_body_modes)
+from magsoro.mpm import linear as _linear
 from magsoro.mpm.p2g import P2G_TOTAL
 from magsoro.mpm.solver import block_struct, bodies_array, contact_grid
 from magsoro.mpm.stencil import host_bspline, make_stencil
@@ -108,37 +111,15 @@ NULL_SHIFT = 1.0e-12
 FD_CELLS = 1.0e-6
 KRYLOV_RTOL = 1.0e-4
 KRYLOV_RESTARTS = 4
-
-
-#: the factorisation's check (factor): the largest relative residual |J x - b| / |b| of a solve accepted from the
-#: symmetric-mode LU before the default one is made instead
-FACTOR_CHECK = 1.0e-9
-
-
-def factor(J):
-    """Sparse LU of a tangent ``J`` (CSC), as scipy's ``splu`` object (``solve``, ``L``, ``U``, ``perm_r``,
-    ``perm_c``). The tangents here have a symmetric pattern and a diagonal that carries them (stiffness, springs),
-    so SuperLU runs in its symmetric mode: fill-reducing minimum-degree ordering of J + J^T, pivots on the
-    diagonal. On the triangle robot's tangent at 15 mT (7629 unknowns, 1.7 M entries, 3D) that leaves 20 % less
-    fill and factorises in 0.27 s against 0.41 s for the default (column ordering of J^T J, partial pivoting); the
-    relative residuals of a solve were 1.7e-13 and 4.2e-13 (`python benchmarks/static_factor.py`, file
-    benchmarks/results/2026-11-28-cpu-909c75f-static-factor.json). A factorisation
-    whose solve of a random right-hand side leaves a relative residual above FACTOR_CHECK (a pivot too small
-    on the diagonal: an indefinite or strongly unsymmetric tangent), or that fails, is made again the default
-    way. Raises RuntimeError when that fails too (a singular tangent)."""
-    from scipy.sparse.linalg import splu
-
-    J = J.tocsc()
-    try:
-        lu = splu(J, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0, options={"SymmetricMode": True})
-        b = np.random.default_rng(0).standard_normal(J.shape[0])
-        x = lu.solve(b)
-        size = float(np.linalg.norm(b))
-        if np.all(np.isfinite(x)) and float(np.linalg.norm(J @ x - b)) <= FACTOR_CHECK * size:
-            return lu
-    except RuntimeError:
-        pass
-    return splu(J)
+#: the stability check without a factorisation (StaticSolver._lowest_mode_iterative): LOBPCG's block size, its
+#: relative tolerance and iterations
+LOBPCG_BLOCK = 3
+LOBPCG_TOL = 1.0e-6
+LOBPCG_ITERATIONS = 200
+#: with colliders and the iterative linear solver, the stability check factorises the (unsymmetric) stiffness up to
+#: this many unknowns and is skipped above: the factorisation's memory (24 GB resident, killed, at about 70,000
+#: unknowns of the 3D cantilever on this 23 GB machine; benchmarks/linear_scaling.py)
+STABILITY_DIRECT_MAX = 50_000
 
 
 def _odd_negative_count(K, lu=None) -> bool:
@@ -357,6 +338,15 @@ class LevelResult:
     no_equilibrium: bool = False
     # the time of the loads (s): simulation.duration, or the time of a sweep along the paths ([static] times)
     time: float | None = None
+    # the Newton steps' linear solves (magsoro.mpm.linear; static.linear_solver): the kind used ('direct',
+    # 'iterative', or both joined by '+'), the solves, their Krylov iterations (0 for a direct solve), the
+    # factorisations or multigrid hierarchies made, and the iterative solves that missed their tolerance and were
+    # done by the direct solver instead
+    linear_solver: str = ""
+    linear_solves: int = 0
+    linear_iterations: int = 0
+    linear_setups: int = 0
+    linear_fallbacks: int = 0
 
 
 @dataclass
@@ -400,8 +390,20 @@ class StaticSolver:
     colliders where their paths have them at ``t`` (reached with the first level's load increments)."""
 
     def __init__(self, sim, t: float, tolerance: float = 1e-8, max_iterations: int = 40, arc_length: bool = False,
-                 collider_contact: str | None = None):
+                 collider_contact: str | None = None, linear_solver: str | None = None):
         self.sim, self.t = sim, float(t)
+        # how the Newton steps' linear systems are solved (static.linear_solver; magsoro.mpm.linear): 'direct',
+        # 'iterative' (multigrid-preconditioned Krylov) or 'auto' (direct up to linear.DIRECT_MAX_UNKNOWNS unknowns)
+        self.linear_solver = getattr(sim.scene.static, "linear_solver", "auto") if linear_solver is None else linear_solver
+        if self.linear_solver not in _linear.KINDS:
+            raise SimulationError(f"static.linear_solver must be one of {', '.join(map(repr, _linear.KINDS))}, "
+                                  f"not {self.linear_solver!r}")
+        self._linear = None  # the last tangent's LinearSolver (an iterative one's hierarchy serves the next tangents)
+        self.linear_iterations = 0  # Krylov iterations of every Newton step so far (0 per direct solve)
+        self.linear_solves = 0
+        self.linear_setups = 0  # factorisations or multigrid hierarchies made
+        self.linear_fallbacks = 0  # iterative solves that missed their tolerance and were done directly
+        self.linear_kinds = set()  # the kinds used ('direct', 'iterative')
         # where the scene's colliders meet the bodies (static.collider_contact): 'surface' (the particles) or 'nodes'
         self.collider_contact = sim.scene.static.collider_contact if collider_contact is None else collider_contact
         self.tolerance, self.max_iterations = float(tolerance), int(max_iterations)
@@ -923,12 +925,14 @@ class StaticSolver:
         best = norm
         bests = []  # the lowest |R| so far, after each iteration (STALL_ITERATIONS)
         peeling = False  # PEEL: after a release at a converged state, pulling points also leave after each iterate
+        forcing = (None, None)  # the last step's |r|_2 and linear tolerance (iterative solves: linear.forcing_term)
         for it in range(self.max_iterations + 1):
             if norm <= self.tolerance * scale:
                 if self.contact is None or not self.contact.release():
                     return u_nodes, True, it, norm, ""
                 # nodes that pull left the colliders' active set: solve again without them
                 peeling = PEEL
+                forcing = (None, None)
                 r_full = self._scatter(u_nodes, field_level, gravity_level)
                 r = self._reduce(r_full)
                 norm = best = float(np.abs(r).max())
@@ -942,10 +946,20 @@ class StaticSolver:
             J = self.tangent(u_nodes, field_level, gravity_level)
             self._last_tangent = J  # the stability check after convergence reuses it (one step from the solution)
             try:
-                lu = factor(J)
+                lin = self._linear_solver(J, u_nodes)
             except RuntimeError as exc:  # singular tangent
                 return u_nodes, False, it, norm, f"singular tangent ({exc})"
-            du = lu.solve(-r) if self.solver.interaction is None else self._solve_linear(lu, u_nodes, r, field_level, gravity_level)
+            # an iterative solve's tolerance: Eisenstat-Walker forcing (linear.forcing_term), never tighter than what
+            # lets this step reach the Newton tolerance (a tenth of it left in the linear residual)
+            norm2 = float(np.linalg.norm(r))
+            rtol = forcing_term(norm2, *forcing, floor=0.1 * self.tolerance * scale / max(norm2, 1e-300))
+            forcing = (norm2, rtol)
+            before = (lin.total_iterations, lin.solves, lin.fallbacks)
+            if self.solver.interaction is None:
+                du = lin.solve(-r, rtol=rtol)
+            else:
+                du = self._solve_linear(lin, u_nodes, r, field_level, gravity_level)
+            self._count_linear(lin, before)
             step = self._expand(du)
             # Non-monotone line search: the full step may raise |R| for an iteration (the nodes at the bodies'
             # edges carry little stiffness, and their forces answer the first step nonlinearly), after which
@@ -994,11 +1008,48 @@ class StaticSolver:
                 return u_nodes, False, it + 1, norm, "the line search found no step that lowers the residual"
         return u_nodes, False, self.max_iterations, norm, f"no convergence in {self.max_iterations} Newton iterations"
 
-    def _solve_linear(self, lu, u_nodes, r, field_level, gravity_level):
+    def _linear_solver(self, J, u_nodes=None, reuse: bool = True):
+        """The LinearSolver (magsoro.mpm.linear) of the tangent ``J`` at ``u_nodes`` (node displacements; default
+        the current state) of the kind static.linear_solver asks for ('auto': direct up to
+        linear.DIRECT_MAX_UNKNOWNS unknowns). An iterative one keeps the last tangent's multigrid hierarchy as its
+        preconditioner (``reuse``) until its iterations grow (IterativeSolver.stale); a new hierarchy takes the
+        rigid-body modes of the unknowns' nodes where they stand (reference positions plus ``u_nodes``: a body
+        turned by 90 degrees keeps its near-null space) and aggregates them on the grid's lattice. Raises
+        RuntimeError for a singular tangent (direct)."""
+        kind = self.linear_solver
+        if kind == "auto":
+            kind = "direct" if J.shape[0] <= _linear.DIRECT_MAX_UNKNOWNS else "iterative"
+        last = self._linear
+        symmetric = None  # tested (linear.is_symmetric): friction makes J unsymmetric where points slide
+        if kind == "direct":
+            lin = DirectSolver(J)
+        elif reuse and isinstance(last, IterativeSolver) and last.shape == J.shape and not last.stale():
+            lin = last.update(J, symmetric=symmetric)
+        else:
+            nodes = self.unknown_nodes
+            u = self.u_nodes if u_nodes is None else u_nodes
+            ref = (self.model.domain_lo + self.solver.org * self.model.dx)[: self.dim] + self.coords[nodes] * self.model.dx
+            lin = IterativeSolver(J, near_null=rigid_body_modes(ref + np.asarray(u)[nodes]), grid=self.coords[nodes],
+                                  symmetric=symmetric, dim=self.dim)
+        if lin is not last:
+            self.linear_setups += 1
+        self._linear = lin
+        self.linear_kinds.add(lin.kind)
+        return lin
+
+    def _count_linear(self, lin, before) -> None:
+        """Add what ``lin`` did since its counts were ``before`` (Krylov iterations, solves, fallbacks) to the
+        solver's."""
+        self.linear_iterations += lin.total_iterations - before[0]
+        self.linear_solves += lin.solves - before[1]
+        self.linear_fallbacks += lin.fallbacks - before[2]
+
+    def _solve_linear(self, lin, u_nodes, r, field_level, gravity_level):
         """The Newton step du with the bodies' own field: J du = -r for the whole Jacobian J, whose part from the
         field of every particle on every other is dense and left out of the assembled tangent. GMRES on the
         products J v = (R(u + h v) - R(u)) / h (a residual evaluation each, the interaction refreshed; h moves the
-        farthest node FD_CELLS cells), preconditioned by the assembled tangent's LU ``lu`` and started from its
+        farthest node FD_CELLS cells), preconditioned by the assembled tangent's solver ``lin`` (a LinearSolver: its
+        LU, or an iterative solve to linear.ITERATIVE_RTOL, nearly as exact) and started from its
         step. Where the bodies' field is weak the preconditioned system is near the identity and GMRES takes a few
         products."""
         from scipy.sparse.linalg import LinearOperator, gmres
@@ -1014,8 +1065,8 @@ class StaticSolver:
             return (self._reduce(self._scatter(u_nodes + h * step, field_level, gravity_level)) - r) / h
 
         A = LinearOperator((n, n), matvec=product, dtype=np.float64)
-        M = LinearOperator((n, n), matvec=lu.solve, dtype=np.float64)
-        du, _ = gmres(A, -r, x0=lu.solve(-r), M=M, rtol=KRYLOV_RTOL, atol=0.0, restart=20, maxiter=KRYLOV_RESTARTS)
+        M = LinearOperator((n, n), matvec=lin.solve, dtype=np.float64)
+        du, _ = gmres(A, -r, x0=lin.solve(-r), M=M, rtol=KRYLOV_RTOL, atol=0.0, restart=20, maxiter=KRYLOV_RESTARTS)
         self._scatter(u_nodes, field_level, gravity_level)  # the state at u again (the products moved it)
         return du
 
@@ -1192,8 +1243,11 @@ class StaticSolver:
             return residual(u, a + 0.5) - residual(u, a - 0.5)
 
         def solve(u, a, rhs_list):
-            lu = factor(self.tangent(u, *load(a)))
-            return [lu.solve(rhs) for rhs in rhs_list]
+            lin = self._linear_solver(self.tangent(u, *load(a)), u, reuse=False)
+            before = (lin.total_iterations, lin.solves, lin.fallbacks)
+            out = [lin.solve(rhs) for rhs in rhs_list]
+            self._count_linear(lin, before)
+            return out
 
         u, a = self.u_nodes.copy(), 0.0
         limit_cells = MAX_STEP * self.model.dx
@@ -1307,7 +1361,19 @@ class StaticSolver:
     def solve_level(self, level: float, gravity_level: float = 1.0) -> LevelResult:
         """Equilibrium under the fields scaled by ``level`` and gravity scaled by ``gravity_level``, reached in
         load increments from the last converged state, each checked for stability; at the first unstable one
-        the solver switches to the stable branch and goes on (module docstring)."""
+        the solver switches to the stable branch and goes on (module docstring). The result counts the level's
+        linear solves (LevelResult.linear_*)."""
+        counts = (self.linear_solves, self.linear_iterations, self.linear_setups, self.linear_fallbacks)
+        self.linear_kinds = set()
+        res = self._solve_level(level, gravity_level)
+        res.linear_solver = "+".join(sorted(self.linear_kinds))
+        res.linear_solves = self.linear_solves - counts[0]
+        res.linear_iterations = self.linear_iterations - counts[1]
+        res.linear_setups = self.linear_setups - counts[2]
+        res.linear_fallbacks = self.linear_fallbacks - counts[3]
+        return res
+
+    def _solve_level(self, level: float, gravity_level: float = 1.0) -> LevelResult:
         t0 = time.perf_counter()
         target = (float(level), float(gravity_level))
         before = (self.u_nodes.copy(), self.field_level, self.gravity_level)
@@ -1393,14 +1459,26 @@ class StaticSolver:
         on its plate at 2 mT: -3.8e-4 N/m while every eigenvalue of J near zero was +0.0107 N/m, and the branch
         switch that followed cost 45 Newton iterations to return to the same state). There the eigenvalue is
         J's own nearest zero: a real one crossing zero is the divergence (a limit or bifurcation point) that a
-        load-controlled path meets."""
+        load-controlled path meets.
+
+        With the iterative linear solver (static.linear_solver, or 'auto' above linear.DIRECT_MAX_UNKNOWNS
+        unknowns): without colliders by LOBPCG on the multigrid hierarchy (:meth:`_lowest_mode_iterative`); with
+        colliders by the factorisation below up to STABILITY_DIRECT_MAX unknowns, not at all above."""
         from scipy.sparse.linalg import ArpackNoConvergence, ArpackError, LinearOperator, eigs, eigsh
 
         if self.solver.interaction is not None:
             return None, None  # the bodies' own field's stiffness is not in the assembled tangent: not checked
-        K = -(tangent if tangent is not None else self.tangent(self.u_nodes, self.field_level, self.gravity_level))
+        J = tangent if tangent is not None else self.tangent(self.u_nodes, self.field_level, self.gravity_level)
+        K = -J
         unsymmetric = self.contact is not None
         K = (K if unsymmetric else 0.5 * (K + K.T)).tocsc()
+        kind = self.linear_solver
+        if kind == "auto":
+            kind = "direct" if K.shape[0] <= _linear.DIRECT_MAX_UNKNOWNS else "iterative"
+        if kind == "iterative" and not unsymmetric:
+            return self._lowest_mode_iterative(J, K)
+        if kind == "iterative" and K.shape[0] > STABILITY_DIRECT_MAX:
+            return None, None  # unsymmetric and too large to factorise: not checked (STABILITY_DIRECT_MAX)
         try:
             # one factorisation of K for the shift-invert about zero (the one eigsh makes itself) and for the
             # determinant's sign below
@@ -1422,6 +1500,41 @@ class StaticSolver:
             return None, None
         mode = vecs[:, 0]
         return float(vals[0]), mode if mode[np.argmax(np.abs(mode))] > 0 else -mode  # a reproducible sign
+
+    def _lowest_mode_iterative(self, J, K):
+        """:meth:`lowest_mode` of a symmetric K = -(J + J^T)/2 without a factorisation (static.linear_solver
+        'iterative', or 'auto' above linear.DIRECT_MAX_UNKNOWNS unknowns): its smallest eigenvalue by LOBPCG
+        (Knyazev 2001; a block of LOBPCG_BLOCK vectors) preconditioned by the multigrid hierarchy of the Newton
+        solve (kept for the tangent ``J``). At a stable state that is the eigenvalue nearest zero; past a
+        bifurcation the most negative one, whose mode the branch switch follows as well. (None, None) where LOBPCG
+        leaves the eigenvalue's sign in doubt (its residual above a tenth of |lambda|, and above LOBPCG_TOL of the
+        stiffness's scale).
+
+        With colliders K is J's own (unsymmetric) spectrum, for which no such cheap eigensolver serves: ARPACK's
+        shift-invert about zero needs tens of solves, and with GMRES for each it took minutes per check on the
+        pentahedron (22,458 unknowns; 97 % of a 60 s profile). There the check factorises K directly up to
+        STABILITY_DIRECT_MAX unknowns and is skipped above (:meth:`lowest_mode`)."""
+        import warnings
+
+        from scipy.sparse.linalg import lobpcg
+
+        lin = self._linear_solver(J)  # the Newton solve's hierarchy, the Krylov method on this tangent
+        n = K.shape[0]
+        X = np.random.default_rng(0).standard_normal((n, LOBPCG_BLOCK))
+        X[:, 0] = 1.0
+        try:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")  # non-convergence is judged below, by the residual
+                vals, vecs = lobpcg(K, X, M=lin.preconditioner(), largest=False, tol=LOBPCG_TOL,
+                                    maxiter=LOBPCG_ITERATIONS)
+        except (RuntimeError, np.linalg.LinAlgError, ValueError):
+            return None, None
+        k = int(np.argmin(vals))
+        lam, mode = float(vals[k]), vecs[:, k] / max(float(np.linalg.norm(vecs[:, k])), 1e-300)
+        resid = float(np.linalg.norm(K @ mode - lam * mode))
+        if not (resid <= 0.1 * abs(lam) or resid <= LOBPCG_TOL * float(np.abs(K.diagonal()).max())):
+            return None, None
+        return lam, mode if mode[np.argmax(np.abs(mode))] > 0 else -mode
 
     def collider_reactions(self) -> np.ndarray:
         """The force (N, (n_colliders, 3), 2D z = 0) each of the scene's colliders carries at the state of the last

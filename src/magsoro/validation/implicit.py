@@ -38,8 +38,9 @@ def euler_bernoulli_period(G=303e3, bulk_ratio=20.0, density=1030.0):
     return 2.0 * math.pi / omega
 
 
-def cantilever(scheme="generalized_alpha", rho_inf=0.8, gravity=(0.0, -5.0)):
-    """The cantilever without its field, damping 0, under gravity (the deflecting load, taken off at release)."""
+def cantilever(scheme="generalized_alpha", rho_inf=0.8, gravity=(0.0, -5.0), linear_solver="auto"):
+    """The cantilever without its field, damping 0, under gravity (the deflecting load, taken off at release);
+    ``linear_solver`` as implicit.linear_solver."""
     from magsoro.scene import load_scene
     from magsoro.simulation import Simulation
 
@@ -50,6 +51,7 @@ def cantilever(scheme="generalized_alpha", rho_inf=0.8, gravity=(0.0, -5.0)):
     scene.fields = []
     scene.implicit.scheme = scheme
     scene.implicit.rho_inf = rho_inf
+    scene.implicit.linear_solver = linear_solver
     return Simulation(scene, source=str(cantilever_scene_path()))
 
 
@@ -62,10 +64,10 @@ def first_mode(integ):
     return math.sqrt(vals[0]), vecs[:, 0]
 
 
-def released(scheme, rho_inf, periods, steps_per_period=20):
+def released(scheme, rho_inf, periods, steps_per_period=20, linear_solver="auto"):
     """Release the gravity-deflected cantilever and follow its first-mode coordinate q = phi^T M u over
     ``periods`` periods at dt = T1 / steps_per_period. Returns (T1 discrete, times, q, simulation)."""
-    sim = cantilever(scheme, rho_inf)
+    sim = cantilever(scheme, rho_inf, linear_solver=linear_solver)
     integ = sim.implicit_integrator()
     omega, phi = first_mode(integ)
     T1 = 2.0 * math.pi / omega
