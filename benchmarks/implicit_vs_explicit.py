@@ -31,7 +31,8 @@ SCENE = ROOT / "scenes" / "strip_magnet.toml"
 HALF_LENGTH, TIP_Z = 0.00635, -0.1
 
 
-def scene(integrator: str, speed: float, duration: float, dx: float, implicit_dt: float):
+def scene(integrator: str, speed: float, duration: float, dx: float, implicit_dt: float, gap: float = 0.045,
+          sample: float = 0.01):
     from magsoro.scene import load_scene
 
     sc = load_scene(SCENE)
@@ -39,8 +40,8 @@ def scene(integrator: str, speed: float, duration: float, dx: float, implicit_dt
     sc.simulation.duration = duration
     sc.simulation.integrator = integrator
     sc.simulation.formulation = "total"
-    sc.output.every = 0.01
-    z0 = TIP_Z - 0.045 - HALF_LENGTH
+    sc.output.every = sample
+    z0 = TIP_Z - gap - HALF_LENGTH
     z1 = z0 + speed * duration
     path = {"times": [0.0, duration], "positions": [[0.0, 0.0, z0], [0.0, 0.0, z1]]}
     sc.fields[0].path = type(sc.fields[0].path).model_validate(path)
@@ -54,7 +55,8 @@ def equilibrium_state(args):
     """The strip at rest under gravity and the magnet at its start (the static solver), as a simulation state."""
     from magsoro.simulation import Simulation
 
-    sim = Simulation(scene("explicit", args.speed, args.duration, args.dx, args.implicit_dt), source=str(SCENE))
+    sim = Simulation(scene("explicit", args.speed, args.duration, args.dx, args.implicit_dt, args.gap, args.sample),
+                     source=str(SCENE))
     res = sim.solve_static(levels=[1.0], t=0.0)
     if not res.converged:
         raise SystemExit(f"the starting equilibrium did not converge: {res.levels[-1].message}")
@@ -65,15 +67,16 @@ def equilibrium_state(args):
 def run(integrator: str, args, start=None) -> dict:
     from magsoro.simulation import Simulation
 
-    sim = Simulation(scene(integrator, args.speed, args.duration, args.dx, args.implicit_dt), source=str(SCENE))
+    sim = Simulation(scene(integrator, args.speed, args.duration, args.dx, args.implicit_dt, args.gap, args.sample),
+                     source=str(SCENE))
     wall0 = time.perf_counter()
     if start is not None:  # both integrators from the same state at rest (the implicit one projects it on its nodes)
         sim.state.assign(start)
         sim.state.time = 0.0
     times, tips = [0.0], [sim.probe_values()["tip_z"]]
-    n = int(round(args.duration / 0.01))
+    n = int(round(args.duration / args.sample))
     for k in range(1, n + 1):
-        sim.advance_to(k * 0.01)
+        sim.advance_to(k * args.sample)
         times.append(sim.time)
         tips.append(sim.probe_values()["tip_z"])
     wall = time.perf_counter() - wall0
@@ -90,6 +93,8 @@ def main(argv=None) -> int:
     p.add_argument("--duration", type=float, default=0.8, help="simulated time, s")
     p.add_argument("--dx", type=float, default=0.002, help="grid spacing, m")
     p.add_argument("--implicit-dt", type=float, default=0.02, help="the implicit integrator's step, s")
+    p.add_argument("--sample", type=float, default=0.01, help="the tip is recorded every this many seconds, s")
+    p.add_argument("--gap", type=float, default=0.045, help="the magnet's starting gap to the strip's free end, m")
     p.add_argument("--start", choices=["equilibrium", "rest"], default="equilibrium",
                    help="equilibrium: both runs start from the strip hanging at rest below the magnet's first position "
                         "(the static solver's); rest: from the undeformed strip, gravity and field switched on at t = 0")

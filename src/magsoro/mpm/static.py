@@ -514,7 +514,7 @@ class StaticSolver:
                 pts = part.X[part.touchable]
                 point_labels = label[part.touchable] if part.W is not P else particle_label[part.touchable]
                 for ci, (c, lvl) in enumerate(zip(part.colliders, part.level)):
-                    clearance = part.signed_distance(c, pts, 0.0)[0] - lvl - part.touch
+                    clearance = part.distance(c, pts, 0.0) - lvl - part.touch
                     supported |= set(np.unique(point_labels[clearance <= 0.0]).tolist())
                     if part is self._scene_contact:
                         for lab in np.unique(point_labels):

@@ -109,7 +109,7 @@ class ColliderPenalty:
         # node's inward motion there; it does not push it out), with the colliders where they are at the scene's
         # start (a collider that a path moves into a body later pushes it)
         X_touch = self.X[self.touchable]
-        self.level = [np.minimum(reach, self.signed_distance(c, X_touch, 0.0)[0]) for c in self.colliders]
+        self.level = [np.minimum(reach, self.distance(c, X_touch, 0.0)) for c in self.colliders]
         self.anchor = [dict() for _ in self.colliders]  # node -> anchor point relative to the collider's position
         self.sticking = [dict() for _ in self.colliders]  # node -> whether it stuck in the last evaluation
         self._active = []  # per collider: nodes, normals, stiffness blocks of the last evaluation
@@ -129,25 +129,31 @@ class ColliderPenalty:
         """x~ (n_nodes, dim): the nodes where the colliders act."""
         return self.X + self.W @ u_nodes
 
+    def _lift(self, pts: np.ndarray) -> np.ndarray:
+        q = np.zeros((len(pts), 3))
+        q[:, : self.dim] = pts
+        if self.dim == 2:
+            q[:, 2] = self.plane_z
+        return q
+
+    def distance(self, c, pts: np.ndarray, t: float | None = None) -> np.ndarray:
+        """Signed distance (m) of collider ``c`` at ``pts`` (P, dim), the collider where its path has it at ``t``
+        (default: the current time)."""
+        return c.signed_distance(self._lift(pts), self.t if t is None else t)
+
     def signed_distance(self, c, pts: np.ndarray, t: float | None = None):
         """Signed distance (m) and outward unit normal (in-plane) of collider ``c`` at ``pts`` (P, dim), the collider
         where its path has it at ``t`` (default: the current time): the distance exactly, the normal by central
-        differences of it (1e-6 cells)."""
+        differences of it (1e-6 cells). Costs 1 + 2 dim distance evaluations: where only the distance is
+        needed, :meth:`distance`."""
         t = self.t if t is None else t
-        def lift(p):
-            q = np.zeros((len(p), 3))
-            q[:, : self.dim] = p
-            if self.dim == 2:
-                q[:, 2] = self.plane_z
-            return q
-
-        phi = c.signed_distance(lift(pts), t)
+        phi = self.distance(c, pts, t)
         e = 1e-6 * self.dx
         grad = np.zeros((len(pts), self.dim))
         for a in range(self.dim):
             step = np.zeros(self.dim)
             step[a] = e
-            grad[:, a] = (c.signed_distance(lift(pts + step), t) - c.signed_distance(lift(pts - step), t)) / (2 * e)
+            grad[:, a] = (self.distance(c, pts + step, t) - self.distance(c, pts - step, t)) / (2 * e)
         norm = np.linalg.norm(grad, axis=1)
         return phi, grad / np.where(norm > 0, norm, 1.0)[:, None]
 
@@ -164,7 +170,7 @@ class ColliderPenalty:
         self.reaction = np.zeros((len(self.colliders), 3))  # N: the force on each collider (minus the points')
         for ci, c in enumerate(self.colliders):
             nodes = self.touchable
-            phi, nrm = self.signed_distance(c, xt[nodes])
+            phi = self.distance(c, xt[nodes])
             mode = c.mode_code
             tied = np.array(list(self.anchor[ci]), dtype=np.int64) if mode != ColliderMode.SLIP else np.zeros(0, np.int64)
             touching = nodes[phi <= self.level[ci] + self.touch]
@@ -177,7 +183,7 @@ class ColliderPenalty:
                 self._active.append(None)
                 continue
             sel = np.searchsorted(nodes, act)
-            ph, n = phi[sel], nrm[sel]
+            ph, n = self.signed_distance(c, xt[act])  # the normals where they act only (the distances again)
             gap = self.level[ci][sel] - ph  # > 0: in contact; < 0 on a held node: it pulls until released
             self.penetration = max(self.penetration, float(np.max(gap, initial=0.0)))
             self._gaps[ci] = (act, gap)
@@ -274,7 +280,7 @@ class ColliderPenalty:
         before it drives nodes, and the particles next to them, deep into a collider."""
         def depth(alpha):
             xt = self.positions(u_nodes + alpha * step)[self.touchable]
-            return max(float(np.max(lvl - self.signed_distance(c, xt)[0])) for c, lvl in zip(self.colliders, self.level))
+            return max(float(np.max(lvl - self.distance(c, xt))) for c, lvl in zip(self.colliders, self.level))
 
         limit = STEP_DEPTH * self.dx
         if depth(1.0) <= limit:
@@ -322,8 +328,10 @@ class ColliderPenalty:
             if mode == ColliderMode.SLIP:
                 continue
             origin = self._origin(c)
-            phi, nrm = self.signed_distance(c, xt[self.touchable])
-            touching = set(int(v) for v in self.touchable[phi <= self.level[ci] + self.touch])
+            phi = self.distance(c, xt[self.touchable])
+            close = self.touchable[phi <= self.level[ci] + self.touch]
+            touching = set(int(v) for v in close)
+            normal = dict(zip(close.tolist(), self.signed_distance(c, xt[close])[1])) if len(close) else {}
             last = self._last_x
             new = {}
             for node in touching | set(self.anchor[ci]):
@@ -338,7 +346,7 @@ class ColliderPenalty:
                     if node not in touching:
                         continue  # separated: free again
                     if not self.sticking[ci].get(node, True):  # slid: the anchor follows to the elastic slip
-                        n = nrm[j]
+                        n = normal[node]
                         d = xt[node] - (a + origin)
                         dt = d - np.dot(d, n) * n
                         length = float(np.linalg.norm(dt))
