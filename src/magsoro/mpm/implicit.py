@@ -47,12 +47,23 @@ from magsoro.mpm.static import StaticSolver, check_supported
 #: ((K + 4G/3) dx^(dim-1), 2D times the depth): with the default tolerance 1e-6 Newton then resolves the node forces of
 #: strains of 1e-9, where a body coming to rest, unloaded, would otherwise chase round-off
 FLOOR_STRAIN = 1.0e-3
-#: a kept (factorised) tangent is made anew when a Newton iteration with it lowers |R| by less than this factor
+#: a kept tangent is made anew when a Newton iteration with it lowers |R| by less than this factor, unless the
+#: iterations left to the tolerance at the rate it showed are KEEP_ITERATIONS or fewer
 REFRESH_RATE = 0.25
+#: a kept tangent whose iteration lowered |R| by less than REFRESH_RATE is still kept while the rate it showed
+#: (at most KEEP_RATE) reaches the tolerance in this many more iterations: an assembled and factorised tangent
+#: costs about 35 iterations with a kept one on the 3D strip of benchmarks/implicit_vs_explicit.py (8937 unknowns)
+KEEP_ITERATIONS = 6
+KEEP_RATE = 0.7
 #: a kept tangent serves a step whose length differs from its own by at most this fraction (steps that land on
 #: output times differ from the nominal one in their last bits; with exact equality the 3D strip of
 #: benchmarks/implicit_vs_explicit.py assembled and factorised a new tangent at every step: 21 in 20 steps)
 KEEP_DT_RTOL = 1.0e-6
+#: implicit.linear_solver = 'auto' factorises up to this many unknowns (the static solver's threshold,
+#: linear.DIRECT_MAX_UNKNOWNS, is lower: it makes a new tangent every Newton iteration, where this integrator keeps
+#: one factorisation for many solves: 7 ms a solve against 0.4 s a factorisation on the 3D strip's 8937 unknowns);
+#: the bound is the factorisation's memory (a 3D tangent of about 70,000 unknowns needed more than 23 GB)
+DIRECT_MAX_UNKNOWNS = 50_000
 #: the schemes of ``[implicit] scheme``
 SCHEMES = ("backward_euler", "generalized_alpha")
 
@@ -109,6 +120,7 @@ def check_implicit_supported(sim) -> None:
 class ImplicitIntegrator(StaticSolver):
     _inertia = None  # (scheme, dt, u_n, v_n, a_n) while a step's Newton runs; None: the static solver's residual
     _scattered = None  # the node displacements of the last evaluation of a step's balance (None: another since)
+    direct_max_unknowns = DIRECT_MAX_UNKNOWNS
 
     """Steps a :class:`magsoro.simulation.Simulation` built in the total-Lagrangian form by the scheme ``scheme``
     (``"backward_euler"`` or ``"generalized_alpha"``, spectral radius ``rho_inf``). The fields and colliders follow
@@ -378,8 +390,8 @@ class ImplicitIntegrator(StaticSolver):
                     changed = contact is not None and contact.signature() != signature
                     # a tangent made at this iterate: the static solver's non-monotone rule (|R| may rise for an
                     # iteration: a body's light edge nodes answer the first step nonlinearly); a kept one's full
-                    # step must lower |R| by REFRESH_RATE, else the tangent is made anew here
-                    if math.isfinite(n_try) and (changed or (n_try < GROWTH * best if fresh else n_try < REFRESH_RATE * norm)):
+                    # step must lower |R| by KEEP_RATE, else the tangent is made anew here
+                    if math.isfinite(n_try) and (changed or (n_try < GROWTH * best if fresh else self._keeps(n_try, norm, scale, it))):
                         accepted = True
                         break
                 if not fresh:
@@ -391,7 +403,7 @@ class ImplicitIntegrator(StaticSolver):
                 self._kept = None  # a stale tangent: make it anew at this iterate
                 continue
             it += 1
-            slow = n_try > REFRESH_RATE * norm
+            slow = n_try > REFRESH_RATE * norm and (fresh or changed)
             u, r, norm = u + alpha * step, r_try, n_try
             best = min(best, norm)
             if contact is not None:
@@ -400,6 +412,17 @@ class ImplicitIntegrator(StaticSolver):
                 self._kept = None  # Newton's own rate is lost: the next iteration makes the tangent anew
             fresh = False
         return u, False, self.max_iterations, norm, f"no convergence in {self.max_iterations} Newton iterations"
+
+    def _keeps(self, n_try: float, norm: float, scale: float, it: int) -> bool:
+        """Whether a kept tangent's step from |R| = ``norm`` to ``n_try`` is taken and the tangent kept: it lowered
+        |R| by REFRESH_RATE, or by KEEP_RATE at a rate that reaches the tolerance within KEEP_ITERATIONS more
+        iterations (and max_iterations)."""
+        if not n_try < KEEP_RATE * norm:
+            return False
+        if n_try <= REFRESH_RATE * norm or n_try <= self.tolerance * scale:
+            return True
+        left = math.log(self.tolerance * scale / n_try) / math.log(n_try / norm)
+        return left <= KEEP_ITERATIONS and it + 1 + left <= self.max_iterations
 
     # -- output -------------------------------------------------------------------------------------------
     def write_state(self) -> None:

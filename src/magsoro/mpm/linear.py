@@ -42,8 +42,11 @@ import time
 
 import numpy as np
 
-#: "auto" chooses the direct solver up to this many unknowns, the iterative one above (benchmarks/linear_scaling.py)
-DIRECT_MAX_UNKNOWNS = 60_000
+#: the static solver's "auto" chooses the direct solver up to this many unknowns, the iterative one above: one Newton
+#: iteration's solve on the 3D cantilever took 0.36 s direct and 0.44 s iterative at 6,960 unknowns, 2.0 s and 1.1 s
+#: at 16,167 (benchmarks/linear_scaling.py; benchmarks/README.md, "Linear solvers"). The implicit integrator,
+#: which keeps a factorisation for many solves, has its own (magsoro.mpm.implicit.DIRECT_MAX_UNKNOWNS)
+DIRECT_MAX_UNKNOWNS = 8_000
 #: the relative tolerance |A x - b| / |b| of an iterative solve when the caller gives none
 ITERATIVE_RTOL = 1.0e-8
 #: the tightest relative tolerance an iterative solve is asked for: about what a backward-stable direct solve

@@ -1016,9 +1016,7 @@ class StaticSolver:
         rigid-body modes of the unknowns' nodes where they stand (reference positions plus ``u_nodes``: a body
         turned by 90 degrees keeps its near-null space) and aggregates them on the grid's lattice. Raises
         RuntimeError for a singular tangent (direct)."""
-        kind = self.linear_solver
-        if kind == "auto":
-            kind = "direct" if J.shape[0] <= _linear.DIRECT_MAX_UNKNOWNS else "iterative"
+        kind = self._linear_kind(J.shape[0])
         last = self._linear
         symmetric = None  # tested (linear.is_symmetric): friction makes J unsymmetric where points slide
         if kind == "direct":
@@ -1036,6 +1034,16 @@ class StaticSolver:
         self._linear = lin
         self.linear_kinds.add(lin.kind)
         return lin
+
+    #: 'auto' solves directly up to this many unknowns (None: linear.DIRECT_MAX_UNKNOWNS, read when used)
+    direct_max_unknowns = None
+
+    def _linear_kind(self, unknowns: int) -> str:
+        """'direct' or 'iterative': the scene's linear_solver, 'auto' decided by the number of unknowns."""
+        if self.linear_solver != "auto":
+            return self.linear_solver
+        limit = _linear.DIRECT_MAX_UNKNOWNS if self.direct_max_unknowns is None else self.direct_max_unknowns
+        return "direct" if unknowns <= limit else "iterative"
 
     def _count_linear(self, lin, before) -> None:
         """Add what ``lin`` did since its counts were ``before`` (Krylov iterations, solves, fallbacks) to the
@@ -1472,9 +1480,7 @@ class StaticSolver:
         K = -J
         unsymmetric = self.contact is not None
         K = (K if unsymmetric else 0.5 * (K + K.T)).tocsc()
-        kind = self.linear_solver
-        if kind == "auto":
-            kind = "direct" if K.shape[0] <= _linear.DIRECT_MAX_UNKNOWNS else "iterative"
+        kind = self._linear_kind(K.shape[0])
         if kind == "iterative" and not unsymmetric:
             return self._lowest_mode_iterative(J, K)
         if kind == "iterative" and K.shape[0] > STABILITY_DIRECT_MAX:
