@@ -50,8 +50,10 @@ SLIP_CELLS = 5e-3
 #: a Newton step is cut so that no node ends deeper than this (cells) past its contact level
 STEP_DEPTH = 0.25
 #: a point touches from this far (cells) above its level: a body placed on a collider (its lowest particles half a
-#: spacing above it, as the builder puts them) touches it despite rounding in its positions
-TOUCH_CELLS = 1e-9
+#: spacing above it, as the builder puts them) touches it despite rounding in its positions and in the scene's
+#: numbers (scenes/pentahedron.toml's dx, 6.666667e-4 for 2/3 mm, leaves its lowest particles 9e-7 cells above
+#: the plate)
+TOUCH_CELLS = 1e-5
 #: a held node pulling by more than this (cells out of its level) at a converged state leaves the active set
 RELEASE = 1e-6
 
