@@ -11,7 +11,9 @@ with R the static solver's node force (every elastic law, magnetic stress and gr
 with Coulomb friction, pressure loads, eigenstrains, clamps as held nodes) and c the scene's mass damping
 (simulation.damping, f = -c p, as in the explicit engine). This is the stationarity condition of the incremental
 potential 1/2 |u - u_pred|^2_M / (beta dt^2) + E(u) - W_ext(u) (Gast et al. 2015) for conservative loads; friction
-enters as the static solver's lagged Coulomb law, its anchors updated after each step.
+enters as the static solver's lagged Coulomb law, its anchors updated after each step. Prony materials keep their
+internal stresses (:mod:`magsoro.mpm.viscous`): each trial F of a step takes them updated over [t_n, t_a] to itself,
+the tangent their derivative, and they move on to F(u_{n+1}) when the step is accepted.
 
 Two schemes, from one family of Newmark updates
     u_{n+1} = u_n + dt v_n + dt^2 (b0 a_n + beta a_{n+1}),   v_{n+1} = v_n + dt ((1 - gamma) a_n + gamma a_{n+1})
@@ -108,10 +110,7 @@ class StepResult:
 
 def check_implicit_supported(sim) -> None:
     """Raise SimulationError naming the scene key the implicit integrator cannot take yet."""
-    if sim.model.viscous:
-        raise SimulationError("the implicit integrator has no viscoelastic (prony) materials yet: remove the material's "
-                              "prony terms or set simulation.integrator = 'explicit'")
-    check_supported(sim, who="the implicit integrator (simulation.integrator = 'implicit')")
+    check_supported(sim, who="the implicit integrator (simulation.integrator = 'implicit')", viscous=True)
     if sim.solver.interaction is not None:
         raise SimulationError("the implicit integrator has no bodies' own field yet: set simulation.magnetic_interaction "
                               "= 'none' or simulation.integrator = 'explicit'")
@@ -121,6 +120,7 @@ class ImplicitIntegrator(StaticSolver):
     _inertia = None  # (scheme, dt, u_n, v_n, a_n) while a step's Newton runs; None: the static solver's residual
     _scattered = None  # the node displacements of the last evaluation of a step's balance (None: another since)
     direct_max_unknowns = DIRECT_MAX_UNKNOWNS
+    takes_prony = True
 
     """Steps a :class:`magsoro.simulation.Simulation` built in the total-Lagrangian form by the scheme ``scheme``
     (``"backward_euler"`` or ``"generalized_alpha"``, spectral radius ``rho_inf``). The fields and colliders follow
@@ -131,6 +131,9 @@ class ImplicitIntegrator(StaticSolver):
     def __init__(self, sim, scheme: str = "generalized_alpha", rho_inf: float = 0.0, tolerance: float = 1e-6,
                  max_iterations: int = 20, linear_solver: str = "auto"):
         check_implicit_supported(sim)
+        if sim.model.viscous:  # the Prony internal stresses of the state (magsoro.mpm.viscous), and a step's trial
+            self.H_n = wp.clone(sim.state.H)
+            self.H_trial = wp.zeros_like(self.H_n)
         super().__init__(sim, sim.state.time, tolerance=tolerance, max_iterations=max_iterations,
                          linear_solver=linear_solver)
         self.scheme = Scheme.make(scheme, rho_inf)
@@ -256,6 +259,64 @@ class ImplicitIntegrator(StaticSolver):
             J = J + self.E.T @ contact.tangent(self.free) @ self.E
         return J.tocsc()
 
+    # -- a step's balance, open for checks ------------------------------------------------------------------
+    def begin_step(self, dt: float) -> None:
+        """Make :meth:`residual` and :meth:`tangent` those of the step of ``dt`` from the current state (its loads
+        at t_a, inertia, internal stresses), as Newton sees them, until :meth:`end_step`."""
+        s = self.scheme
+        self._set_time(self.t + (1.0 - s.alpha_f) * dt)
+        self._inertia = (s, float(dt), self.u_nodes, self.v_nodes, self.a_nodes)
+
+    def end_step(self) -> None:
+        """Back to the static balance at the current state's time (after :meth:`begin_step`)."""
+        self._inertia = None
+        self._set_time(self.t)
+
+    def nodes_of(self, unknowns: np.ndarray) -> np.ndarray:
+        """Node displacements (n_nodes, dim) of values on the unknowns (held nodes zero)."""
+        return self._expand(np.asarray(unknowns, dtype=np.float64))
+
+    # -- Prony viscoelasticity: the internal stresses move with each trial F over the step --------------------
+    def _viscous_argument(self):
+        """The overstress of the placed particles: during a step, after the update of the state's internal stresses
+        over [t_n, t_a] to the trial F (viscous.trial_overstress's stress); outside a step, the state's own."""
+        from magsoro.mpm.viscous import make_viscous, viscous_struct
+
+        if not self.model.viscous:
+            return self.no_viscous
+        if self._inertia is None:
+            return viscous_struct(self.model, self.H_n)
+        kv = make_viscous(self.dim, self.model.scalar)
+        wp.launch(kv["viscous_update"], dim=self.model.n_particles, device=self.dev,
+                  inputs=[self.F, self.bodies, viscous_struct(self.model, self.H_n), self.H_trial, self.sc(self._dt_a())])
+        return viscous_struct(self.model, self.H_trial)
+
+    def _add_material_tangent(self, A) -> None:
+        from magsoro.mpm.static import F_STEP
+        from magsoro.mpm.viscous import make_viscous, viscous_struct
+
+        if not self.model.viscous or self._inertia is None:
+            return
+        kv = make_viscous(self.dim, self.model.scalar)
+        wp.launch(kv["overstress_tangent"], dim=self.model.n_particles, device=self.dev,
+                  inputs=[self.F, self.bodies, viscous_struct(self.model, self.H_n), self.sc(self._dt_a()),
+                          self.sc(F_STEP), A])
+
+    def _dt_a(self) -> float:
+        """The time from t_n to the step's load time t_a."""
+        s, dt = self._inertia[0], self._inertia[1]
+        return (1.0 - s.alpha_f) * dt
+
+    def _advance_viscous(self, u1: np.ndarray, dt: float) -> None:
+        """The internal stresses at the end of an accepted step: updated over dt to F(u_{n+1})."""
+        from magsoro.mpm.viscous import make_viscous, viscous_struct
+
+        self._place(u1)
+        kv = make_viscous(self.dim, self.model.scalar)
+        wp.launch(kv["viscous_update"], dim=self.model.n_particles, device=self.dev,
+                  inputs=[self.F, self.bodies, viscous_struct(self.model, self.H_n), self.H_trial, self.sc(dt)])
+        self.H_n, self.H_trial = self.H_trial, self.H_n
+
     def _force_scale(self, t_a: float) -> float:
         """The step's force scale for the tolerance: the largest of the loads on the undeformed body, the internal
         forces of the current state and the nodes' weight, at the step's load time (inertia off)."""
@@ -310,6 +371,8 @@ class ImplicitIntegrator(StaticSolver):
             self.rejected += 1
             self._set_time(self.t)
             return StepResult(False, its, norm / scale, message, fatal=crossing is not None)
+        if self.model.viscous:
+            self._advance_viscous(u1, float(dt))
         self.u_nodes, self.v_nodes, self.a_nodes = u1, v1, a1
         self.t += float(dt)
         self.steps += 1
@@ -443,6 +506,8 @@ class ImplicitIntegrator(StaticSolver):
         C = np.einsum("pab,pbc->pac", Fdot, np.linalg.inv(F))
         state.v.assign(v.astype(self.model.np_scalar))
         state.C.assign(C.astype(self.model.np_scalar))
+        if self.model.viscous:
+            wp.copy(state.H, self.H_n)
         state.time = self.t
 
     def kinetic_energy(self) -> float:

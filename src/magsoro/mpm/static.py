@@ -360,7 +360,7 @@ class StaticResult:
     residual_evaluations: int = 0
 
 
-def check_supported(sim, who: str = "the static solver") -> None:
+def check_supported(sim, who: str = "the static solver", viscous: bool = False) -> None:
     """Raise SimulationError naming what the static solver cannot take in ``sim`` (form, contact, colliders, the
     bodies' own field, moments that follow R); ``who`` names the solver in the messages."""
     solver = sim.solver
@@ -376,7 +376,7 @@ def check_supported(sim, who: str = "the static solver") -> None:
     if any(c.mode == "symmetry" for c in sim.control.colliders):
         raise SimulationError(f"{who} has no symmetry colliders (mirror planes) yet; give them mode = "
                               "'slip' if the body presses on them, or use --equilibrium (relax)")
-    if sim.model.viscous:
+    if sim.model.viscous and not viscous:
         # the equilibrium under held loads is the relaxed one: the law with its isochoric moduli scaled by g_inf
         raise SimulationError(f"{who} has no viscoelastic (prony) materials; the equilibrium under held loads "
                               "is the relaxed one: give the material its long-term moduli (every isochoric modulus times "
@@ -388,6 +388,9 @@ class StaticSolver:
     form without contact between bodies (rigid colliders and the domain walls a body starts at: penalty, see
     :mod:`magsoro.mpm.static_contact`). Loads: the fields at time ``t`` scaled by a level, gravity in full, the
     colliders where their paths have them at ``t`` (reached with the first level's load increments)."""
+
+    #: whether Prony materials are taken (the implicit integrator's steps; an equilibrium has none to give)
+    takes_prony = False
 
     def __init__(self, sim, t: float, tolerance: float = 1e-8, max_iterations: int = 40, arc_length: bool = False,
                  collider_contact: str | None = None, linear_solver: str | None = None):
@@ -416,7 +419,7 @@ class StaticSolver:
                                   "own field; set simulation.magnetic_interaction = 'none' or static.arc_length = false")
         solver, model = sim.solver, sim.model
         st = solver.settings
-        check_supported(sim)
+        check_supported(sim, viscous=self.takes_prony)
         self.solver, self.model = solver, model
         self.dim, self.dev, self.sc = model.dim, model.device, model.scalar
         k = model.kernels
@@ -609,7 +612,7 @@ class StaticSolver:
                       inputs=[self.bodies, self.F, model.pressure_net])
         wp.launch(k["p2g"], dim=model.n_particles, device=self.dev,
                   inputs=[self.src, self.bodies, applied, self.block, sc(1.0), self.grid, solver.error, P2G_TOTAL, self.ct,
-                          self.no_viscous, solver.particle_affine, solver.particle_momentum])
+                          self._viscous_argument(), solver.particle_affine, solver.particle_momentum])
         self.residual_evaluations += 1
         f = solver.grid_p.numpy()[: self.n_nodes].astype(np.float64)
         m = solver.grid_m.numpy()[: self.n_nodes].astype(np.float64)
@@ -617,6 +620,15 @@ class StaticSolver:
         if self.contact is not None:
             f = f + self.contact.forces(u_nodes)
         return f if self.extra_force is None else f + self.extra_force
+
+    def _viscous_argument(self):
+        """The p2g kernel's Viscous argument at the placed particles (no Prony overstress: the static solver refuses
+        Prony materials; the implicit integrator gives its step's)."""
+        return self.no_viscous
+
+    def _add_material_tangent(self, A) -> None:
+        """Add to the particles' dP/dF ``A`` (material_tangent's layout) what the stress of :meth:`_scatter` has
+        beyond each law's own (nothing here; the implicit integrator's Prony overstress)."""
 
     def residual(self, u_nodes, field_level, gravity_level) -> np.ndarray:
         """Out-of-balance force on the unknowns (the free nodes' forces gathered by the slaving), flat."""
@@ -854,6 +866,7 @@ class StaticSolver:
                                     wp.zeros(len(indices), dtype=self.sc, device=dev))
         A, dof, data = self._tangent_arrays
         wp.launch(self.kk["material_tangent"], dim=n, device=dev, inputs=[self.F, self.bodies, self.sc(F_STEP), A])
+        self._add_material_tangent(A)
         fterms = self.kk["FieldTerms"]()
         terms = self._field_terms(field_level)
         if terms is not None:  # (a 2D scene's out-of-plane moment, Br_z, is left out of the tangent)

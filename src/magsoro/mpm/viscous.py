@@ -31,6 +31,10 @@ p2g adds the overstress F (sum_i h_i - sum_i g_i S_iso) to the law's first Piola
 the instantaneous modulus (the stiffest response), so a Prony term never shortens it. The reported strain
 energy is the law's (instantaneous) one; the dissipated work is not tracked.
 
+The implicit integrator (:mod:`magsoro.mpm.implicit`) uses the same update: each Newton iterate's residual takes
+the overstress after the update to its own F (``trial_overstress``), its tangent the derivative of that
+(``overstress_tangent``), and the state's H moves on when a step is accepted.
+
 Restrictions (the builder refuses them with one line): a Prony material cannot carry a stimulus eigenstrain; the
 static solver (the relaxed equilibrium is the law with its isochoric moduli scaled by g_inf, which a user can
 write as such) and the differentiable rollout refuse Prony materials.
@@ -119,6 +123,45 @@ def make_viscous(dim: int, scalar):
             h = vs.H[p, i + 1]
             H_out[p, i + 1] = h - decay * h + (g[i] * decay / x) * dS
 
+    @wp.func
+    def trial_overstress(F: mat, b: Bodies, vs: Viscous, p: int, dt: scalar):
+        """Overstress of particle ``p`` at ``F`` after a step of ``dt`` from the internal state in ``vs.H``: the
+        stress ``overstress`` gives after ``viscous_update`` to ``F``, as a function of F alone (the implicit
+        integrator's residual and, by central differences, its tangent)."""
+        P = mat()
+        row = vs.row[p]
+        if row >= 0:
+            S = iso_pk2(F, b, p)
+            dS = S - vs.H[p, 0]
+            g = vs.g[row]
+            tau = vs.tau[row]
+            Q = -(g[0] + g[1] + g[2]) * S
+            for i in range(vs.terms):
+                x = dt / tau[i]
+                decay = one_minus_exp(x)
+                h = vs.H[p, i + 1]
+                Q = Q + h - decay * h + (g[i] * decay / x) * dS
+            P = F * Q
+        return P
+
+    @wp.kernel
+    def overstress_tangent(F: wp.array(dtype=mat), bodies: wp.array(dtype=Bodies), vs: Viscous, dt: scalar,
+                           h: scalar, A: wp.array(dtype=mat)):
+        """Add d(trial_overstress)/dF of every Prony particle at its F to ``A`` (laid out as the static solver's
+        material_tangent: A[p dim^2 + b dim + d] holds dP_ac/dF_bd over (a, c)), by central differences of step
+        ``h``; clamped particles and those without a Prony row add nothing."""
+        p = wp.tid()
+        if vs.row[p] < 0 or bodies[0].clamped[p] != 0:
+            return
+        F0 = F[p]
+        for b in range(dim):
+            for d in range(dim):
+                E = mat()
+                E[b, d] = h
+                dP = (trial_overstress(F0 + E, bodies[0], vs, p, dt) - trial_overstress(F0 - E, bodies[0], vs, p, dt)) / (scalar(2.0) * h)
+                k = p * dim * dim + b * dim + d
+                A[k] = A[k] + dP
+
     @wp.kernel
     def add_overstress(F: wp.array(dtype=mat), vs: Viscous, P: wp.array(dtype=mat)):
         """Add each particle's overstress to its first Piola stress ``P`` (the reported stress)."""
@@ -126,7 +169,7 @@ def make_viscous(dim: int, scalar):
         P[p] = P[p] + overstress(F[p], vs, p)
 
     return dict(Viscous=Viscous, iso_pk2=iso_pk2, overstress=overstress, viscous_update=viscous_update,
-                add_overstress=add_overstress)
+                add_overstress=add_overstress, trial_overstress=trial_overstress, overstress_tangent=overstress_tangent)
 
 
 def viscous_struct(model, H, cut=lambda arr: arr):
