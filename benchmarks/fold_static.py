@@ -3,11 +3,14 @@ the pentahedron (27,000 particles) or the hexahedron (43,200), the magnet under 
 positions that give each field level at the robot's centre, one equilibrium per level, each from the last.
 
     python benchmarks/fold_static.py [--robot pentahedron|hexahedron] [--levels 0 9 18 27 36 45]
-                                     [--linear-solver auto|direct|iterative] [--preview]
+                                     [--mode path|scale] [--dx DX] [--linear-solver auto|direct|iterative]
+                                     [--preview]
 
 The scene is the robot's file (float64, the domain's floor lowered as for the triangle's static sweep,
-magsoro.robots.triangle.static_magnet_sweep); the first level is solved from the flat robot, which settles on the
-plate under gravity there. Records per level: Newton iterations, load increments, linear solves and Krylov
+magsoro.robots.triangle.static_magnet_sweep; ``--dx`` replaces its grid spacing). ``--mode path``: the magnet
+moves along the path through the levels' positions ([static] times; the first level from the flat robot, which
+settles on the plate under gravity there). ``--mode scale``: the magnet stays at the highest level's position and
+its field is scaled to each level in turn ([static] levels; gravity settles the robot first). Records per level: Newton iterations, load increments, linear solves and Krylov
 iterations, the level's wall time, the mean fold angle of the side squares (deg) and the particles' largest
 displacement; and the sweep's wall time. Writes
 benchmarks/results/<date>-cpu-<commit>-fold-static-<robot>.json with the machine and the commit.
@@ -26,11 +29,40 @@ from magsoro.bench.runner import provenance
 ROOT = Path(__file__).resolve().parents[1]
 
 
+def scale_sweep(args, data, magnet, offsets, on_read, on_start):
+    """--mode scale: the magnet at the highest level's position, its field scaled to each level (levels / top)."""
+    from magsoro.robots.base import RobotError, simulation
+    from magsoro.robots.triangle import STATIC_ROOM
+
+    top = max(args.levels)
+    magnet.pop("path", None)
+    magnet["position"] = offsets([top])[0]
+    table = data["simulation"]
+    table["precision"] = "float64"
+    table["domain_lo"][2] -= STATIC_ROOM
+    data.setdefault("output", {})["particles"] = False
+    sim = simulation(args.robot, data, preview=args.preview, device="cpu")
+    on_start(sim)
+    levels = sorted(args.levels)
+    done = []
+
+    def on_level(s, res):
+        on_read(s, levels[len(done)], res)
+        done.append(res)
+
+    out = sim.solve_static(levels=[lv / top for lv in levels], on_level=on_level)
+    if not out.converged:
+        raise RobotError(f"{args.robot}: static solve failed: {out.message}")
+    return sim
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--robot", choices=["pentahedron", "hexahedron"], default="pentahedron")
     ap.add_argument("--levels", type=float, nargs="+", default=[0.0, 9.0, 18.0, 27.0, 36.0, 45.0],
                     help="field levels at the robot's centre, mT")
+    ap.add_argument("--mode", choices=["path", "scale"], default="path")
+    ap.add_argument("--dx", type=float, default=None, help="grid spacing, m (default the scene's)")
     ap.add_argument("--linear-solver", choices=["auto", "direct", "iterative"], default="auto")
     ap.add_argument("--preview", action="store_true", help="the scene's preview grid instead of its full one")
     args = ap.parse_args(argv)
@@ -46,6 +78,8 @@ def main(argv=None) -> int:
     point = (0.0, 0.0, module.THICKNESS / 2.0)
     data = scene_data(args.robot)
     data.setdefault("static", {})["linear_solver"] = args.linear_solver
+    if args.dx is not None:
+        data["simulation"]["dx"] = args.dx
     magnet = P.magnet_entry(data)
 
     def offsets(levels_mt):
@@ -82,13 +116,17 @@ def main(argv=None) -> int:
         say(json.dumps(row))
 
     t0 = time.perf_counter()
-    sim, sweep = static_magnet_sweep(ctx, args.robot, data, magnet, offsets, args.levels, [], on_read, on_start)
+    if args.mode == "path":
+        sim, _ = static_magnet_sweep(ctx, args.robot, data, magnet, offsets, args.levels, [], on_read, on_start)
+    else:
+        sim = scale_sweep(args, data, magnet, offsets, on_read, on_start)
     wall = time.perf_counter() - t0
     prov = provenance()
-    out = {"benchmark": "fold_static", **prov, "robot": args.robot, "scene": f"scenes/{args.robot}.toml",
+    out = {"benchmark": "fold_static", **prov, "robot": args.robot, "mode": args.mode, "dx_m": float(sim.model.dx), "scene": f"scenes/{args.robot}.toml",
            "preview": args.preview, "particles": int(sim.model.n_particles), "linear_solver": args.linear_solver,
            "levels_mT": args.levels, "sweep_wall_s": round(wall, 1), "rows": rows}
-    name = f"{prov['date'][:10]}-cpu-{prov['commit']}-fold-static-{args.robot}{'-preview' if args.preview else ''}.json"
+    name = (f"{prov['date'][:10]}-cpu-{prov['commit']}-fold-static-{args.robot}-{args.mode}"
+            f"{'-preview' if args.preview else ''}.json")
     path = ROOT / "benchmarks" / "results" / name
     path.write_text(json.dumps(out, indent=1) + "\n")
     print(f"{args.robot}: sweep {wall:.0f} s; wrote {path}")
