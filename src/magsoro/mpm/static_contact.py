@@ -53,8 +53,8 @@ STEP_DEPTH = 0.25
 #: spacing above it, as the builder puts them) touches it despite rounding in its positions. It must stay below
 #: RELEASE, or a point released for pulling counts as touching again and the release never ends (at 1e-5 a block
 #: resting on a friction floor in the implicit integrator did not finish its first steps); so a scene whose rounded
-#: numbers leave a body further above a collider (scenes/pentahedron.toml at its full grid, dx 6.666667e-4 for
-#: 2/3 mm: 9e-7 cells) is refused as free by the static solver
+#: numbers leave a body further above a collider (scenes/pentahedron.toml's grid written as dx = 6.666667e-4 for
+#: 2/3 mm: 9e-7 cells) is refused as free by the static solver: write such numbers to double precision
 TOUCH_CELLS = 1e-9
 #: a held node pulling by more than this (cells out of its level) at a converged state leaves the active set
 RELEASE = 1e-6
