@@ -100,6 +100,13 @@ def make_viscous(dim: int, scalar):
             r = x * (scalar(1.0) - x * (scalar(0.5) - x * (scalar(sixth) - x * scalar(twenty_fourth))))
         return r
 
+    @wp.func
+    def updated_term(h: mat, g: scalar, tau: scalar, dS: mat, dt: scalar):
+        """Internal stress h_i after a step of ``dt`` in which S_iso changed by ``dS`` (module docstring)."""
+        x = dt / tau
+        decay = one_minus_exp(x)
+        return h - decay * h + (g * decay / x) * dS
+
     @wp.kernel
     def viscous_update(F: wp.array(dtype=mat), bodies: wp.array(dtype=Bodies), vs: Viscous,
                        H_out: wp.array2d(dtype=mat), dt: scalar):
@@ -118,10 +125,7 @@ def make_viscous(dim: int, scalar):
         g = vs.g[row]
         tau = vs.tau[row]
         for i in range(vs.terms):
-            x = dts / tau[i]
-            decay = one_minus_exp(x)
-            h = vs.H[p, i + 1]
-            H_out[p, i + 1] = h - decay * h + (g[i] * decay / x) * dS
+            H_out[p, i + 1] = updated_term(vs.H[p, i + 1], g[i], tau[i], dS, dts)
 
     @wp.func
     def trial_overstress(F: mat, b: Bodies, vs: Viscous, p: int, dt: scalar):
@@ -137,10 +141,7 @@ def make_viscous(dim: int, scalar):
             tau = vs.tau[row]
             Q = -(g[0] + g[1] + g[2]) * S
             for i in range(vs.terms):
-                x = dt / tau[i]
-                decay = one_minus_exp(x)
-                h = vs.H[p, i + 1]
-                Q = Q + h - decay * h + (g[i] * decay / x) * dS
+                Q = Q + updated_term(vs.H[p, i + 1], g[i], tau[i], dS, dt)
             P = F * Q
         return P
 
