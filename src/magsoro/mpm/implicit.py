@@ -348,11 +348,9 @@ class ImplicitIntegrator(StaticSolver):
         """Advance from the current time by ``dt`` (s). On success the nodes' state, the time and the colliders'
         friction anchors move on; on failure nothing changes."""
         s = self.scheme
-        t_a = self.t + (1.0 - s.alpha_f) * dt
-        self._set_time(t_a)
-        scale = self._force_scale(t_a)
+        self.begin_step(dt)
+        scale = self._force_scale(self.field_time)
         u0, v0, a0 = self.u_nodes, self.v_nodes, self.a_nodes
-        self._inertia = (s, float(dt), u0, v0, a0)
         # predictor: constant velocity (a_n's term can throw the lightest nodes at a body's edge, whose lumped masses
         # carry large accelerations, far enough to invert their particles' F)
         guess = u0 + dt * v0
@@ -369,7 +367,7 @@ class ImplicitIntegrator(StaticSolver):
         self.newton_iterations += its
         if not ok:
             self.rejected += 1
-            self._set_time(self.t)
+            self.end_step()
             return StepResult(False, its, norm / scale, message, fatal=crossing is not None)
         if self.model.viscous:
             self._advance_viscous(u1, float(dt))
