@@ -87,24 +87,38 @@ KINDS = ("auto", "direct", "iterative")
 #: the factorisation's check (factor): the largest relative residual |J x - b| / |b| of a solve accepted from the
 #: symmetric-mode LU before the default one is made instead
 FACTOR_CHECK = 1.0e-9
+#: an Ordering serves matrices whose number of entries differs from the pattern it was found for by at most this
+#: fraction
+PATTERN_DRIFT = 0.05
 
 
-def factor(J):
+def factor(J, ordering: "Ordering | None" = None):
     """Sparse LU of a tangent ``J`` (CSC), as scipy's ``splu`` object (``solve``, ``L``, ``U``, ``perm_r``,
-    ``perm_c``). The tangents here have a symmetric pattern and a diagonal that carries them (stiffness, springs),
-    so SuperLU runs in its symmetric mode: fill-reducing minimum-degree ordering of J + J^T, pivots on the
-    diagonal. On the triangle robot's tangent at 15 mT (7629 unknowns, 1.7 M entries, 3D) that leaves 20 % less
-    fill and factorises in 0.27 s against 0.41 s for the default (column ordering of J^T J, partial pivoting); the
-    relative residuals of a solve were 1.7e-13 and 4.2e-13 (`python benchmarks/static_factor.py`, file
-    benchmarks/results/2026-11-28-cpu-909c75f-static-factor.json). A factorisation
-    whose solve of a random right-hand side leaves a relative residual above FACTOR_CHECK (a pivot too small
-    on the diagonal: an indefinite or strongly unsymmetric tangent), or that fails, is made again the default
-    way. Raises RuntimeError when that fails too (a singular tangent)."""
+    ``perm_c``) or a :class:`PermutedLU` with the same. The tangents here have a symmetric pattern and a diagonal
+    that carries them (stiffness, springs), so SuperLU runs in its symmetric mode: fill-reducing minimum-degree
+    ordering of J + J^T, pivots on the diagonal. On the triangle robot's tangent at 15 mT (7629 unknowns, 1.7 M
+    entries, 3D) that leaves 20 % less fill and factorises in 0.27 s against 0.41 s for the default (column ordering
+    of J^T J, partial pivoting); the relative residuals of a solve were 1.7e-13 and 4.2e-13 (`python
+    benchmarks/static_factor.py`, file benchmarks/results/2026-11-28-cpu-909c75f-static-factor.json).
+
+    ``ordering``: an :class:`Ordering` that keeps the symmetric permutation found for J's sparsity pattern; a later
+    J of the same pattern is factorised in that order with no ordering step of its own.
+
+    A factorisation whose solve of a random right-hand side leaves a relative residual above FACTOR_CHECK (a pivot
+    too small on the diagonal: an indefinite or strongly unsymmetric tangent), or that fails, is made again the
+    default way. Raises RuntimeError when that fails too (a singular tangent)."""
     from scipy.sparse.linalg import splu
 
     J = J.tocsc()
+    symmetric = {"diag_pivot_thresh": 0.0, "options": {"SymmetricMode": True}}
     try:
-        lu = splu(J, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0, options={"SymmetricMode": True})
+        perm = ordering.permutation(J) if ordering is not None else None
+        if perm is not None:
+            lu = PermutedLU(splu(J[perm][:, perm].tocsc(), permc_spec="NATURAL", **symmetric), perm)
+        else:
+            lu = splu(J, permc_spec="MMD_AT_PLUS_A", **symmetric)
+            if ordering is not None:
+                ordering.learn(J, lu)
         b = np.random.default_rng(0).standard_normal(J.shape[0])
         x = lu.solve(b)
         size = float(np.linalg.norm(b))
@@ -113,6 +127,76 @@ def factor(J):
     except RuntimeError:
         pass
     return splu(J)
+
+
+class PermutedLU:
+    """SuperLU's factorisation of P J P^T (P the symmetric permutation ``perm``: row k of P J P^T is row perm[k] of
+    J) with J's solve. ``L``, ``U``, ``perm_r`` and ``perm_c`` are the permuted matrix's: det(P J P^T) = det J, so
+    they give J's determinant sign as the unpermuted factors would."""
+
+    def __init__(self, lu, perm: np.ndarray):
+        self.lu, self.perm = lu, perm
+        self.L, self.U, self.perm_r, self.perm_c = lu.L, lu.U, lu.perm_r, lu.perm_c
+
+    def solve(self, b: np.ndarray) -> np.ndarray:
+        b = np.asarray(b)
+        x = np.empty_like(b, dtype=np.float64)
+        x[self.perm] = self.lu.solve(b[self.perm])
+        return x
+
+
+class Ordering:
+    """The fill-reducing symmetric ordering of one sparsity pattern, found once and reused by :func:`factor` for
+    every matrix of that pattern (a Newton solve's tangents all share theirs). The first factorisation orders by
+    SuperLU's minimum degree on J + J^T and is kept as the inverse of its column permutation; when a second matrix
+    of the pattern comes, reverse Cuthill-McKee is weighed against it and kept where its fill (its envelope) is
+    smaller. A slender body's tangent is nearly banded: on the 3D strip of benchmarks/implicit_vs_explicit.py (8937
+    unknowns) RCM left 6.6 M entries in L and U against minimum degree's 7.9 M and factorised in 0.37 s against
+    0.54 s. (Weighing takes about 0.2 s there, spent only by runs that factorise more than once.)"""
+
+    def __init__(self):
+        self.perm = None
+        self.kind = ""
+        self.fill = self.nnz = 0
+        self.weighed = False  # whether reverse Cuthill-McKee was weighed against minimum degree
+
+    def permutation(self, J) -> "np.ndarray | None":
+        """The ordering kept for J's pattern, or None when it has none for it. Any symmetric ordering gives the
+        same solution, so a pattern that differs from the learnt one by a few entries (exact zeros that sparse
+        arithmetic dropped, a contact spring's block) keeps it; one of another size, or more than PATTERN_DRIFT
+        more or fewer entries, is learnt anew."""
+        if self.perm is None or J.shape[0] != len(self.perm) or abs(J.nnz - self.nnz) > PATTERN_DRIFT * self.nnz:
+            return None
+        if not self.weighed:
+            self._weigh(J)
+        return self.perm
+
+    def learn(self, J, lu) -> None:
+        """Keep the minimum-degree ordering of J's pattern from ``lu``, J's factorisation in that order."""
+        self.nnz = J.nnz
+        self.perm, self.kind, self.fill = np.argsort(lu.perm_c), "minimum degree", int(lu.L.nnz + lu.U.nnz)
+        self.weighed = False
+
+    def _weigh(self, J) -> None:
+        """Keep reverse Cuthill-McKee for J's pattern instead where its envelope holds less fill."""
+        from scipy.sparse.csgraph import reverse_cuthill_mckee
+
+        self.weighed = True
+        n = J.shape[0]
+        if n == 0:
+            return
+        pattern = J.copy()
+        pattern.data = np.ones_like(pattern.data)
+        rcm = reverse_cuthill_mckee((pattern + pattern.T).tocsr(), symmetric_mode=True)
+        P = pattern[rcm][:, rcm].tocsc()
+        P.sort_indices()
+        counts = np.diff(P.indptr)
+        top = P.indices[np.minimum(P.indptr[:-1], max(P.nnz - 1, 0))] if P.nnz else np.arange(n)
+        first = np.where(counts > 0, np.minimum(top, np.arange(n)), np.arange(n))  # each column's first row
+        envelope = int(np.sum(np.arange(n) - first))
+        fill = 2 * (envelope + n)  # L and U within the envelope, diagonals counted in both as SuperLU stores them
+        if fill < self.fill:
+            self.perm, self.kind, self.fill = np.asarray(rcm, dtype=np.int64), "reverse Cuthill-McKee", fill
 
 
 def rigid_body_modes(positions) -> np.ndarray:
@@ -247,16 +331,16 @@ class LinearSolver:
 
 
 class DirectSolver(LinearSolver):
-    """:func:`factor` of J; ``lu`` the factorisation (its U's diagonal and permutations give the determinant's
-    sign)."""
+    """:func:`factor` of J (in the order ``ordering`` keeps for its pattern); ``lu`` the factorisation (its U's
+    diagonal and permutations give the determinant's sign)."""
 
     kind = "direct"
 
-    def __init__(self, J):
+    def __init__(self, J, ordering: "Ordering | None" = None):
         super().__init__()
         t0 = time.perf_counter()
         self.J = J.tocsc()
-        self.lu = factor(self.J)
+        self.lu = factor(self.J, ordering)
         self.setup_time = time.perf_counter() - t0
 
     def solve(self, b, rtol=None, x0=None):
