@@ -286,3 +286,54 @@ def test_prony_cantilever_against_the_explicit_engine():
         runs[integrator] = np.array(out)
     imp, exp = runs["implicit"], runs["explicit"]
     assert np.abs(imp - exp).max() <= 0.01 * abs(exp[-1])
+
+
+def test_a_state_placed_by_the_nodes_projects_back_to_them():
+    """The integrator starts from the simulation's state by fitting node displacements and velocities to the
+    particles' positions and F (velocities and dF/dt = C F), clamped particles left out. A state that some node
+    displacements placed comes back to them, light nodes at the faces included (a fit of the positions alone left
+    the 3D strip's face nodes 0.13 cells and its light nodes 4 cells off, and its settled state out of balance)."""
+    sim = cantilever()
+    integ = sim.implicit_integrator()
+    rng = np.random.default_rng(3)
+    u = np.zeros_like(integ.u_nodes)
+    u[integ.free] = 1e-4 * rng.standard_normal((len(integ.free), integ.dim))  # well within a cell (0.8 mm)
+    v = np.zeros_like(u)
+    v[integ.free] = 1e-2 * rng.standard_normal((len(integ.free), integ.dim))
+    integ.u_nodes, integ.v_nodes = u, v
+    integ.write_state()
+    again = cantilever()
+    again.state.assign(sim.state)
+    fitted = again.implicit_integrator()
+    moving = integ.node_mass[integ.free] > 0.0
+    nodes = integ.free[moving]
+    assert np.abs(fitted.u_nodes[nodes] - u[nodes]).max() <= 1e-9 * np.abs(u).max()
+    assert np.abs(fitted.v_nodes[nodes] - v[nodes]).max() <= 1e-9 * np.abs(v).max()
+
+
+def test_anderson_mixing_beats_the_plain_kept_tangent_iteration():
+    """Anderson acceleration of u <- u - K0^-1 R(u) on a linear R = A u - b whose kept tangent K0 is A's diagonal:
+    the plain iteration contracts at the Jacobi rate (0.95 here); the mixed one reaches 1e-10 in fewer than half the
+    iterations (depth 5: 168 against 403)."""
+    from magsoro.mpm.implicit import Anderson
+
+    n = 40
+    rng = np.random.default_rng(0)
+    A = np.diag(np.full(n, 2.0)) - np.diag(np.full(n - 1, 0.95), 1) - np.diag(np.full(n - 1, 0.95), -1)
+    b = rng.standard_normal(n)
+    exact = np.linalg.solve(A, b)
+
+    def iterations(depth):
+        u, mix = np.zeros(n), Anderson(depth, "K0")
+        for k in range(1, 2000):
+            f = (b - A @ u) / np.diag(A)
+            step = mix.step(f)
+            u = u + step
+            mix.moved(1.0)
+            if np.abs(u - exact).max() <= 1e-10 * np.abs(exact).max():
+                return k
+        return 2000
+
+    plain, mixed = iterations(0), iterations(5)
+    assert plain > 300
+    assert mixed < plain / 2  # measured 168 against 403

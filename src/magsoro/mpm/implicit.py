@@ -43,6 +43,7 @@ import numpy as np
 import warp as wp
 
 from magsoro.errors import SimulationError
+from magsoro.mpm.linear import factor
 from magsoro.mpm.static import StaticSolver, check_supported
 
 #: the step's force scale is never below the force of this strain over one cell face of the stiffest material
@@ -54,8 +55,10 @@ FLOOR_STRAIN = 1.0e-3
 REFRESH_RATE = 0.25
 #: a kept tangent whose iteration lowered |R| by less than REFRESH_RATE is still kept while the rate it showed
 #: (at most KEEP_RATE) reaches the tolerance in this many more iterations: an assembled and factorised tangent
-#: costs about 35 iterations with a kept one on the 3D strip of benchmarks/implicit_vs_explicit.py (8937 unknowns)
-KEEP_ITERATIONS = 6
+#: costs about 35 iterations with a kept one on the 3D strip of benchmarks/implicit_vs_explicit.py (8937 unknowns),
+#: whose run made 2 tangents with 6 here and 1 with 12 (58 and 63 Newton iterations; Anderson mixing's rate varies
+#: from one iteration to the next)
+KEEP_ITERATIONS = 12
 KEEP_RATE = 0.7
 #: a kept tangent serves a step whose length differs from its own by at most this fraction (steps that land on
 #: output times differ from the nominal one in their last bits; with exact equality the 3D strip of
@@ -66,6 +69,15 @@ KEEP_DT_RTOL = 1.0e-6
 #: one factorisation for many solves: 7 ms a solve against 0.4 s a factorisation on the 3D strip's 8937 unknowns);
 #: the bound is the factorisation's memory (a 3D tangent of about 70,000 unknowns needed more than 23 GB)
 DIRECT_MAX_UNKNOWNS = 50_000
+#: _project's least squares is shifted by this fraction of its median diagonal (regular where a node moves nothing)
+PROJECT_SHIFT = 1.0e-16
+#: and refined this many times on the fit's own residual (the normal equations square the light nodes' condition: the
+#: settled strip's lightest nodes came back 4e-7 cells off unrefined, 6e-10 after three refinements)
+PROJECT_REFINEMENTS = 3
+#: Anderson acceleration of the iterations with a kept tangent (class Anderson): the iterates it mixes, and how many
+#: times longer than the plain step a mixed step may be
+ANDERSON_DEPTH = 5
+ANDERSON_MAX_GROWTH = 10.0
 #: the schemes of ``[implicit] scheme``
 SCHEMES = ("backward_euler", "generalized_alpha")
 
@@ -96,6 +108,49 @@ class Scheme:
         raise ValueError(f"implicit.scheme must be one of {', '.join(SCHEMES)}, got '{name}'")
 
 
+class Anderson:
+    """Anderson acceleration (type II, Walker and Ni 2011) of the modified Newton iteration u <- u + f(u),
+    f(u) = -K^-1 R(u) with the kept tangent K. With dU the changes of the last ``depth`` iterates and dF the changes
+    of their f, the step taken is f - (dU + dF) g, g the least-squares fit of f by dF's columns. The map is that of
+    one tangent (``tangent``, its linear solver): a new tangent or contact active set starts a new history. Steps
+    are on the unknowns (flat arrays)."""
+
+    def __init__(self, depth: int, tangent):
+        self.depth, self.tangent = int(depth), tangent
+        self.f = None  # the current iterate's f
+        self.taken = None  # the step returned for it, until the iterate moves
+        self.last = None  # how far the last iterate moved
+        self.dU, self.dF = [], []
+
+    def step(self, f: np.ndarray) -> np.ndarray:
+        """The step from the current iterate, whose f is ``f``."""
+        f = np.asarray(f, dtype=np.float64)
+        if self.f is not None and self.last is not None:
+            self.dU.append(self.last)
+            self.dF.append(f - self.f)
+            if len(self.dU) > self.depth:
+                del self.dU[0], self.dF[0]
+        self.f, self.last, out = f, None, f
+        if self.dF:
+            dF = np.stack(self.dF, axis=1)
+            gamma = np.linalg.lstsq(dF, f, rcond=1e-10)[0]
+            mixed = f - (np.stack(self.dU, axis=1) + dF) @ gamma
+            # a fit on nearly parallel columns can throw the step far: the plain step then
+            if np.all(np.isfinite(mixed)) and np.linalg.norm(mixed) <= ANDERSON_MAX_GROWTH * np.linalg.norm(f):
+                out = mixed
+        self.taken = out
+        return out
+
+    def restart(self) -> None:
+        """A new step: its first iterate pairs with no earlier one (the loads and inertia moved f), but the pairs
+        made so far stay (R's change with u does not depend on them)."""
+        self.f = self.taken = self.last = None
+
+    def moved(self, alpha: float) -> None:
+        """The iterate moved by ``alpha`` times the step :meth:`step` returned last."""
+        self.last = alpha * self.taken
+
+
 @dataclass
 class StepResult:
     """One attempted step: whether it converged, its Newton iterations, the final |R| relative to the step's force
@@ -118,6 +173,8 @@ def check_implicit_supported(sim) -> None:
 
 class ImplicitIntegrator(StaticSolver):
     _inertia = None  # (scheme, dt, u_n, v_n, a_n) while a step's Newton runs; None: the static solver's residual
+    _projector = None  # (Q^T W, factorisation) of _project's least squares, made once
+    _anderson = None  # the Anderson history of the kept tangent's iterations (class Anderson), kept across steps
     _scattered = None  # the node displacements of the last evaluation of a step's balance (None: another since)
     direct_max_unknowns = DIRECT_MAX_UNKNOWNS
     takes_prony = True
@@ -160,21 +217,48 @@ class ImplicitIntegrator(StaticSolver):
         return 0.0
 
     # -- the state on the nodes -----------------------------------------------------------------------------
-    def _project(self, values: np.ndarray) -> np.ndarray:
-        """Node values (n_nodes, dim) whose interpolation P v best fits the particles' ``values`` (n_particles, dim)
-        in the mass-weighted least-squares sense, on the unknowns (held nodes zero)."""
-        from scipy.sparse.linalg import splu
-
-        P = self.interpolation()
-        mp = self.model.host["mass"].astype(np.float64)
+    def _project(self, values: np.ndarray, gradients: np.ndarray) -> np.ndarray:
+        """Node values (n_nodes, dim) on the unknowns (held nodes zero) whose interpolation best fits the particles'
+        ``values`` (n_particles, dim) and their reference gradients ``gradients`` (n_particles, dim, dim: d value_a /
+        dX_b), in the mass-weighted least-squares sense with the gradients weighted by dx^2 (clamped particles left
+        out: they do not follow their nodes). The gradients matter:
+        combinations of light nodes at a body's faces move no particle but change the particles' F, so a fit of the
+        positions alone leaves them free, and a state at rest came back out of balance (the 3D strip of
+        benchmarks/implicit_vs_explicit.py, settled: its light nodes 4 cells, its face nodes 0.13 cells from where
+        they were, |R| from 6e-9 to 1e-2 N; with the gradients it came back to 1e-10 cells)."""
         from scipy import sparse
 
-        PE = sparse.kron(P, sparse.identity(self.dim), format="csr")[:, self._free_dofs()] @ self.E
-        A = (PE.T @ sparse.diags(np.repeat(mp, self.dim)) @ PE).tocsc()
-        b = PE.T @ (np.repeat(mp, self.dim) * values.ravel())
-        shift = 1e-12 * float(np.median(np.abs(A.diagonal()))) if A.shape[0] else 0.0
-        sol = splu((A + shift * sparse.identity(A.shape[0], format="csc")).tocsc()).solve(b)
-        return self._expand(sol)
+        if self._projector is None:
+            # the integrator slaves no node (light_fraction), so the unknowns are the free nodes' components and the
+            # fit splits into one scalar least-squares problem per component, with the same matrix
+            assert self.E.shape[0] == self.E.shape[1], "the implicit integrator slaves no node"
+            P = self.interpolation()[:, self.free]
+            nodes, _, grad = self._stencil()
+            rows = np.repeat(np.arange(self.model.n_particles), nodes.shape[1])
+            column = np.full(self.n_nodes, -1)
+            column[self.free] = np.arange(len(self.free))
+            cols, keep = column[nodes.ravel()], column[nodes.ravel()] >= 0
+            dx = float(self.model.dx)
+            blocks = [P] + [sparse.csr_matrix((dx * grad[:, :, b].ravel()[keep], (rows[keep], cols[keep])),
+                                              shape=P.shape) for b in range(self.dim)]
+            Q = sparse.vstack(blocks, format="csr")
+            # clamped particles stay where they are whatever their nodes do (the static solver's placement)
+            mass = np.where(self.model.host["clamped"] != 0, 0.0, self.model.host["mass"].astype(np.float64))
+            QtW = (Q.T @ sparse.diags(np.tile(mass, self.dim + 1))).tocsr()
+            A = (QtW @ Q).tocsc()
+            shift = PROJECT_SHIFT * float(np.median(np.abs(A.diagonal()))) if A.shape[0] else 0.0
+            self._projector = (Q, QtW, factor(A + shift * sparse.identity(A.shape[0], format="csc")))
+        Q, QtW, lu = self._projector
+        dx = float(self.model.dx)
+        gradients = np.asarray(gradients, dtype=np.float64)
+        data = np.concatenate([np.asarray(values, dtype=np.float64)] + [dx * gradients[:, :, b] for b in range(self.dim)])
+        # the normal equations square Q's condition (the light nodes'): refined on the residual of the fit itself
+        x = np.zeros((Q.shape[1], self.dim))
+        for _ in range(PROJECT_REFINEMENTS + 1):
+            x = x + lu.solve(QtW @ (data - Q @ x))
+        out = np.zeros((self.n_nodes, self.dim))
+        out[self.free] = x
+        return out
 
     def _free_dofs(self) -> np.ndarray:
         return (self.free[:, None] * self.dim + np.arange(self.dim)[None, :]).ravel()
@@ -187,10 +271,12 @@ class ImplicitIntegrator(StaticSolver):
         x = state.x.numpy().astype(np.float64)[:, :dim]
         d = x - h["positions"][:, :dim]
         v = state.v.numpy().astype(np.float64)[:, :dim]
+        F = state.F.numpy().astype(np.float64)[:, :dim, :dim]
         if np.any(d != 0.0):
-            self.u_nodes = self._project(d)
-        if np.any(v != 0.0):
-            self.v_nodes = self._project(v)
+            self.u_nodes = self._project(d, F - np.eye(dim))
+        if np.any(v != 0.0):  # with dF/dt = C F, C the state's velocity gradient
+            C = state.C.numpy().astype(np.float64)[:, :dim, :dim]
+            self.v_nodes = self._project(v, np.einsum("pab,pbc->pac", C, F))
 
     def consistent_acceleration(self) -> np.ndarray:
         """a = M^-1 R(u) at the current state (the acceleration the loads give; generalised-alpha starts from it)."""
@@ -409,6 +495,9 @@ class ImplicitIntegrator(StaticSolver):
         if self._kept is not None and abs(self._kept[0] - dt) > KEEP_DT_RTOL * dt:
             self._kept = None  # another step length: another mass term
         fresh = False  # whether the kept tangent was made at this solve's current iterate
+        history = self._anderson  # the Anderson history of the iterations with the kept tangent
+        if history is not None:
+            history.restart()  # the step's loads and inertia shift f: no pair across steps
         forcing = (None, None)  # the last linear solve's residual norm and tolerance (Eisenstat-Walker)
         best = norm
         it = 0
@@ -420,6 +509,7 @@ class ImplicitIntegrator(StaticSolver):
                     return u, True, it, norm, ""
                 r = self._reduce(self._scatter(u, fl, gl))  # pulling points left the active set: solve on
                 norm = float(np.abs(r).max())
+                history = self._anderson = None
                 continue
             if it == self.max_iterations:
                 break
@@ -435,8 +525,12 @@ class ImplicitIntegrator(StaticSolver):
             rtol = forcing_term(norm2, *forcing, floor=0.1 * self.tolerance * scale / max(norm2, 1e-300))
             forcing = (norm2, rtol)
             before = (lin.total_iterations, lin.solves, lin.fallbacks)
-            step = self._expand(lin.solve(-r, rtol=rtol))
+            raw = lin.solve(-r, rtol=rtol)
             self._count_linear(lin, before)
+            if history is None or history.tangent is not lin:
+                history = Anderson(ANDERSON_DEPTH, lin)
+            step = self._expand(history.step(raw))
+            self._anderson = history
             biggest = float(np.abs(step).max()) if step.size else 0.0
             alpha = min(1.0, MAX_STEP * self.model.dx / biggest) if biggest > 0.0 else 1.0
             if contact is not None:
@@ -461,11 +555,14 @@ class ImplicitIntegrator(StaticSolver):
             if not accepted:
                 if fresh:
                     return u, False, it + 1, norm, "the line search found no step that lowers the residual"
-                self._kept = None  # a stale tangent: make it anew at this iterate
+                self._kept = history = self._anderson = None  # a stale tangent: make it anew at this iterate
                 continue
             it += 1
             slow = n_try > REFRESH_RATE * norm and (fresh or changed)
             u, r, norm = u + alpha * step, r_try, n_try
+            history.moved(alpha)
+            if changed:
+                history = self._anderson = None  # another active set: another fixed-point map
             best = min(best, norm)
             if contact is not None:
                 contact.commit()
