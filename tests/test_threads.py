@@ -7,7 +7,7 @@ import pytest
 from magsoro.fields import Dipole, Uniform
 from magsoro.mpm.colliders import Collider
 from magsoro.mpm.solver import Control, Solver, SolverSettings, resolve_threads
-from magsoro.errors import SceneError
+from magsoro.errors import MagsoroError, SceneError
 from magsoro.scene import parse_scene
 from tests.conftest import make_block_model
 
@@ -67,7 +67,7 @@ def test_resolve_threads(monkeypatch):
     assert resolve_threads(None, "cpu", 10**6) == 1
     assert resolve_threads(2, "cpu", 10**6) == 2  # the scene's own setting wins over the environment
     monkeypatch.setenv("MAGSORO_THREADS", "two")
-    with pytest.raises(ValueError, match="MAGSORO_THREADS"):
+    with pytest.raises(MagsoroError, match="MAGSORO_THREADS"):
         resolve_threads(None, "cpu", 10**6)
 
 

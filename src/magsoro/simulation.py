@@ -3,6 +3,7 @@
 >>> sim = Simulation.from_file("scenes/cantilever_2d.toml")      # doctest: +SKIP
 >>> sim.run(duration=0.01, callback=lambda s: print(s.time))     # doctest: +SKIP
 >>> sim.probe_values()["tip_y"]                                   # doctest: +SKIP
+>>> sim.run(duration=0.01).metrics["tip_y"]                       # doctest: +SKIP (every record, as metrics.csv)
 """
 
 from __future__ import annotations
@@ -15,9 +16,11 @@ from typing import Callable
 import numpy as np
 
 from magsoro.errors import OutputError, SceneError, SimulationError, Terminated
+from magsoro.limits import check_time_step, plausibility_notes, time_step_problem
 from magsoro.mpm.colliders import WALL_CELLS
 from magsoro.mpm.interaction import MagneticInteraction
 from magsoro.mpm.solver import Solver
+from magsoro.mpm.static import StaticResult
 from magsoro.mpm.timestep import cfl_time_step
 from magsoro.scene import Scene, load_scene
 from magsoro.scene.build import Built, build
@@ -47,14 +50,71 @@ def _prepare_implicit(scene: Scene) -> list[str]:
     return notes
 
 
+def prepare_static(scene: Scene) -> list[str]:
+    """The static solver's precision and form, one rule for ``magsoro run --static`` and
+    :meth:`Simulation.solve_static`: float64 (Newton's tolerance, 1e-8 of the first residual by default, lies below
+    float32's round-off, so float32 Newton steps stall short of it) and the total-Lagrangian form. Sets them on
+    ``scene`` (an 'updated' formulation is refused) and returns the notes for run.json."""
+    sim = scene.simulation
+    if sim.formulation == "updated":
+        raise SceneError("simulation.formulation: the static solver (magsoro run --static, Simulation.solve_static) "
+                         "solves the total-Lagrangian form; set it to 'auto' or 'total'")
+    notes = []
+    if sim.precision != "float64":
+        notes.append("the static solver runs in float64 (simulation.precision = 'float32' is not used: Newton's "
+                     "tolerance needs the digits)")
+    sim.precision, sim.formulation = "float64", "total"
+    return notes
+
+
+def metrics_table(columns: list[str], rows: list) -> np.ndarray:
+    """A numpy structured array (one float64 field per column, one record per row): the metrics.csv table."""
+    table = np.zeros(len(rows), dtype=[(c, np.float64) for c in columns])
+    for i, row in enumerate(rows):
+        table[i] = tuple(row)
+    return table
+
+
+def _as_frame(table: np.ndarray):
+    """``table`` (a structured array) as a pandas DataFrame, with one line naming pandas when it is missing."""
+    try:
+        import pandas
+    except ImportError:
+        raise ImportError("a DataFrame needs pandas (pip install pandas); the numpy table is .metrics") from None
+    return pandas.DataFrame(table)
+
+
 @dataclass
 class RunResult:
+    """Outcome of :meth:`Simulation.run`. ``metrics``: the probe values at t = 0 and at each record time (the rows
+    of metrics.csv) as a numpy structured array, column 'time' (s) then the probe columns (m; field probes T;
+    collider_force probes N): ``result.metrics["tip_y"]``; :meth:`dataframe` gives it as a pandas DataFrame."""
+
     status: str  # completed | failed | interrupted
     steps: int
     time: float
     wall_time: float
     message: str = ""
     signal: int | None = None  # the signal that stopped an interrupted run (SIGTERM); None for Ctrl-C or none
+    metrics: np.ndarray | None = None  # None where the result was not made by Simulation.run
+
+    def dataframe(self):
+        """:attr:`metrics` as a pandas DataFrame (needs pandas)."""
+        return _as_frame(self.metrics)
+
+
+@dataclass
+class StaticRun(StaticResult):
+    """Outcome of :meth:`Simulation.solve_static` (a :class:`~magsoro.mpm.static.StaticResult`) with ``metrics``:
+    the probe values at each converged level as a numpy structured array, column 'level' (or 'time', s, when
+    solved at times along the paths) then the probe columns (m; field probes T at the level's field; collider_force
+    probes N, the contact's reaction); :meth:`dataframe` gives it as a pandas DataFrame."""
+
+    metrics: np.ndarray | None = None
+
+    def dataframe(self):
+        """:attr:`metrics` as a pandas DataFrame (needs pandas)."""
+        return _as_frame(self.metrics)
 
 
 @dataclass
@@ -95,11 +155,13 @@ def graph_off_note(device: str, reason: str) -> str:
 class Simulation:
     """A scene made runnable: Model, Control, Solver and the current State.
 
-    ``device`` overrides the scene's ``simulation.device``.
+    ``device`` overrides the scene's ``simulation.device``. :meth:`solve_static` needs float64 and the
+    total-Lagrangian form (:func:`prepare_static`); a Simulation built otherwise is rebuilt so at that call.
     """
 
     def __init__(self, scene: Scene, device: str | None = None, source: str = "scene"):
         self.scene = scene
+        self.source = source
         implicit_notes = _prepare_implicit(scene)
         self.built: Built = build(scene, device=device, source=source)
         self.model = self.built.model
@@ -117,8 +179,9 @@ class Simulation:
         self._static_forces = None
         sim = scene.simulation
         self.fixed_dt = sim.dt
-        self._field_peak = self.solver.field_magnitude(self.control)
-        self._wave_speed = self.model.wave_speed(self._field_peak)
+        with np.errstate(all="ignore"):  # a field that is not finite is named by check_time_step below
+            self._field_peak = self.solver.field_magnitude(self.control)
+            self._wave_speed = self.model.wave_speed(self._field_peak)
         v0 = self.built.initial_velocity
         # the first step's bound counts the initial velocities (later steps: the speeds the last step reached)
         self._initial_speed = float(np.max(np.linalg.norm(v0, axis=1))) if v0 is not None and len(v0) else 0.0
@@ -152,6 +215,10 @@ class Simulation:
             self.dt_min, self.dt_max = math.inf, 0.0
             for text in implicit_notes:
                 self._note(text)
+        # a field or a step that is not finite would sit at t = 0 for ever; values no robot meets are noted
+        peaks = check_time_step(self, source)
+        for text in plausibility_notes(self, peaks) + ([self.solver.threads_note] if self.solver.threads_note else []):
+            self._note(text, scene=True)
 
     def set_sources(self, sources) -> None:
         """Replace the field sources (call between steps) and bound the time step anew for the largest field they
@@ -162,6 +229,8 @@ class Simulation:
         self._wave_speed = self.model.wave_speed(self._field_peak)
         if self.fixed_dt is None:
             self.dt = self._cfl_dt(self._checked_speed())
+            if not (self.dt > 0.0 and math.isfinite(self.dt)):
+                raise SimulationError(time_step_problem(self, self.dt), self.steps, self.state.time)
             self.dt_min, self.dt_max = min(self.dt_min, self.dt), max(self.dt_max, self.dt)
 
     @classmethod
@@ -269,7 +338,8 @@ class Simulation:
         """Equilibria by Newton's method (:mod:`magsoro.mpm.static`) under the loads at time ``t`` (default
         simulation.duration), the fields scaled by each of ``levels`` in turn (default [static] levels) and
         gravity in full; each level starts from the previous equilibrium and the state holds the last converged
-        one. ``on_level(sim, level_result)`` after each converged level. Returns a StaticResult; stops at the
+        one. ``on_level(sim, level_result)`` after each converged level. Returns a :class:`StaticRun` (its ``metrics``
+        the probe values per level); stops at the
         first level that does not converge (its message names the level). Afterwards :meth:`field_at` and the
         field probes read the applied fields scaled by the last level solved.
 
@@ -278,9 +348,16 @@ class Simulation:
         later one from the last, the fields and colliders moving along their paths with the load increments
         (:meth:`~magsoro.mpm.static.StaticSolver.move_to`; a magnet brought closer step by step). ``levels`` and
         ``t`` do not apply then; each result's ``level`` is 1 and ``time`` its time. The state's time is the last
-        time solved."""
-        from magsoro.mpm.static import StaticResult, StaticSolver
+        time solved.
 
+        Precision: as ``magsoro run --static``, the solve runs in float64 and the total-Lagrangian form
+        (:func:`prepare_static`). A Simulation built in float32 (the scenes' default) is rebuilt in float64 at the
+        first call, keeping its state, field sources and device, and :attr:`notes` says so; one that has already
+        taken steps is refused (a rebuild would restart its motion): set ``scene.simulation.precision =
+        'float64'`` before building it."""
+        from magsoro.mpm.static import StaticSolver
+
+        self._rebuild_for_static()
         cfg = self.scene.static
         times = cfg.times if times is None and levels is None and t is None else times
         if times is not None:
@@ -295,7 +372,9 @@ class Simulation:
         t0 = _time.perf_counter()
         solver = StaticSolver(self, t, tolerance=cfg.tolerance, max_iterations=cfg.max_iterations, arc_length=cfg.arc_length)
         self.state.time = t
-        out = StaticResult(True)
+        out = StaticRun(True)
+        columns = ["time" if times is not None else "level"] + self.probe_columns()
+        rows = []
         for k, level in enumerate(levels):
             if times is not None:
                 solver.move_to(times[k])
@@ -314,13 +393,37 @@ class Simulation:
                 if res.wall_crossing is None and not res.no_equilibrium:
                     out.message += f": insert intermediate {kind}s, raise static.max_iterations, or check the loads"
                 break
+            row = self._metrics_row(columns)
+            rows.append(row if times is not None else [level] + row[1:])
             if on_level is not None:
                 on_level(self, res)
+        out.metrics = metrics_table(columns, rows)
         out.wall_time = _time.perf_counter() - t0
         out.residual_evaluations = solver.residual_evaluations
         if out.converged:
             out.message = f"{len(levels)} {'time' if times is not None else 'level'}(s) converged"
         return out
+
+    def _rebuild_for_static(self) -> None:
+        """Rebuild in float64 and the total form (:func:`prepare_static`) when built otherwise, keeping the state,
+        the field sources and the device."""
+        if self.model.np_scalar == np.float64 and self.solver.settings.formulation == "total":
+            return
+        if self.steps:
+            raise SimulationError(f"solve_static: this simulation was built in {np.dtype(self.model.np_scalar).name} "
+                                  f"and the {self.solver.settings.formulation} form and has taken {self.steps} steps; "
+                                  "the static solver needs float64 and the total-Lagrangian form (as magsoro run "
+                                  "--static): set scene.simulation.precision = 'float64' and formulation = 'total' "
+                                  "before building the Simulation")
+        notes = prepare_static(self.scene)
+        state, t, sources = self.state.numpy(), self.state.time, list(self.control.sources)
+        self.__init__(self.scene, device=self.model.device, source=self.source)
+        for name, values in state.items():
+            getattr(self.state, name).assign(values.astype(self.model.np_scalar))
+        self.state.time = t
+        self.set_sources(sources)
+        for text in notes:
+            self._note(text)
 
     # -- stepping ------------------------------------------------------------------------------------------
     def _next_dt(self, remaining: float, speed: float | None = None) -> float:
@@ -329,6 +432,8 @@ class Simulation:
         if self.fixed_dt is None:
             self.dt = self._cfl_dt(self._checked_speed() if speed is None else speed)
         dt = self.dt
+        if not (dt > 0.0 and math.isfinite(dt)):  # a NaN step would never reach the end of the interval
+            raise SimulationError(time_step_problem(self, dt), self.steps, self.state.time)
         if remaining < dt * (1 + 1e-9):
             dt = remaining
         elif remaining < 2 * dt:
@@ -751,12 +856,16 @@ class Simulation:
         if not targets or targets[-1] < t_end - 1e-12 * max(1.0, t_end):
             targets.append(t_end)
         status, message, signum = "completed", "", None
+        columns = ["time"] + self.probe_columns()
+        rows = []
         try:
+            rows.append(self._metrics_row(columns))
             if record is not None:
                 record(self)
             for target in targets:
                 self.advance_to(target, callback, heartbeat)
                 self.last_good_time = self.state.time
+                rows.append(self._metrics_row(columns))
                 if record is not None:
                     record(self)
                 if progress is not None:
@@ -772,4 +881,10 @@ class Simulation:
             signum = exc.signum if isinstance(exc, Terminated) else None
             who = str(exc) if signum is not None else "interrupted by the user"
             message = f"{who} at t = {self.state.time:.6g} s"
-        return RunResult(status, self.steps, self.state.time, _time.perf_counter() - wall0, message, signum)
+        return RunResult(status, self.steps, self.state.time, _time.perf_counter() - wall0, message, signum,
+                         metrics_table(columns, rows))
+
+    def _metrics_row(self, columns: list[str]) -> list[float]:
+        """The current time (s) or level and the probe values, in the order of ``columns`` (a metrics.csv row)."""
+        values = self.probe_values()
+        return [self.state.time] + [values[c] for c in columns[1:]]

@@ -1,7 +1,10 @@
 """``magsoro run SCENE.toml --out DIR``: run a scene and write its results."""
 
+import contextlib
 import math
+import signal
 import sys
+import threading
 import time
 
 from magsoro.errors import SceneError
@@ -12,7 +15,8 @@ def register(sub):
     p.add_argument("scene", help="scene file (TOML)")
     p.add_argument("--out", required=True, help="output directory: new, empty, or a previous run with --overwrite")
     p.add_argument("--overwrite", action="store_true",
-                   help="replace the previous run in --out (all of it: frames, report, everything)")
+                   help="replace the previous run in --out: removes the files that run wrote (run.json's files: "
+                        "results, frames, its report); a folder holding anything else is refused, naming it")
     p.add_argument("--device", choices=None, help="cpu, cuda or cuda:N (overrides simulation.device)")
     p.add_argument("--duration", type=float, help="simulated time in s (overrides simulation.duration)")
     p.add_argument("--preview", action="store_true",
@@ -27,15 +31,20 @@ def register(sub):
                         "metrics row and frame per level (first column 'level'); or, with [static] times, the equilibria along the "
                         "scene's paths at those times (first column 'time'); rigid colliders, no contact between bodies yet")
     p.add_argument("--quiet", action="store_true", help="no progress bar, and no Warp start-up banner or kernel-load lines")
+    p.add_argument("--allow-large", action="store_true",
+                   help="run even when the scene is estimated to need more than 90 %% of the available memory, or more "
+                        "than 1e8 time steps (without it such a run is refused before it starts, naming the key that "
+                        "causes it)")
     p.set_defaults(func=run)
 
 
 def run(args) -> int:
     from magsoro.io.outdir import prepare_output_dir
     from magsoro.io.recorder import RunWriter
+    from magsoro.limits import check_memory, check_steps
     from magsoro.scene import load_scene
     from magsoro.scene.load import read_scene_toml
-    from magsoro.simulation import Simulation, check_run_length
+    from magsoro.simulation import Simulation, check_run_length, prepare_static
 
     if args.quiet:
         from magsoro.warp_setup import quiet_warp
@@ -52,10 +61,12 @@ def run(args) -> int:
     if static:
         if getattr(args, "equilibrium", False):
             raise SceneError("--static and --equilibrium: give one of them")
-        if scene.simulation.formulation == "updated":
-            raise SceneError(f"{args.scene}: simulation.formulation: --static solves the total-Lagrangian form; set it to 'auto' or 'total'")
-        scene.simulation.precision = "float64"
-        scene.simulation.formulation = "total"
+        try:
+            prepare_static(scene)  # float64, total form: the rule Simulation.solve_static follows
+        except SceneError as exc:
+            raise SceneError(f"{args.scene}: {exc}") from None
+    allow_large = getattr(args, "allow_large", False)
+    check_memory(scene, args.scene, allow_large)  # before anything is allocated
     sim = Simulation(scene, device=args.device, source=args.scene)
     if static:
         from magsoro.errors import SimulationError
@@ -80,12 +91,15 @@ def run(args) -> int:
         echo = apply_preview(echo, args.scene)
     duration = args.duration if args.duration is not None else scene.simulation.duration
     check_run_length(duration, scene.output.every)  # before the output folder is touched
+    if not static and not getattr(args, "equilibrium", False):
+        check_steps(sim, duration, args.scene, allow_large)
     prepare_output_dir(args.out, overwrite=getattr(args, "overwrite", False))
     writer = RunWriter(args.out, sim, echo, particles=scene.output.particles)
+    shown = _print_notes(sim, "magsoro run")  # what the scene may not mean, before the run rather than after it
     if getattr(args, "equilibrium", False):
-        return _relax(args, sim, writer, duration, wall0)
+        return _relax(args, sim, writer, duration, wall0, shown)
     if static:
-        return _static(args, sim, writer, wall0)
+        return _static(args, sim, writer, wall0, shown)
     bar = None
     if not args.quiet:
         from tqdm import tqdm
@@ -117,8 +131,14 @@ def run(args) -> int:
     finally:
         if bar is not None:
             bar.close()
-    writer.finish(result, time.perf_counter() - wall0)
-    _print_notes(sim, "magsoro run")
+    with _signals_deferred():  # run.json's status and the exit status must agree
+        writer.finish(result, time.perf_counter() - wall0)
+        _print_notes(sim, "magsoro run", shown)
+        return _report_run(args, sim, result)
+
+
+def _report_run(args, sim, result) -> int:
+    """The closing lines of a dynamic run, and its exit status."""
     if result.status != "completed":
         print(f"magsoro run: {result.status}: {result.message}", file=sys.stderr)
         print(f"results so far in {args.out} (run.json status '{result.status}')", file=sys.stderr)
@@ -128,7 +148,7 @@ def run(args) -> int:
     return 0
 
 
-def _relax(args, sim, writer, t_loads: float, wall0: float) -> int:
+def _relax(args, sim, writer, t_loads: float, wall0: float, shown: int = 0) -> int:
     """``--equilibrium``: relax under the loads at ``t_loads`` and write the start and the relaxed state."""
     from dataclasses import asdict
 
@@ -162,8 +182,13 @@ def _relax(args, sim, writer, t_loads: float, wall0: float) -> int:
         except OutputError as exc:
             status, message = "failed", f"{message}; the relaxed state could not be recorded: {exc}"
     result = RunResult(status, steps, sim.time, wall, message, signum)
-    writer.finish(result, time.perf_counter() - wall0)
-    _print_notes(sim, "magsoro run --equilibrium")
+    with _signals_deferred():
+        writer.finish(result, time.perf_counter() - wall0)
+        _print_notes(sim, "magsoro run --equilibrium", shown)
+        return _report_relax(args, status, message, signum, wall)
+
+
+def _report_relax(args, status: str, message: str, signum, wall: float) -> int:
     if status != "completed":
         print(f"magsoro run --equilibrium: {status}: {message}", file=sys.stderr)
         return 1 if status == "failed" else _interrupted_status(signum)
@@ -172,7 +197,7 @@ def _relax(args, sim, writer, t_loads: float, wall0: float) -> int:
     return 0
 
 
-def _static(args, sim, writer, wall0: float) -> int:
+def _static(args, sim, writer, wall0: float, shown: int = 0) -> int:
     """``--static``: the unloaded state (level 0), then the equilibrium at each level of [static] levels; or the
     equilibrium at each of [static] times along the scene's paths."""
     from dataclasses import asdict
@@ -189,7 +214,8 @@ def _static(args, sim, writer, wall0: float) -> int:
         writer.record(sim, stamp=0.0)
         on_level = lambda s, lev: writer.record(s, stamp=lev.level)  # noqa: E731
     try:
-        res = sim.solve_static(on_level=on_level)
+        with writer.beating():  # a level's Newton iterations can take minutes between records
+            res = sim.solve_static(on_level=on_level)
         status, message, wall = ("completed" if res.converged else "failed"), res.message, res.wall_time
         writer.info["static"] = {"converged": res.converged, "levels": [asdict(r) for r in res.levels],
                                  "residual_evaluations": res.residual_evaluations, "wall_time": res.wall_time,
@@ -197,11 +223,25 @@ def _static(args, sim, writer, wall0: float) -> int:
     except SimulationError as exc:
         status, message, wall = "failed", str(exc), time.perf_counter() - wall0
     except KeyboardInterrupt as exc:
-        writer.finish(RunResult("interrupted", 0, sim.time, time.perf_counter() - wall0, str(exc) or "interrupted by the user",
-                                getattr(exc, "signum", None)), time.perf_counter() - wall0)
-        return _interrupted_status(getattr(exc, "signum", None))
-    writer.finish(RunResult(status, 0, sim.time, wall, message), time.perf_counter() - wall0)
-    _print_notes(sim, "magsoro run --static")
+        signum = getattr(exc, "signum", None)
+        cfg = sim.scene.static
+        done = len(writer.rows) - (0 if along_paths else 1)  # rows recorded: the unloaded one, then one per level
+        total = len(cfg.times if along_paths else cfg.levels)
+        message = f"{str(exc) or 'interrupted by the user'} after {max(done, 0)} of {total} {'time' if along_paths else 'level'}s"
+        with _signals_deferred():
+            writer.finish(RunResult("interrupted", 0, sim.time, time.perf_counter() - wall0, message, signum),
+                          time.perf_counter() - wall0)
+            _print_notes(sim, "magsoro run --static", shown)
+            print(f"magsoro run --static: interrupted: {message}", file=sys.stderr)
+            print(f"results so far in {args.out} (run.json status 'interrupted')", file=sys.stderr)
+            return _interrupted_status(signum)
+    with _signals_deferred():
+        writer.finish(RunResult(status, 0, sim.time, wall, message), time.perf_counter() - wall0)
+        _print_notes(sim, "magsoro run --static", shown)
+        return _report_static(args, status, message, wall, res if status == "completed" else None)
+
+
+def _report_static(args, status: str, message: str, wall: float, res) -> int:
     if status != "completed":
         print(f"magsoro run --static: failed: {message}", file=sys.stderr)
         return 1
@@ -214,11 +254,32 @@ def _static(args, sim, writer, wall0: float) -> int:
     return 0
 
 
-def _print_notes(sim, prefix: str) -> None:
+def _print_notes(sim, prefix: str, shown: int = 0) -> int:
     """The run's notes on what the scene may not mean (a body in the domain walls' reach, a body the particle
-    lattice rounds), one stderr line each; run.json's ``notes`` holds them with the others."""
-    for note in sim.scene_notes:
+    lattice rounds, a field or remanence out of the plausible range) from the ``shown``-th on, one stderr line
+    each; returns how many there are. run.json's ``notes`` holds them with the others."""
+    for note in sim.scene_notes[shown:]:
         print(f"{prefix}: note: {note}", file=sys.stderr)
+    return len(sim.scene_notes)
+
+
+@contextlib.contextmanager
+def _signals_deferred():
+    """While the closing run.json is written and the last lines printed, SIGTERM and Ctrl-C are held: one arriving
+    then would leave run.json and the exit status disagreeing (run.json 'completed', exit 143; or run.json still
+    'running'). The run's outcome is recorded by then, so a signal held is dropped: the process ends in a moment."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    held = (signal.SIGTERM, signal.SIGINT)
+    previous = {s: signal.getsignal(s) for s in held}
+    for s in held:
+        signal.signal(s, lambda signum, frame: None)
+    try:
+        yield
+    finally:
+        for s, handler in previous.items():
+            signal.signal(s, handler)
 
 
 def _interrupted_status(signum: int | None) -> int:

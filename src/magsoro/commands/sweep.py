@@ -34,6 +34,10 @@ def register(sub):
     p.add_argument("--no-particles", action="store_true", help="do not write the particle series of each run (saves disk)")
     p.add_argument("--dry-run", action="store_true", help="validate and list the runs, run nothing")
     p.add_argument("--quiet", action="store_true", help="no progress lines")
+    p.add_argument("--allow-large", action="store_true",
+                   help="plan more than 1,000 runs (up to 100,000), and let runs estimated to need more than 90 %% of "
+                        "the available memory or more than 1e8 time steps go ahead (without it they fail at once, "
+                        "naming the key)")
     p.set_defaults(func=run)
 
 
@@ -51,7 +55,8 @@ def run(args) -> int:
         raise MagsoroError("--workers sets the size of a LocalCluster; with --scheduler the cluster's own workers run the sweep")
     if args.device is not None and not (args.device == "cpu" or args.device.startswith("cuda")):
         raise MagsoroError(f"--device: '{args.device}' is not allowed; use cpu, cuda or cuda:N")
-    plan = make_plan(args.scene, args.param, zipped=args.zip)  # every scene validated before anything runs
+    allow_large = getattr(args, "allow_large", False)
+    plan = make_plan(args.scene, args.param, zipped=args.zip, allow_large=allow_large)  # every scene validated first
     if args.dry_run:
         for r in plan.runs:
             print(f"{r.name}: " + ", ".join(f"{k}={format_value(v)}" for k, v in r.params.items()))
@@ -67,6 +72,12 @@ def run(args) -> int:
         tail = f": {rec['error']}" if rec["status"] == "failed" else ""
         print(f"[{state.done}/{state.total} done, {state.failed} failed{when}] {rec['run']} {rec['status']}{tail}", file=sys.stderr, flush=True)
 
+    from magsoro.sweep.extra import parquet_note, require_distributed
+
+    if args.workers != 0 or args.scheduler:
+        require_distributed()  # the cluster needs the sweep extra: one line naming it, before anything runs
+    if not args.quiet and parquet_note():
+        print(f"magsoro sweep: note: {parquet_note()}", file=sys.stderr)
     if not args.quiet:
         where = (f"scheduler {args.scheduler}" if args.scheduler else "this process (--workers 0)" if args.workers == 0
                  else (f"a LocalCluster ({args.workers} worker{'s' if args.workers != 1 else ''})" if args.workers
@@ -75,7 +86,7 @@ def run(args) -> int:
     try:
         result = run_sweep(
             plan, args.out, scheduler=args.scheduler, workers=args.workers, resume=args.resume, device=args.device,
-            particles=False if args.no_particles else None, progress=progress,
+            particles=False if args.no_particles else None, progress=progress, allow_large=allow_large,
         )
     except KeyboardInterrupt as exc:
         print(f"magsoro sweep: interrupted; finished runs are kept, continue with --resume --out {args.out}", file=sys.stderr)

@@ -8,6 +8,14 @@ from pathlib import Path
 import numpy as np
 
 
+def _is_number(text) -> bool:
+    try:
+        float(text)
+    except (TypeError, ValueError):
+        return False
+    return True
+
+
 class Keyframes:
     """Piecewise-linear interpolation of values given at increasing times; held constant outside the table.
 
@@ -42,11 +50,19 @@ class Keyframes:
         missing = [c for c in ["t", *columns] if c not in rows[0]]
         if missing:
             raise ValueError(f"keyframe table {path} lacks column(s) {missing}; it needs 't' and {columns}")
-        try:
-            t = [float(r["t"]) for r in rows]
-            v = [[float(r[c]) for c in columns] for r in rows]
-        except ValueError as exc:
-            raise ValueError(f"keyframe table {path}: {exc}") from None
+        t, v = [], []
+        for k, r in enumerate(rows):
+            line = k + 2  # the header is line 1
+            try:
+                row = [float(r[c]) for c in ["t", *columns]]
+            except (TypeError, ValueError):
+                bad = next(c for c in ["t", *columns] if not _is_number(r[c]))
+                raise ValueError(f"keyframe table {path}: line {line}, column {bad}: {r[bad]!r} is not a number") from None
+            bad = next((c for c, x in zip(["t", *columns], row) if not np.isfinite(x)), None)
+            if bad is not None:
+                raise ValueError(f"keyframe table {path}: line {line}, column {bad}: {r[bad]!r} is not finite")
+            t.append(row[0])
+            v.append(row[1:])
         return cls(t, v)
 
     def value(self, t: float) -> np.ndarray:

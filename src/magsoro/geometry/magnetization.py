@@ -191,13 +191,24 @@ def from_array_file(path) -> Profile:
     path = Path(path)
     if not path.is_file():
         raise FileNotFoundError(f"magnetisation file '{path}' not found")
-    if path.suffix.lower() == ".npy":
-        data = np.load(path, allow_pickle=False)
+    suffix = path.suffix.lower()
+    if suffix not in (".npy", ".csv", ".txt"):
+        raise ValueError(f"magnetisation file '{path}' is a '{suffix or 'no suffix'}' file; give a .csv (or .npy) "
+                         f"array with columns x, y, z, Brx, Bry, Brz (m, T)")
+    if suffix == ".npy":
+        try:
+            data = np.load(path, allow_pickle=False)
+        except (ValueError, OSError, EOFError) as exc:
+            raise ValueError(f"magnetisation file '{path}' is not a numpy array file ({exc})") from None
     else:
         try:
             data = np.loadtxt(path, delimiter=",", ndmin=2)
         except ValueError:
-            data = np.loadtxt(path, delimiter=",", ndmin=2, skiprows=1)
+            try:
+                data = np.loadtxt(path, delimiter=",", ndmin=2, skiprows=1)
+            except ValueError as exc:
+                raise ValueError(f"magnetisation file '{path}' is not a CSV of numbers x, y, z, Brx, Bry, Brz after "
+                                 f"an optional header line ({str(exc).splitlines()[0][:120]})") from None
     data = np.asarray(data, dtype=np.float64)
     if data.ndim != 2 or data.shape[1] != 6 or len(data) == 0:
         raise ValueError(f"magnetisation file '{path}' must have 6 columns x,y,z,Brx,Bry,Brz, got shape {data.shape}")

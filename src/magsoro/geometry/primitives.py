@@ -124,8 +124,38 @@ class Polygon(Shape):
         self.vertices = np.asarray(vertices, dtype=np.float64)
         if self.vertices.ndim != 2 or self.vertices.shape[1] != 2 or len(self.vertices) < 3:
             raise ValueError("a polygon needs at least 3 vertices of 2 coordinates")
+        # a vertex repeated (the outline closed by the first vertex again) is an edge of zero length: drop it
+        keep = np.any(self.vertices != np.roll(self.vertices, -1, axis=0), axis=1)
+        if keep.sum() >= 3:
+            self.vertices = self.vertices[keep]
+        crossing = self._crossing_edges()
+        if crossing is not None:
+            i, j = crossing
+            raise ValueError(f"vertices: the polygon's edges {i} and {j} (from vertex {i} and from vertex {j}) cross: "
+                             f"the outline intersects itself; list the vertices in order around it")
         if abs(self._signed_area()) == 0:
-            raise ValueError("polygon has zero area")
+            raise ValueError("vertices: the polygon has zero area (its vertices lie on one line)")
+
+    def _crossing_edges(self) -> tuple[int, int] | None:
+        """The first pair of edges (i, j), i < j, that are not neighbours and cross or touch, or None (a simple
+        polygon). Edge i runs from vertex i to vertex i + 1."""
+        a = self.vertices
+        b = np.roll(a, -1, axis=0)
+        k = len(a)
+
+        def orient(p, q, r):
+            return np.sign((q[..., 0] - p[..., 0]) * (r[..., 1] - p[..., 1]) - (q[..., 1] - p[..., 1]) * (r[..., 0] - p[..., 0]))
+
+        for i in range(k - 2):
+            j = np.arange(i + 2, k if i > 0 else k - 1)  # the last edge neighbours edge 0
+            if not len(j):
+                continue
+            p, q, r, s = a[i], b[i], a[j], b[j]
+            o1, o2, o3, o4 = orient(p, q, r), orient(p, q, s), orient(r, s, p), orient(r, s, q)
+            hit = (o1 != o2) & (o3 != o4) & (o1 * o2 <= 0) & (o3 * o4 <= 0)
+            if hit.any():
+                return i, int(j[np.argmax(hit)])
+        return None
 
     def _signed_area(self):
         x, y = self.vertices[:, 0], self.vertices[:, 1]

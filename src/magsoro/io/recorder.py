@@ -10,9 +10,11 @@ takes that small file.
 
 from __future__ import annotations
 
+import contextlib
 import io
 import os
 import platform
+import threading
 import time
 from pathlib import Path
 
@@ -21,7 +23,7 @@ import numpy as np
 from magsoro._version import __version__
 from magsoro.errors import OutputError
 from magsoro.io.files import atomic_save_npz, atomic_write_json, atomic_write_text
-from magsoro.io.outdir import HEARTBEAT_S
+from magsoro.io.outdir import HEARTBEAT_S, RUN_FILES
 from magsoro.io.vtk import write_pvd, write_vtp
 
 
@@ -44,6 +46,7 @@ class RunWriter:
         self.rows: list[list[float]] = []
         self.columns = ["time"] + sim.probe_columns()
         self._last_beat = time.monotonic()
+        self._beat_lock = threading.Lock()  # beat() from the stepping thread and from beating()'s thread
         self.info = {
             "status": "running",
             "message": "",
@@ -66,6 +69,8 @@ class RunWriter:
             "heartbeat": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
             "heartbeat_unix": time.time(),
             "scene": scene_echo,
+            # what this run writes here, and so all that --overwrite may remove (magsoro.io.outdir.RUN_FILES)
+            "files": list(RUN_FILES),
         }
         # remove leftovers of an earlier run in the same folder, so no stale file looks like ours
         for stale in ("final.npz", "last_good.npz", "metrics.csv", "particles.pvd"):
@@ -81,12 +86,35 @@ class RunWriter:
         now = time.monotonic()
         if not force and now - self._last_beat < HEARTBEAT_S:
             return
-        self._last_beat = now
-        self.info["heartbeat"] = time.strftime("%Y-%m-%dT%H:%M:%S%z")
-        self.info["heartbeat_unix"] = time.time()
-        if sim is not None:
-            self.info["progress"] = {"time": sim.time, "steps": sim.steps}
-        atomic_write_json(self.dir / "run.json", self.info)
+        with self._beat_lock:
+            self._last_beat = now
+            self.info["heartbeat"] = time.strftime("%Y-%m-%dT%H:%M:%S%z")
+            self.info["heartbeat_unix"] = time.time()
+            if sim is not None:
+                self.info["progress"] = {"time": sim.time, "steps": sim.steps}
+            atomic_write_json(self.dir / "run.json", self.info)
+
+    @contextlib.contextmanager
+    def beating(self):
+        """Beat every HEARTBEAT_S from a helper thread while the block runs: for a static solve, whose Newton
+        iterations at one level can take many minutes without a record, so that run.json keeps telling a run
+        that is working from one whose process is gone (:func:`magsoro.io.outdir.run_state`)."""
+        stop = threading.Event()
+
+        def keep_beating():
+            while not stop.wait(HEARTBEAT_S):
+                try:
+                    self.beat(force=True)
+                except OutputError:  # a full disk: the main thread meets it at its next write
+                    pass
+
+        thread = threading.Thread(target=keep_beating, name="magsoro-heartbeat", daemon=True)
+        thread.start()
+        try:
+            yield
+        finally:
+            stop.set()
+            thread.join()
 
     def record(self, sim, stamp: float | None = None) -> None:
         """Append a metrics row and a frame of the current state, stamped with the simulated time (or
@@ -145,6 +173,7 @@ class RunWriter:
             graph_windows={"windows": sim.solver.graph_windows, "of": sim.windows, "captures": sim.solver.graph_captures,
                            "replays": sim.solver.graph_replays},
             notes=list(getattr(sim, "notes", [])),
+            signal=getattr(result, "signal", None),  # the signal that stopped an interrupted run (15: SIGTERM)
             finished=time.strftime("%Y-%m-%dT%H:%M:%S%z"),
             heartbeat=time.strftime("%Y-%m-%dT%H:%M:%S%z"),
             heartbeat_unix=time.time(),

@@ -23,7 +23,7 @@ import numpy as np
 import warp as wp
 
 from magsoro.constants import MU0
-from magsoro.errors import SimulationError
+from magsoro.errors import MagsoroError, SimulationError
 from magsoro.fields.device import FieldEvaluator
 from magsoro.mpm.colliders import COLLIDER_STRIDE, Collider, collider_table
 from magsoro.mpm.interaction import MagneticInteraction
@@ -54,24 +54,41 @@ def resolve_device(name: str | None) -> str:
 PARTICLES_PER_THREAD = 4000
 
 
+def usable_cores() -> int:
+    """CPU cores this process may run on (its affinity mask; a container's or Slurm's cpuset)."""
+    return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+
+
+def threads_from_env() -> tuple[int | None, str | None]:
+    """(threads, note) from the environment variable MAGSORO_THREADS: (None, None) when unset; a whole number
+    >= 1 is capped at the usable cores (more threads than cores only wait for each other: 99,999 of them ran a
+    step 2,000 times slower), and the note says so. Anything else raises MagsoroError in one line."""
+    env = os.environ.get("MAGSORO_THREADS")
+    if env is None or not env.strip():
+        return None, None
+    try:
+        requested = int(env.strip())
+    except ValueError:
+        requested = 0
+    if requested < 1:
+        raise MagsoroError(f"MAGSORO_THREADS: must be a whole number >= 1 (CPU threads a step is split over), got {env!r}")
+    cores = usable_cores()
+    if requested > cores:
+        return cores, (f"MAGSORO_THREADS = {requested} is more than the {cores} usable CPU core(s); "
+                       f"{cores} thread(s) used")
+    return requested, None
+
+
 def resolve_threads(requested: int | None, device: str, n_particles: int) -> int:
     """Threads a CPU step is split over. ``requested`` None is automatic: the environment variable MAGSORO_THREADS
-    if set (sweep workers set 1), else one thread per PARTICLES_PER_THREAD particles up to the usable cores.
-    Always 1 on CUDA."""
+    if set (sweep workers set 1; capped at the usable cores, :func:`threads_from_env`), else one thread per
+    PARTICLES_PER_THREAD particles up to the usable cores. Always 1 on CUDA."""
     if not device.startswith("cpu"):
         return 1
     if requested is None:
-        env = os.environ.get("MAGSORO_THREADS")
-        if env:
-            try:
-                requested = int(env)
-            except ValueError:
-                raise ValueError(f"MAGSORO_THREADS must be a positive integer, got {env!r}") from None
-            if requested < 1:
-                raise ValueError(f"MAGSORO_THREADS must be a positive integer, got {env!r}")
-        else:
-            cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
-            requested = min(cores, n_particles // PARTICLES_PER_THREAD)
+        requested, _ = threads_from_env()
+        if requested is None:
+            requested = min(usable_cores(), n_particles // PARTICLES_PER_THREAD)
     if requested < 1:
         requested = 1
     return int(min(requested, n_particles))
@@ -644,6 +661,8 @@ class Solver:
         # CPU threads: each takes a contiguous range of particles, scatters into a grid of its own (thread 0 into
         # the shared one) and keeps its own bounds and top speed; the grids are summed node by node
         self.threads = resolve_threads(st.threads, dev, model.n_particles)
+        #: why the threads are fewer than MAGSORO_THREADS asked for (a note for run.json), or None
+        self.threads_note = threads_from_env()[1] if st.threads is None and dev.startswith("cpu") else None
         # contact: two velocity fields per node (magsoro.mpm.contact). Its scan and transfers index the particle
         # arrays globally, so a CPU step with contact runs on one thread. The updated form resolves contact in its
         # own grid update; the total form in a pass over a grid of the current configuration (_contact_pass).

@@ -82,7 +82,7 @@ def _pad3(v, fill=0.0):
     return out
 
 
-def make_field(spec, base_dir: Path | None):
+def make_field(spec, base_dir: Path | None, key: str = "fields"):
     t = spec.type
     if t == "uniform":
         if spec.profile is None:
@@ -99,7 +99,7 @@ def make_field(spec, base_dir: Path | None):
             try:
                 return Uniform(KeyframedVector.from_csv(path))
             except (ValueError, FileNotFoundError) as exc:
-                raise SceneError(f"fields: {exc}") from None
+                raise SceneError(f"{key}.file: {exc}") from None
         return Uniform(KeyframedVector(spec.times, spec.values))
     path = Keyframes(spec.path.times, spec.path.positions) if getattr(spec, "path", None) is not None else None
     if t == "dipole":
@@ -175,7 +175,10 @@ def resolve_material(spec, base_dir, key: str, library: dict | None = None) -> d
         path = Path(spec.file) if base_dir is None else Path(base_dir) / spec.file
         if not path.is_file():
             raise SceneError(f"{key}.file: material file '{path}' not found")
-        entry = read_toml_file(path, SceneError, f"material file ({key}.file)")
+        try:
+            entry = read_toml_file(path, SceneError, f"material file ({key}.file)")
+        except SceneError as exc:  # the file names itself; the key names the body
+            raise SceneError(f"{key}.file: {exc}") from None
         model = law_of_file_model(entry.get("model"))  # fit-material's model names map onto the laws
         if model is None:
             raise SceneError(f"{key}.file: '{path}' holds model {entry.get('model')!r}; the engine supports "
@@ -265,6 +268,7 @@ def make_magnetization(spec, remanence: float | None, base_dir, key: str):
                 vec = spec.magnitude * np.divide(vec, n, out=np.zeros_like(vec), where=n > 0)
             return magprofiles.table(spec.axis, spec.origin, spec.positions, vec, spec.interpolation)
         if spec.type == "file":
+            key = f"{key}.file"
             return magprofiles.from_array_file(Path(spec.file) if base_dir is None else Path(base_dir) / spec.file)
         if spec.type == "expression":
             return magprofiles.expression([spec.x, spec.y, spec.z])
@@ -709,7 +713,7 @@ def build(scene: Scene, device: str | None = None, source: str = "scene", magnet
     sources = []
     for i, f in enumerate(scene.fields):
         try:
-            sources.append(make_field(f, scene.base_dir))
+            sources.append(make_field(f, scene.base_dir, f"{source}: fields[{i}]"))
         except ValueError as exc:
             raise SceneError(f"{source}: fields[{i}]: {exc}") from None
     colliders = [make_collider(c, dim, sim.plane_z) for c in scene.colliders]

@@ -21,6 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
+from magsoro.config_errors import short_repr
 from magsoro.errors import MagsoroError
 
 TOP_KEYS = ("name", "n_segments", "remenance", "segments")
@@ -91,6 +92,62 @@ def _yaml_loader():
     return Loader
 
 
+#: values a robot file may hold once its aliases are expanded (a robot of a few hundred segments holds a few thousand)
+MAX_YAML_VALUES = 100_000
+
+
+def _expanded_size(node, limit: int) -> int:
+    """How many values the composed YAML ``node`` holds with every alias expanded, counted without expanding
+    them (an alias is the node it names, shared): a few hundred bytes of nested anchors (a 'billion laughs') expand
+    to 10^9 values. Counting stops past ``limit``; an alias cycle counts as past it."""
+    import yaml
+
+    sizes: dict[int, int] = {}
+    busy: set[int] = set()
+
+    def size(n) -> int:
+        key = id(n)
+        if key in sizes:
+            return sizes[key]
+        if key in busy:  # a node that contains itself
+            return limit + 1
+        busy.add(key)
+        total = 1
+        if isinstance(n, yaml.SequenceNode):
+            children = n.value
+        elif isinstance(n, yaml.MappingNode):
+            children = [c for pair in n.value for c in pair]
+        else:
+            children = []
+        for c in children:
+            total += size(c)
+            if total > limit:
+                break
+        busy.discard(key)
+        sizes[key] = total
+        return total
+
+    return size(node)
+
+
+def _load_yaml(path, text: str):
+    """The data of the YAML ``text`` with the duplicate-refusing safe loader; a document whose aliases would expand
+    past MAX_YAML_VALUES values is refused from its composed form, before any value is built."""
+    import yaml
+
+    loader = _yaml_loader()(text)
+    try:
+        node = loader.get_single_node()
+        if node is None:
+            return None
+        if _expanded_size(node, MAX_YAML_VALUES) > MAX_YAML_VALUES:
+            raise RobotImportError(f"{path}: its anchors and aliases expand to more than {MAX_YAML_VALUES:,} values "
+                                   f"(aliases nested in aliases); write the values out")
+        return loader.construct_document(node)
+    finally:
+        loader.dispose()
+
+
 def _unknown(path, where: str, key, allowed) -> RobotImportError:
     near = difflib.get_close_matches(str(key), allowed, n=1)
     hint = f" (did you mean '{near[0]}'?)" if near else ""
@@ -105,15 +162,15 @@ def _number(path, key: str, value, positive: bool = True) -> float:
         except ValueError:
             pass
     if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
-        raise RobotImportError(f"{path}: {key}: expected a finite number, got {value!r}")
+        raise RobotImportError(f"{path}: {key}: expected a finite number, got {short_repr(value)}")
     if positive and not value > 0:
-        raise RobotImportError(f"{path}: {key}: must be > 0, got {value!r}")
+        raise RobotImportError(f"{path}: {key}: must be > 0, got {short_repr(value)}")
     return float(value)
 
 
 def _find_mesh(path: Path, key: str, name) -> Path:
     if not isinstance(name, str) or not name.strip():
-        raise RobotImportError(f"{path}: {key}: expected a mesh file name, got {name!r}")
+        raise RobotImportError(f"{path}: {key}: expected a mesh file name, got {short_repr(name)}")
     from magsoro.geometry.mesh import MESH_SUFFIXES
 
     here = path.parent
@@ -137,7 +194,7 @@ def read_robot(path) -> Robot:
     path = Path(path)
     text = read_text_file(path, RobotImportError, "robot file")
     try:
-        data = yaml.load(text, Loader=_yaml_loader())  # a SafeLoader subclass: no arbitrary objects
+        data = _load_yaml(path, text)  # a SafeLoader subclass: no arbitrary objects
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         where = f" line {mark.line + 1}, column {mark.column + 1}:" if mark is not None else ""
@@ -154,24 +211,24 @@ def read_robot(path) -> Robot:
             raise RobotImportError(f"{path}: {key}: required key missing")
     name = data.get("name", path.stem)
     if not isinstance(name, (str, int, float)) or isinstance(name, bool):
-        raise RobotImportError(f"{path}: name: expected a string, got {name!r}")
+        raise RobotImportError(f"{path}: name: expected a string, got {short_repr(name)}")
     remanence = _number(path, "remenance", data["remenance"], positive=False)
     if remanence < 0:
-        raise RobotImportError(f"{path}: remenance: must be >= 0 T, got {remanence!r} (the sign goes into the vectors)")
+        raise RobotImportError(f"{path}: remenance: must be >= 0 T, got {short_repr(remanence)} (the sign goes into the vectors)")
     segments = data["segments"]
     if not isinstance(segments, list) or not segments:
-        raise RobotImportError(f"{path}: segments: expected a non-empty list of segment mappings, got {segments!r}")
+        raise RobotImportError(f"{path}: segments: expected a non-empty list of segment mappings, got {short_repr(segments)}")
     if "n_segments" in data:
         n = data["n_segments"]
         if isinstance(n, bool) or not isinstance(n, int):
-            raise RobotImportError(f"{path}: n_segments: expected an integer, got {n!r}")
+            raise RobotImportError(f"{path}: n_segments: expected an integer, got {short_repr(n)}")
         if n != len(segments):
             raise RobotImportError(f"{path}: n_segments: says {n} but segments lists {len(segments)}")
     out = []
     for i, seg in enumerate(segments):
         key = f"segments[{i}]"
         if not isinstance(seg, dict):
-            raise RobotImportError(f"{path}: {key}: expected a mapping of {', '.join(SEGMENT_KEYS)}, got {seg!r}")
+            raise RobotImportError(f"{path}: {key}: expected a mapping of {', '.join(SEGMENT_KEYS)}, got {short_repr(seg)}")
         for k in seg:
             if k not in SEGMENT_KEYS:
                 raise _unknown(path, f"{key}.", k, SEGMENT_KEYS)
@@ -180,13 +237,13 @@ def read_robot(path) -> Robot:
                 raise RobotImportError(f"{path}: {key}.{k}: required key missing")
         vec = seg["magnetisation_vector"]
         if not isinstance(vec, list) or len(vec) != 3:
-            raise RobotImportError(f"{path}: {key}.magnetisation_vector: expected a list of 3 numbers, got {vec!r}")
+            raise RobotImportError(f"{path}: {key}.magnetisation_vector: expected a list of 3 numbers, got {short_repr(vec)}")
         vec = [_number(path, f"{key}.magnetisation_vector[{j}]", v, positive=False) for j, v in enumerate(vec)]
         fixed = seg.get("fixed", False)
         if fixed in (0, 1) and not isinstance(fixed, float):
             fixed = bool(fixed)
         else:
-            raise RobotImportError(f"{path}: {key}.fixed: expected true or false, got {fixed!r}")
+            raise RobotImportError(f"{path}: {key}.fixed: expected true or false, got {short_repr(fixed)}")
         out.append(Segment(
             index=i,
             mesh=_find_mesh(path, f"{key}.mesh", seg["mesh"]),

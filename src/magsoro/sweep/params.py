@@ -32,6 +32,12 @@ class SweepError(MagsoroError):
     """A sweep specification is invalid (bad --param, bad path, scene invalid for some run)."""
 
 
+#: runs a sweep may plan without --allow-large: more is usually a range count typed one digit too long
+MAX_RUNS = 1000
+#: runs a sweep may plan at all: each holds its scene while the plan is validated (about 10 kB each)
+HARD_MAX_RUNS = 100_000
+
+
 @dataclass
 class Param:
     """One ``--param``: the scene path, the values to take and the text as the user wrote it."""
@@ -117,6 +123,8 @@ def parse_param(spec: str) -> Param:
         n = _number(m.group(3), "range count", spec)
         if n != int(n) or n < 1:
             raise SweepError(f"--param {spec}: range count must be a whole number >= 1, got '{m.group(3).strip()}'")
+        if n > HARD_MAX_RUNS:
+            raise SweepError(f"--param {spec}: range count {n:.0f} is more than the {HARD_MAX_RUNS} runs a sweep may have")
         n = int(n)
         values = [a] if n == 1 else [a + (b - a) * k / (n - 1) for k in range(n)]
         # land exactly on the end the user typed, not on a + (b - a) with round-off
@@ -228,6 +236,25 @@ class RunSpec:
     params: dict
     name: str
     scene: dict = field(repr=False)
+
+
+def run_count(params: list[Param], zipped: bool = False) -> int:
+    """How many runs :func:`combine` makes, without making them."""
+    if zipped:
+        return max((len(p.values) for p in params), default=0)
+    return math.prod(len(p.values) for p in params)
+
+
+def check_run_count(params: list[Param], zipped: bool = False, allow_large: bool = False) -> int:
+    """The number of runs, refused (SweepError naming the --param values) above MAX_RUNS unless ``allow_large``
+    and above HARD_MAX_RUNS in any case; checked before a single run is made."""
+    n = run_count(params, zipped)
+    limit = HARD_MAX_RUNS if allow_large else MAX_RUNS
+    if n > limit:
+        sizes = " x ".join(f"{len(p.values)} ({p.key})" for p in params)
+        how = "" if allow_large else f"; add --allow-large for up to {HARD_MAX_RUNS}"
+        raise SweepError(f"--param: {sizes} make {n:,} runs, more than {limit:,}: fewer values, or --zip{how}")
+    return n
 
 
 def combine(params: list[Param], zipped: bool = False) -> list[dict]:

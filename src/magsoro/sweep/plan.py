@@ -6,9 +6,11 @@ import copy
 from dataclasses import dataclass
 from pathlib import Path
 
+from magsoro.bundled import resolve_data_path
 from magsoro.errors import SceneError
 from magsoro.io.files import read_toml_file
-from magsoro.sweep.params import Param, RunSpec, SweepError, combine, format_value, parse_param, set_path, slug
+from magsoro.sweep.params import (Param, RunSpec, SweepError, check_run_count, combine, format_value, parse_param,
+                                  set_path, slug)
 
 
 @dataclass
@@ -71,18 +73,20 @@ def _validate(data: dict, source: str, base_dir: Path) -> str | None:
     return None
 
 
-def make_plan(scene_file, param_specs: list[str], zipped: bool = False) -> SweepPlan:
+def make_plan(scene_file, param_specs: list[str], zipped: bool = False, allow_large: bool = False) -> SweepPlan:
     """Parse the --param specs, build every run's scene and validate all of them with parse_scene.
 
     A bad key or value fails here, before any run starts, with one line that names the --param: a path that
     does not exist is caught while setting it; a value the schema refuses is traced to the --param that,
     applied alone to the base scene, already makes it invalid (or to the whole combination when only the
-    combination is invalid).
+    combination is invalid). More runs than :data:`~magsoro.sweep.params.MAX_RUNS` are refused unless
+    ``allow_large`` (never more than HARD_MAX_RUNS), before any is made.
     """
-    path = Path(scene_file).resolve()
+    path = resolve_data_path(scene_file).resolve()  # scenes/... and examples/...: the installed copy elsewhere
     base = read_toml_file(path, SceneError, "scene file")
     params = [parse_param(s) for s in param_specs]
     specs = {p.key: p.text for p in params}
+    check_run_count(params, zipped, allow_large)
     combos = combine(params, zipped)
     width = max(3, len(str(len(combos) - 1)))
     runs, checked = [], {}

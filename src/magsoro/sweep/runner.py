@@ -19,11 +19,14 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable
 
+from magsoro.errors import Terminated
 from magsoro.io.files import atomic_write_json
+from magsoro.sweep.extra import require_distributed
 from magsoro.sweep.params import SweepError
 from magsoro.sweep.plan import SweepPlan
 from magsoro.sweep.summary import write_summary
-from magsoro.sweep.worker import FINISHED, SINGLE_THREAD_ENV, execute_run, read_record, record_failure, run_status
+from magsoro.sweep.worker import (FINISHED, SINGLE_THREAD_ENV, execute_run, read_record, record_failure, run_signal,
+                                  run_status)
 
 
 @dataclass
@@ -61,6 +64,44 @@ class SweepResult:
     @property
     def completed(self) -> list[dict]:
         return [r for r in self.records if r["status"] == "completed"]
+
+
+#: seconds to connect to a --scheduler and have it answer, all steps together: an address where something listens
+#: but never answers (a wrong port, a firewall that swallows packets) must not hold the sweep for minutes
+SCHEDULER_TIMEOUT_S = 30.0
+#: seconds to wait for the first worker of a --scheduler cluster
+WORKER_WAIT_S = 60.0
+
+
+def connect(Client, scheduler: str, timeout: float | None = None):
+    """A ``Client`` (dask.distributed's) of the scheduler at ``scheduler`` ('HOST:PORT' or a full address), or
+    SweepError (one line) when it does not answer within ``timeout`` s (default SCHEDULER_TIMEOUT_S) in all: Dask's
+    own connect timeout does not bound every step of its handshake, so the connection runs in a helper thread that
+    is abandoned at the deadline."""
+    import threading
+
+    timeout = SCHEDULER_TIMEOUT_S if timeout is None else timeout
+    address = scheduler if "://" in scheduler else f"tcp://{scheduler}"
+    box: dict = {}
+
+    def attempt():
+        try:
+            box["client"] = Client(address, timeout=timeout)
+        except BaseException as exc:  # noqa: BLE001 - handed to the calling thread
+            box["error"] = exc
+
+    thread = threading.Thread(target=attempt, name="magsoro-scheduler-connect", daemon=True)
+    thread.start()
+    thread.join(timeout + 1.0)
+    if thread.is_alive():
+        raise SweepError(f"--scheduler {scheduler}: no answer within {timeout:g} s (something listens there but does "
+                         f"not speak to a dask scheduler?); check the address and port")
+    exc = box.get("error")
+    if exc is not None:
+        if isinstance(exc, (OSError, TimeoutError, ValueError)):
+            raise SweepError(f"--scheduler {scheduler}: cannot connect ({type(exc).__name__}: {exc})") from None
+        raise exc
+    return box["client"]
 
 
 # LocalCluster worker environment: single-threaded numerics, and no statistical profiler (it samples every
@@ -114,6 +155,7 @@ def run_sweep(
     device: str | None = None,
     particles: bool | None = None,
     progress: Callable[[Progress], None] | None = None,
+    allow_large: bool = False,
 ) -> SweepResult:
     """Run every run of ``plan`` not yet finished in ``out_dir``.
 
@@ -122,9 +164,12 @@ def run_sweep(
     LocalCluster with ``workers`` single-threaded worker processes (default: one per core) is started and
     closed; ``workers=0`` runs them one after the other in this process, without Dask. Ctrl-C cancels the runs
     in flight and raises KeyboardInterrupt; their run.json stays 'running', so a later ``resume=True`` runs
-    them again.
+    them again. ``allow_large``: runs estimated to need more memory or steps than :mod:`magsoro.limits` allows
+    go ahead instead of failing.
     """
     wall0 = time.perf_counter()
+    # before anything is written: a cluster needs the sweep extra (workers=0 runs without it)
+    distributed = None if workers == 0 and not scheduler else require_distributed()
     out = Path(out_dir).resolve()
     _prepare(plan, out, resume)
     param_keys = [p.key for p in plan.params]
@@ -151,28 +196,25 @@ def run_sweep(
     if workers == 0 and not scheduler:
         # in this process, one run after the other, no Dask: for debugging (pdb, profilers) and small sweeps
         for i in pending:
-            rec = execute_run(specs[i], str(run_dirs[i]), str(plan.scene_path), device, particles)
-            if rec["status"] == "interrupted":  # Simulation.run turned Ctrl-C into a status; stop the sweep
+            rec = execute_run(specs[i], str(run_dirs[i]), str(plan.scene_path), device, particles, allow_large)
+            if rec["status"] == "interrupted":  # Simulation.run turned Ctrl-C or SIGTERM into a status: stop the sweep
                 records[i] = rec
                 write_summary(out, list(records.values()), param_keys)
-                raise KeyboardInterrupt
+                signum = run_signal(run_dirs[i])  # 143 after SIGTERM, as magsoro run
+                raise Terminated(signum) if signum is not None else KeyboardInterrupt
             finished(i, rec)
         return SweepResult(out, [records[i] for i in sorted(records)], 0, time.perf_counter() - wall0)
 
-    from distributed import Client, LocalCluster, as_completed
+    Client, LocalCluster, as_completed = distributed.Client, distributed.LocalCluster, distributed.as_completed
 
     cluster = None
     if scheduler:
-        address = scheduler if "://" in scheduler else f"tcp://{scheduler}"
+        client = connect(Client, scheduler)
         try:
-            client = Client(address, timeout=30)
-        except (OSError, TimeoutError) as exc:
-            raise SweepError(f"--scheduler {scheduler}: cannot connect ({exc})") from None
-        try:
-            client.wait_for_workers(1, timeout=60)  # a scheduler without workers would leave the sweep waiting
+            client.wait_for_workers(1, timeout=WORKER_WAIT_S)  # a scheduler without workers would leave the sweep waiting
         except TimeoutError:
             client.close()
-            raise SweepError(f"--scheduler {scheduler}: no worker joined the cluster within 60 s") from None
+            raise SweepError(f"--scheduler {scheduler}: no worker joined the cluster within {WORKER_WAIT_S:g} s") from None
         n_workers = len(client.nthreads())
     else:
         n_workers = max(1, min(workers or default_workers(device), len(pending)))
@@ -190,7 +232,7 @@ def run_sweep(
         for i in pending:
             # a unique key per submission, so a resumed sweep never picks up a stale result of the same name
             fut = client.submit(
-                execute_run, specs[i], str(run_dirs[i]), str(plan.scene_path), device, particles,
+                execute_run, specs[i], str(run_dirs[i]), str(plan.scene_path), device, particles, allow_large,
                 key=f"magsoro-run-{i}-{time.time_ns()}", pure=False, retries=0,
             )
             futures[fut] = i

@@ -50,11 +50,13 @@ def _worker_device(device: str | None) -> str | None:
     return device
 
 
-def execute_run(run: dict, run_dir: str, scene_file: str, device: str | None = None, particles: bool | None = None) -> dict:
+def execute_run(run: dict, run_dir: str, scene_file: str, device: str | None = None, particles: bool | None = None,
+                allow_large: bool = False) -> dict:
     """Run one scene of a sweep into ``run_dir`` with the outputs of ``magsoro run``; return its summary row.
 
     ``run`` holds index, name, params and the full scene dict; relative files in the scene resolve against the
-    directory of ``scene_file``.
+    directory of ``scene_file``. A run estimated to need more memory or steps than :mod:`magsoro.limits` allows
+    fails at once, naming the key, unless ``allow_large``.
     """
     for key, value in SINGLE_THREAD_ENV.items():
         os.environ.setdefault(key, value)
@@ -69,6 +71,7 @@ def execute_run(run: dict, run_dir: str, scene_file: str, device: str | None = N
 
         from magsoro.io.files import atomic_write_json
         from magsoro.io.recorder import RunWriter
+        from magsoro.limits import check_memory, check_steps
         from magsoro.scene import parse_scene
         from magsoro.simulation import Simulation
 
@@ -77,7 +80,9 @@ def execute_run(run: dict, run_dir: str, scene_file: str, device: str | None = N
         wall0, cpu0 = time.perf_counter(), time.process_time()
         source = f"{scene_file} [run {run['name']}]"
         scene = parse_scene(json.loads(json.dumps(run["scene"])), source, Path(scene_file).parent)
+        check_memory(scene, source, allow_large)
         sim = Simulation(scene, device=_worker_device(device), source=source)
+        check_steps(sim, scene.simulation.duration, source, allow_large)
         writer = RunWriter(out, sim, run["scene"], particles=scene.output.particles if particles is None else particles)
         writer.info["sweep"] = sweep_info
         atomic_write_json(out / "run.json", writer.info)
@@ -139,18 +144,38 @@ def run_status(run_dir) -> str | None:
         return None
 
 
+def run_signal(run_dir) -> int | None:
+    """The signal that stopped the run in run_dir (run.json ``signal``: 15 after SIGTERM), None when none did."""
+    try:
+        value = json.loads((Path(run_dir) / "run.json").read_text()).get("signal")
+    except (OSError, ValueError, AttributeError):
+        return None
+    return value if isinstance(value, int) and not isinstance(value, bool) and 0 < value < 128 else None
+
+
 def final_probes(run_dir) -> dict[str, float]:
     """Last row of metrics.csv (the values at the end of the run), without the time column."""
     path = Path(run_dir) / "metrics.csv"
+    header = last = None
     try:
-        with path.open(newline="") as fh:
-            rows = list(csv.reader(fh))
-    except OSError:
+        with path.open(newline="", encoding="utf-8") as fh:  # a stream: only the header and the last row are kept
+            for row in csv.reader(fh):
+                if header is None:
+                    header = row
+                else:
+                    last = row
+    except (OSError, UnicodeDecodeError, csv.Error):  # not a metrics.csv of ours: no final values
         return {}
-    if len(rows) < 2:
+    if header is None or last is None:
         return {}
-    header, last = rows[0], rows[-1]
-    return {k: float(v) for k, v in zip(header, last) if k != "time"}
+    out = {}
+    for k, v in zip(header, last):
+        if k != "time":
+            try:
+                out[k] = float(v)
+            except ValueError:
+                out[k] = None
+    return out
 
 
 def read_record(run_dir, run: dict) -> dict:

@@ -19,6 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from magsoro._version import __version__
+from magsoro.config_errors import short_repr
 from magsoro.errors import MagsoroError
 from magsoro.io.files import atomic_write_text
 
@@ -32,6 +33,10 @@ class ReportError(MagsoroError):
 MAX_FRAMES = 60
 MAX_PARTICLES = 4000
 MAX_SWEEP_CURVES = 200  # runs overlaid per probe column in a sweep report
+# metrics.csv rows embedded per run (more are decimated evenly, first and last kept, and the page says so): a
+# 3-million-row file made a 187 MB page; a curve of 10,000 points is finer than a screen
+MAX_METRIC_ROWS = 10_000
+MAX_SWEEP_CURVE_ROWS = 1_000  # per run in a sweep's overlaid curves (up to MAX_SWEEP_CURVES of them)
 
 
 # ---------------------------------------------------------------------------------------------------- reading
@@ -43,18 +48,80 @@ def _finite_or_none(v):
     return f if math.isfinite(f) else None
 
 
-def read_metrics(run_dir) -> tuple[list[str], list[list[float | None]]]:
-    """metrics.csv as (columns, column-major values with None for non-finite)."""
+def read_metrics(run_dir, max_rows: int = MAX_METRIC_ROWS) -> tuple[list[str], list[list[float | None]], int]:
+    """metrics.csv as (columns, column-major values with None for non-finite, rows in the file). Above ``max_rows``
+    rows every k-th is kept (and the last), read as a stream: the file's size does not set the memory used."""
     path = Path(run_dir) / "metrics.csv"
     if not path.is_file():
-        return [], []
-    with path.open(newline="") as fh:
-        rows = list(csv.reader(fh))
-    if not rows:
-        return [], []
-    header = rows[0]
-    cols = [[_finite_or_none(r[j]) if j < len(r) else None for r in rows[1:]] for j in range(len(header))]
-    return header, cols
+        return [], [], 0
+    try:
+        with path.open(newline="", encoding="utf-8") as fh:
+            total = max(sum(1 for _ in fh) - 1, 0)
+            fh.seek(0)
+            reader = csv.reader(fh)
+            header = next(reader, None)
+            if header is None:
+                return [], [], 0
+            stride = metrics_stride(total, max_rows)
+            rows, last = [], None
+            for i, r in enumerate(reader):
+                if i % stride == 0:
+                    rows.append(r)
+                last = (i, r)
+            if last is not None and last[0] % stride:
+                rows.append(last[1])
+    except UnicodeDecodeError as exc:
+        raise ReportError(f"{path}: not UTF-8 text ({exc.reason} at byte {exc.start}); is it a metrics.csv of magsoro?") from None
+    except csv.Error as exc:
+        raise ReportError(f"{path}: not a readable CSV file ({exc})") from None
+    cols = [[_finite_or_none(r[j]) if j < len(r) else None for r in rows] for j in range(len(header))]
+    return header, cols, total
+
+
+def metrics_stride(total: int, max_rows: int) -> int:
+    """Every how many rows of ``total`` are kept so that they and the last row are at most ``max_rows``."""
+    return 1 if total <= max_rows else -(-total // max(max_rows - 1, 1))
+
+
+def _expect(info: dict, key: str, kind: type, path, what: str) -> None:
+    """ReportError naming the file and the key when ``info[key]`` is present (not None) but not a ``kind``."""
+    value = info.get(key)
+    if value is not None and not isinstance(value, kind):
+        raise ReportError(f"{path}: '{key}' should be {what}, got {type(value).__name__} {short_repr(value)}; "
+                          f"the file was not written by magsoro, or was edited")
+
+
+def _check_run_info(info: dict, path) -> None:
+    """The types of the run.json entries the report reads (a hand-edited or foreign file: one line, not a
+    TypeError)."""
+    for key, kind, what in (("scene", dict, "a table"), ("notes", list, "a list of texts"), ("sweep", dict, "a table"),
+                            ("bodies", list, "a list of tables"), ("dt", dict, "a table")):
+        _expect(info, key, kind, path, what)
+    _expect(info.get("scene") or {}, "probes", list, path, "a list of tables (scene.probes)")
+    _expect(info.get("sweep") or {}, "params", dict, path, "a table (sweep.params)")
+
+
+def _check_sweep_plan(plan, path) -> None:
+    """The types of the sweep.json entries the report reads: params [{key, values}], runs [{index, name, params}]
+    with every swept key."""
+    if not isinstance(plan, dict):
+        raise ReportError(f"{path}: not a sweep.json of magsoro (a JSON object is expected)")
+    for key in ("params", "runs"):
+        if not isinstance(plan.get(key), list):
+            raise ReportError(f"{path}: '{key}' should be a list, got {short_repr(plan.get(key))}; the file was not "
+                              f"written by magsoro, or was edited")
+    for i, p in enumerate(plan["params"]):
+        if not (isinstance(p, dict) and isinstance(p.get("key"), str) and isinstance(p.get("values"), list)):
+            raise ReportError(f"{path}: params[{i}] should be a table with 'key' (text) and 'values' (a list)")
+    keys = [p["key"] for p in plan["params"]]
+    for i, r in enumerate(plan["runs"]):
+        ok = (isinstance(r, dict) and isinstance(r.get("name"), str) and r["name"] not in ("", ".", "..")
+              and "/" not in r["name"] and "\\" not in r["name"] and isinstance(r.get("params"), dict))
+        if not ok:
+            raise ReportError(f"{path}: runs[{i}] should be a table with 'name' (a folder name) and 'params' (a table)")
+        missing = [k for k in keys if k not in r["params"]]
+        if missing:
+            raise ReportError(f"{path}: runs[{i}].params lacks the swept key '{missing[0]}'")
 
 
 def read_frames(run_dir) -> list[tuple[float, Path]]:
@@ -184,11 +251,12 @@ def run_content(run_dir, max_frames: int = MAX_FRAMES, max_particles: int = MAX_
         raise ReportError(f"{run_dir / 'run.json'}: cannot read ({exc})") from None
     if not isinstance(info, dict):
         raise ReportError(f"{run_dir / 'run.json'}: not a run.json of magsoro (a JSON object is expected)")
+    _check_run_info(info, run_dir / "run.json")
     from magsoro.io.outdir import run_state
 
     state, why = run_state(info)
     scene = info.get("scene") or {}
-    columns, values = read_metrics(run_dir)
+    columns, values, n_rows = read_metrics(run_dir)
     charts = []
     if columns and columns[0] == "time":
         t = values[0]
@@ -219,6 +287,10 @@ def run_content(run_dir, max_frames: int = MAX_FRAMES, max_particles: int = MAX_
     # what the run met that the scene may not mean (a body in the domain walls' reach, a body the lattice rounds)
     # and why steps left the check windows: run.json's notes, one row each
     facts += [("note", n) for n in info.get("notes") or []]
+    if columns and n_rows > len(values[0]):
+        facts.append(("probe curves", f"{len(values[0]):,} of the {n_rows:,} rows of metrics.csv (every "
+                                      f"{metrics_stride(n_rows, MAX_METRIC_ROWS)}th, and the last; at most "
+                                      f"{MAX_METRIC_ROWS:,} rows are embedded)"))
     sweep = info.get("sweep") or {}
     return {
         "kind": "run",
@@ -254,6 +326,7 @@ def sweep_content(sweep_dir) -> dict:
         plan = json.loads((sweep_dir / "sweep.json").read_text())
     except (OSError, ValueError) as exc:
         raise ReportError(f"{sweep_dir / 'sweep.json'}: cannot read ({exc})") from None
+    _check_sweep_plan(plan, sweep_dir / "sweep.json")
     keys = [p["key"] for p in plan.get("params", [])]
     # the run directories are the truth (summary.csv may lag a run that just finished); read them directly
     records = [read_record(sweep_dir / "runs" / r["name"], {**r, "scene": None}) for r in plan.get("runs", [])]
@@ -284,11 +357,12 @@ def sweep_content(sweep_dir) -> dict:
                                "markers": True, "xcats": cats})
     curves = []
     overlay = done[:MAX_SWEEP_CURVES]
-    metrics = {r["run"]: read_metrics(sweep_dir / "runs" / r["run"]) for r in overlay}
+    metrics = {r["run"]: read_metrics(sweep_dir / "runs" / r["run"], MAX_SWEEP_CURVE_ROWS) for r in overlay}
+    decimated = sum(1 for _, v, n in metrics.values() if v and n > len(v[0]))
     for col in probe_cols:
         series = []
         for r in overlay:
-            columns, values = metrics[r["run"]]
+            columns, values, _ = metrics[r["run"]]
             if col in columns and columns and columns[0] == "time":
                 s = _series(r["run"], values[0], values[columns.index(col)])
                 if s is not None:
@@ -313,6 +387,9 @@ def sweep_content(sweep_dir) -> dict:
     if summary_path.is_file():
         cols, _rows = read_summary(summary_path)
         facts.append(("summary columns", ", ".join(cols)))
+    if decimated:
+        facts.append(("curves over time", f"{decimated} run(s) have more than {MAX_SWEEP_CURVE_ROWS:,} metrics rows; "
+                                          f"their curves show {MAX_SWEEP_CURVE_ROWS:,} of them, evenly spread"))
     return {
         "kind": "sweep",
         "title": f"Sweep {sweep_dir.name}",
