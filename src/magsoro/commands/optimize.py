@@ -73,7 +73,7 @@ def run_optimize(args) -> int:
 
     from magsoro.diff.optimize import Problem, optimise
     from magsoro.errors import MagsoroError
-    from magsoro.simulation import Simulation
+    from magsoro.simulation import Simulation, prepare_static
 
     kinds = [k.strip() for k in args.vars.split(",") if k.strip()]
     bodies = [b.strip() for b in args.bodies.split(",")] if args.bodies else None
@@ -135,7 +135,7 @@ def run_optimize(args) -> int:
         from magsoro.scene import load_scene
 
         scene = load_scene(scene_out)
-        scene.simulation.precision = "float64"
+        prepare_static(scene)
         sim = Simulation(scene, source=str(scene_out))
         run = sim.solve_static(levels=prob.levels)
         if not run.converged:

@@ -86,14 +86,14 @@ class StaticProblem:
         from magsoro.io.files import read_toml_file
         from magsoro.mpm.static import check_supported
         from magsoro.scene import load_scene
-        from magsoro.simulation import Simulation
+        from magsoro.simulation import Simulation, prepare_static
 
         self.scene_path = Path(scene_path)
         scene = load_scene(self.scene_path)
-        scene.simulation.precision = "float64"  # the Newton tolerance needs it (as `magsoro run --static`)
-        if scene.simulation.formulation == "updated":
-            raise MagsoroError(f"{self.scene_path}: simulation.formulation: --static solves the total-Lagrangian form; "
-                               f"set it to 'auto' or 'total'")
+        try:
+            prepare_static(scene)  # float64 and the total form, as `magsoro run --static`
+        except MagsoroError as exc:
+            raise MagsoroError(f"{self.scene_path}: {exc}") from None
         self.sim = Simulation(scene, source=str(self.scene_path))
         try:
             check_supported(self.sim)

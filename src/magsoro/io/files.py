@@ -104,11 +104,13 @@ def _json_default(o):
 def read_text_file(path, error=None, what: str = "file") -> str:
     """The text of a UTF-8 file (a byte-order mark is allowed). A missing file, a folder, an unreadable file, a
     binary file or another encoding raises ``error`` (a MagsoroError subclass, default MagsoroError) with one
-    line naming the file and what is wrong."""
+    line naming the file and what is wrong. A relative ``scenes/...`` or ``examples/...`` path that does not exist
+    here reads the copy installed with the package (:func:`magsoro.bundled.resolve_data_path`)."""
+    from magsoro.bundled import resolve_data_path
     from magsoro.errors import MagsoroError
 
     error = error or MagsoroError
-    path = Path(path)
+    path = resolve_data_path(path)
     if not path.exists():
         raise error(f"{path}: {what} not found")
     if path.is_dir():

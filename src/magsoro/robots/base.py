@@ -20,6 +20,7 @@ from typing import Callable
 
 import numpy as np
 
+from magsoro.bundled import data_folder
 from magsoro.errors import MagsoroError
 
 
@@ -78,13 +79,19 @@ class Robot:
 
 
 def scenes_dir() -> Path:
-    """The repository's scenes/ folder (``MAGSORO_SCENES`` overrides). The robot scenes and their reproduce
-    scripts live there, not inside the installed package, so reproducing needs a checkout of the repository."""
+    """The scenes/ folder (``MAGSORO_SCENES`` overrides): the copy installed with the package, or the checkout's
+    (:mod:`magsoro.bundled`). The robot scenes, their meshes and data and their reproduce scripts live there."""
     env = os.environ.get("MAGSORO_SCENES")
-    path = Path(env) if env else Path(__file__).resolve().parents[3] / "scenes"
+    if env:
+        path = Path(env)
+    else:
+        try:
+            path = data_folder("scenes")
+        except FileNotFoundError as exc:
+            raise RobotError(f"{exc}; or set MAGSORO_SCENES to a scenes/ folder") from None
     if not path.is_dir():
-        raise RobotError(f"scenes folder '{path}' not found: robots are reproduced from a checkout of the "
-                         "magsoro repository (pip install -e .), or set MAGSORO_SCENES to its scenes/ folder")
+        raise RobotError(f"scenes folder '{path}' not found (MAGSORO_SCENES): set it to a scenes/ folder, or unset "
+                         "it to use the one installed with magsoro")
     return path
 
 

@@ -24,11 +24,13 @@ from pathlib import Path
 
 import numpy as np
 
+from magsoro.bundled import data_folder
 from magsoro.robots.base import Context, FrameRecorder, ReproduceResult, Robot, RobotError, write_csv
 from magsoro.robots.continuum_soft import Row
 
 NAME = "growing_retroflexion"
-PLAN = Path(__file__).resolve().parents[3] / "examples" / "actuation" / "plan_retroflexion_tip.toml"
+#: the actuation plan the robot replays, in examples/ (installed with the package or in the checkout)
+PLAN = Path("examples") / "actuation" / "plan_retroflexion_tip.toml"
 DX, PREVIEW_DX = 1.5e-3, 3.0e-3          # m: four and two cells across the 6 mm section
 #: the checks' tolerances, as a fraction of the robot's 60 mm: growth steps 0.1 mm; bends 10 %; height 5 %
 GROWTH_TOL, BEND_TOL, HEIGHT_TOL = 1e-4, 0.10, 0.05
@@ -37,9 +39,13 @@ GROWTH_TOL, BEND_TOL, HEIGHT_TOL = 1e-4, 0.10, 0.05
 def _plan():
     from magsoro.actuation.config import PlanConfig, load
 
-    if not PLAN.is_file():
-        raise RobotError(f"{NAME}: the plan {PLAN} is missing (it ships with the repository's examples/)")
-    cfg = load(PlanConfig, PLAN)
+    try:
+        plan = data_folder("examples").parent / PLAN
+    except FileNotFoundError as exc:
+        raise RobotError(f"{NAME}: {exc}") from None
+    if not plan.is_file():
+        raise RobotError(f"{NAME}: the plan {plan} is missing (it ships in examples/)")
+    cfg = load(PlanConfig, plan)
     robot, target, planner, strip = cfg.build()
     return cfg, robot, strip, planner.plan(target)
 

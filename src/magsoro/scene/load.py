@@ -8,6 +8,7 @@ from pathlib import Path
 import pydantic
 from pydantic import ValidationError
 
+from magsoro.bundled import resolve_data_path
 from magsoro.config_errors import check_nesting, short_repr
 from magsoro.errors import SceneError
 from magsoro.io.files import read_toml_file
@@ -208,14 +209,17 @@ def apply_preview(data: dict, source: str = "scene") -> dict:
 
 
 def read_scene_toml(path) -> dict:
-    """The raw dict of a TOML scene file; a missing file or bad TOML raises :class:`SceneError`."""
-    return read_toml_file(path, SceneError, "scene file")
+    """The raw dict of a TOML scene file; a missing file or bad TOML raises :class:`SceneError`. A relative
+    ``scenes/...`` or ``examples/...`` path that does not exist here reads the copy installed with the package
+    (:func:`magsoro.bundled.resolve_data_path`)."""
+    return read_toml_file(resolve_data_path(path), SceneError, "scene file")
 
 
 def load_scene(path, preview: bool = False) -> Scene:
     """Read a TOML scene file and validate it; ``preview=True`` applies its [preview] table first.
-    Raises :class:`SceneError` with a one-line message."""
-    path = Path(path)
+    Raises :class:`SceneError` with a one-line message. A relative ``scenes/...`` or ``examples/...`` path that
+    does not exist here loads the copy installed with the package (:func:`magsoro.bundled.resolve_data_path`)."""
+    path = resolve_data_path(path)
     data = read_scene_toml(path)
     if preview:
         data = apply_preview(data, str(path))
