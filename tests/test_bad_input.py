@@ -94,7 +94,7 @@ def test_run_duration_override_is_checked_before_the_output_folder(duration, tmp
     import sys
 
     scene_file = tmp_path / "s.toml"
-    from magsoro.diff.tomlwrite import dumps
+    from magsoro.io.tomlwrite import dumps
 
     scene = copy.deepcopy(BASE)
     scene["output"] = {"every": 5e-4}
@@ -219,7 +219,7 @@ def test_files_that_are_not_utf8_are_one_line_naming_the_file(kind, tmp_path, ca
     """UTF-16, a Latin-1 byte in a comment or a binary file gave UnicodeDecodeError in run, rod, optimize and
     fit-material (finding 10)."""
     from magsoro.cli import main
-    from magsoro.diff.tomlwrite import dumps
+    from magsoro.io.tomlwrite import dumps
 
     cases = {
         "run": (dumps(BASE), lambda f: ["run", str(f), "--out", str(tmp_path / "o"), "--quiet"]),
@@ -255,7 +255,7 @@ def test_deeply_nested_arrays_are_one_line(tmp_path):
 def test_report_on_a_corrupt_frame_is_one_line(tmp_path, capsys):
     """`magsoro report` on a run with a cut-short particle frame gave an XML ParseError (finding 10)."""
     from magsoro.cli import main
-    from magsoro.diff.tomlwrite import dumps
+    from magsoro.io.tomlwrite import dumps
 
     scene = copy.deepcopy(BASE)
     scene["simulation"]["duration"] = 0.002

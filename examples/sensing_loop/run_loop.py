@@ -435,7 +435,7 @@ def run(out, quick: bool = False, log=print, scene: Path = SCENE, dx: float | No
     particles per cell, that keeps the scene's boundaries (multiples of 0.3 mm) between particle rows and its
     regions centred on them."""
     from magsoro.actuation.config import SensingCalibration, load
-    from magsoro.diff.tomlwrite import dumps
+    from magsoro.io.tomlwrite import dumps
     from magsoro.io.files import read_toml_file
 
     out = Path(out)

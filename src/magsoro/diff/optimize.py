@@ -14,7 +14,7 @@ import numpy as np
 from magsoro.diff.design import Design
 from magsoro.diff.rollout import Rollout
 from magsoro.diff.targets import make_target
-from magsoro.diff.tomlwrite import dumps
+from magsoro.io.tomlwrite import dumps
 from magsoro.errors import MagsoroError
 from magsoro.io.files import read_toml_file
 from magsoro.scene import load_scene

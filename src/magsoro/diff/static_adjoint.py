@@ -213,7 +213,7 @@ class StaticProblem:
 
     def write_scene(self, path) -> Path:
         """Write the scene with the current design (its static levels kept)."""
-        from magsoro.diff.tomlwrite import dumps
+        from magsoro.io.tomlwrite import dumps
 
         path = Path(path)
         path.parent.mkdir(parents=True, exist_ok=True)

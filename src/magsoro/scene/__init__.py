@@ -2,5 +2,6 @@
 
 from magsoro.scene.load import format_validation_error, load_scene, parse_scene
 from magsoro.scene.schema import Scene
+from magsoro.scene.write import write_scene
 
-__all__ = ["Scene", "load_scene", "parse_scene", "format_validation_error"]
+__all__ = ["Scene", "load_scene", "parse_scene", "format_validation_error", "write_scene"]

@@ -459,15 +459,18 @@ def _relpath(path: Path, start: Path) -> str:
 
 # ---------------------------------------------------------------- writing
 def _scene_text(scene: dict, header: list[str], part_comments: list[str]) -> str:
-    from magsoro.diff.tomlwrite import toml_value  # here: magsoro.diff imports the differentiable rollout
+    from magsoro.io.tomlwrite import toml_value
+
+    def value(v) -> str:
+        return toml_value(v, signed_zero=False)  # a -0.0 left by the conversions is written 0.0
 
     lines = [f"# {h}" for h in header]
-    lines.append(f"name = {toml_value(scene['name'])}")
-    lines += ["", "[simulation]"] + [f"{k} = {toml_value(v)}" for k, v in scene["simulation"].items()]
+    lines.append(f"name = {value(scene['name'])}")
+    lines += ["", "[simulation]"] + [f"{k} = {value(v)}" for k, v in scene["simulation"].items()]
     for part, comment in zip(scene["robot"]["parts"], part_comments):
-        lines += ["", f"# {comment}", "[[robot.parts]]"] + [f"{k} = {toml_value(v)}" for k, v in part.items()]
+        lines += ["", f"# {comment}", "[[robot.parts]]"] + [f"{k} = {value(v)}" for k, v in part.items()]
     for collider in scene.get("colliders", []):
-        lines += ["", "[[colliders]]"] + [f"{k} = {toml_value(v)}" for k, v in collider.items()]
+        lines += ["", "[[colliders]]"] + [f"{k} = {value(v)}" for k, v in collider.items()]
     return "\n".join(lines) + "\n"
 
 

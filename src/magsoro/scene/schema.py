@@ -1047,3 +1047,12 @@ class Scene(Strict):
         for name in names if body is None else [body]:
             self._magnetization[name] = fn
         return self
+
+    def to_toml(self, relative_to=None) -> str:
+        """The scene as the text of a TOML scene file that loads back to an equal scene (keys at their defaults
+        left out, floats bit-exact). File names stay as they are, relative to :attr:`base_dir`, unless
+        ``relative_to`` names the folder the text will be saved in: then they are rewritten relative to it.
+        :func:`magsoro.scene.write_scene` saves the text and says what is refused."""
+        from magsoro.scene.write import scene_toml
+
+        return scene_toml(self, relative_to)
