@@ -41,7 +41,8 @@ def _run(tmp_path, y):
     scene = tmp_path / f"block_{y}.toml"
     scene.write_text(SCENE.format(y=y))
     out = tmp_path / f"out_{y}"
-    run = subprocess.run([sys.executable, "-m", "magsoro", "run", str(scene), "--out", str(out), "--quiet"],
+    # without --quiet: the notes go to stderr (with --quiet only run.json keeps them)
+    run = subprocess.run([sys.executable, "-m", "magsoro", "run", str(scene), "--out", str(out)],
                          capture_output=True, text=True)
     assert run.returncode == 0, run.stderr[-2000:]
     info = json.loads((out / "run.json").read_text())

@@ -334,11 +334,14 @@ class Simulation:
         }
 
     # -- statics -------------------------------------------------------------------------------------------
-    def solve_static(self, levels=None, t: float | None = None, on_level: Callable | None = None, times=None):
+    def solve_static(self, levels=None, t: float | None = None, on_level: Callable | None = None, times=None,
+                     watch: Callable | None = None):
         """Equilibria by Newton's method (:mod:`magsoro.mpm.static`) under the loads at time ``t`` (default
         simulation.duration), the fields scaled by each of ``levels`` in turn (default [static] levels) and
         gravity in full; each level starts from the previous equilibrium and the state holds the last converged
-        one. ``on_level(sim, level_result)`` after each converged level. Returns a :class:`StaticRun` (its ``metrics``
+        one. ``on_level(sim, level_result)`` after each converged level; ``watch(solver)`` once before the first
+        level, given the :class:`~magsoro.mpm.static.StaticSolver` whose counters (``linear_solves``: one per
+        Newton iteration; ``residual_evaluations``) a progress display may read while a level solves. Returns a :class:`StaticRun` (its ``metrics``
         the probe values per level); stops at the
         first level that does not converge (its message names the level). Afterwards :meth:`field_at` and the
         field probes read the applied fields scaled by the last level solved.
@@ -372,6 +375,8 @@ class Simulation:
         t0 = _time.perf_counter()
         solver = StaticSolver(self, t, tolerance=cfg.tolerance, max_iterations=cfg.max_iterations, arc_length=cfg.arc_length)
         self.state.time = t
+        if watch is not None:
+            watch(solver)
         out = StaticRun(True)
         columns = ["time" if times is not None else "level"] + self.probe_columns()
         rows = []

@@ -30,7 +30,12 @@ def register(sub):
                         "form) under the loads at t = duration, the fields scaled by each of [static] levels; writes one "
                         "metrics row and frame per level (first column 'level'); or, with [static] times, the equilibria along the "
                         "scene's paths at those times (first column 'time'); rigid colliders, no contact between bodies yet")
-    p.add_argument("--quiet", action="store_true", help="no progress bar, and no Warp start-up banner or kernel-load lines")
+    p.add_argument("--quiet", action="store_true",
+                   help="print nothing when the run succeeds: no progress, notes (run.json keeps them) or summary; "
+                        "errors and failures still go to stderr")
+    p.add_argument("-v", "--verbose", action="store_true",
+                   help="also show Warp's start-up banner, its devices and its kernel compile and load lines "
+                        "(hidden by default)")
     p.add_argument("--allow-large", action="store_true",
                    help="run even when the scene is estimated to need more than 90 %% of the available memory, or more "
                         "than 1e8 time steps (without it such a run is refused before it starts, naming the key that "
@@ -46,10 +51,9 @@ def run(args) -> int:
     from magsoro.scene.load import read_scene_toml
     from magsoro.simulation import Simulation, check_run_length, prepare_static
 
-    if args.quiet:
-        from magsoro.warp_setup import quiet_warp
+    from magsoro.console import configure_warp
 
-        quiet_warp()  # before Warp starts: its banner and per-module load lines go to stdout
+    configure_warp(verbose=getattr(args, "verbose", False))  # before Warp starts: its banner and load lines
     if args.device is not None and not (args.device == "cpu" or args.device.startswith("cuda")):
         raise SceneError(f"--device: '{args.device}' is not allowed; use cpu, cuda or cuda:N")
     if args.duration is not None and not (args.duration > 0 and math.isfinite(args.duration)):
@@ -95,33 +99,27 @@ def run(args) -> int:
         check_steps(sim, duration, args.scene, allow_large)
     prepare_output_dir(args.out, overwrite=getattr(args, "overwrite", False))
     writer = RunWriter(args.out, sim, echo, particles=scene.output.particles)
-    shown = _print_notes(sim, "magsoro run")  # what the scene may not mean, before the run rather than after it
+    shown = _print_notes(sim, "magsoro run", quiet=args.quiet)  # what the scene may not mean, before the run rather than after it
     if getattr(args, "equilibrium", False):
         return _relax(args, sim, writer, duration, wall0, shown)
     if static:
         return _static(args, sim, writer, wall0, shown)
-    bar = None
-    if not args.quiet:
-        from tqdm import tqdm
+    from magsoro.console import SettleWatch
 
-        bar = tqdm(total=duration, unit="s sim", file=sys.stderr, bar_format="{l_bar}{bar}| {n:.4g}/{total:.4g} s [{elapsed}<{remaining}{postfix}]")
-    last = [time.perf_counter(), 0]
+    show = _DynamicProgress(duration, enabled=not args.quiet)
+    settle = SettleWatch()
 
-    def progress(s):
-        if bar is not None:
-            now = time.perf_counter()
-            rate = (s.steps - last[1]) / max(now - last[0], 1e-9)
-            last[0], last[1] = now, s.steps
-            bar.n = min(s.time, duration)
-            if s.integrator == "implicit":
-                bar.set_postfix_str(f"dt={s.dt:.3g} s, {getattr(s, 'last_newton_iterations', 0)} Newton its")
-            else:
-                bar.set_postfix_str(f"{rate:.0f} steps/s, dt={s.dt:.3g} s")
-            bar.refresh()
+    def record(s):
+        writer.record(s)
+        settle.sample(s)
+
+    def heartbeat(s):
+        writer.beat(s)
+        show.tick(s)
 
     try:
-        result = sim.run(duration, heartbeat=writer.beat, record=writer.record, record_every=scene.output.every,
-                         progress=progress)
+        result = sim.run(duration, heartbeat=heartbeat, record=record, record_every=scene.output.every,
+                         progress=lambda s: show.tick(s, record=True))
     except Exception as exc:  # a fault of ours: run.json says 'failed' with it, then the traceback for the report
         from magsoro.simulation import RunResult
 
@@ -129,23 +127,104 @@ def run(args) -> int:
                                 f"internal error: {type(exc).__name__}: {exc}"), time.perf_counter() - wall0)
         raise
     finally:
-        if bar is not None:
-            bar.close()
+        show.close()
+    settled, why = settle.verdict(sim.model.dx)
+    writer.info["settled"] = {"settled": settled, "criterion": why, "kinetic_energy": settle.energies[-1:],
+                              "max_speed": settle.speeds[-1:]}
     with _signals_deferred():  # run.json's status and the exit status must agree
         writer.finish(result, time.perf_counter() - wall0)
-        _print_notes(sim, "magsoro run", shown)
-        return _report_run(args, sim, result)
+        _print_notes(sim, "magsoro run", shown, quiet=args.quiet)
+        return _report_run(args, sim, result, time.perf_counter() - wall0, (settled, why))
 
 
-def _report_run(args, sim, result) -> int:
-    """The closing lines of a dynamic run, and its exit status."""
+class _DynamicProgress:
+    """Progress of a dynamic run on stderr: a tqdm bar on a terminal, else a plain line every few seconds."""
+
+    def __init__(self, duration: float, enabled: bool):
+        from magsoro.console import Progress, is_terminal
+
+        self.duration = duration
+        self.wall0 = time.perf_counter()
+        self.steps0 = None
+        self.bar = None
+        self.lines = None
+        self.last_bar = 0.0
+        if not enabled:
+            return
+        if is_terminal(sys.stderr):
+            from tqdm import tqdm
+
+            self.bar = tqdm(total=duration, unit="s sim", file=sys.stderr,
+                            bar_format="{l_bar}{bar}| {n:.4g}/{total:.4g} s [{elapsed}<{remaining}{postfix}]")
+        else:
+            self.lines = Progress(sys.stderr)
+
+    def tick(self, s, record: bool = False) -> None:
+        """After a check window (heartbeat) or a record (``record``)."""
+        if self.bar is None and self.lines is None:
+            return
+        now = time.perf_counter()
+        if self.steps0 is None:
+            self.steps0, self.wall0 = s.steps, now
+        if s.steps <= self.steps0:
+            return
+        rate = (s.steps - self.steps0) / max(now - self.wall0, 1e-9)
+        if s.integrator == "implicit":
+            post = f"dt={s.dt:.3g} s, {getattr(s, 'last_newton_iterations', 0)} Newton its"
+        else:
+            post = f"{rate:.0f} steps/s, dt={s.dt:.3g} s"
+        if self.bar is not None:
+            if record or now - self.last_bar > 0.2:
+                self.last_bar = now
+                self.bar.n = min(s.time, self.duration)
+                self.bar.set_postfix_str(post, refresh=False)
+                self.bar.refresh()
+            return
+        from magsoro.console import clock
+
+        done = min(s.time / self.duration, 1.0) if self.duration > 0 else 1.0
+        elapsed = now - self.wall0
+        left = f", about {clock(elapsed * (1 - done) / done)} left" if done > 0 else ""
+        self.lines.update(f"t = {s.time:.4g} of {self.duration:.4g} s ({100 * done:.0f} %), {post.replace('=', ' ')}, "
+                          f"{clock(elapsed)} elapsed{left}")
+
+    def close(self) -> None:
+        if self.bar is not None:
+            self.bar.close()
+
+
+def _report_run(args, sim, result, wall: float, settled) -> int:
+    """The closing lines of a dynamic run (a summary ending with the final probe values and whether the run
+    settled), and its exit status."""
     if result.status != "completed":
         print(f"magsoro run: {result.status}: {result.message}", file=sys.stderr)
         print(f"results so far in {args.out} (run.json status '{result.status}')", file=sys.stderr)
         return 1 if result.status == "failed" else _interrupted_status(result.signal)
     if not args.quiet:
         print(f"{result.steps} steps in {result.wall_time:.1f} s ({result.steps / max(result.wall_time, 1e-9):.0f} steps/s), dt {sim.dt_min:.3g}-{sim.dt_max:.3g} s; results in {args.out}")
+        ok, why = settled
+        verdict = {True: "yes", False: "no, still moving", None: "not judged"}[ok]
+        _print_summary(sim, wall, result.metrics, f"final probe values at t = {result.time:.6g} s",
+                       f"settled: {verdict} ({why})")
     return 0
+
+
+def _print_summary(sim, wall: float, metrics, heading: str, last: str) -> None:
+    """The closing block on stdout: notes and wall time, the probe values of the last metrics row, then ``last``."""
+    from magsoro.console import clock, probe_lines
+
+    notes = len(getattr(sim, "notes", []))
+    print(f"wall time {clock(wall)}; {notes} note{'' if notes == 1 else 's'}"
+          f"{' (run.json notes)' if notes else ''}")
+    columns = list(metrics.dtype.names[1:]) if metrics is not None and metrics.dtype.names else []
+    if columns and len(metrics):
+        row = metrics[-1]
+        print(f"{heading}:")
+        for line in probe_lines({c: float(row[c]) for c in columns}, sim.probes):
+            print(line)
+    else:
+        print(f"{heading}: no probes (the scene's [[probes]])")
+    print(last)
 
 
 def _relax(args, sim, writer, t_loads: float, wall0: float, shown: int = 0) -> int:
@@ -184,7 +263,7 @@ def _relax(args, sim, writer, t_loads: float, wall0: float, shown: int = 0) -> i
     result = RunResult(status, steps, sim.time, wall, message, signum)
     with _signals_deferred():
         writer.finish(result, time.perf_counter() - wall0)
-        _print_notes(sim, "magsoro run --equilibrium", shown)
+        _print_notes(sim, "magsoro run --equilibrium", shown, quiet=args.quiet)
         return _report_relax(args, status, message, signum, wall)
 
 
@@ -206,16 +285,19 @@ def _static(args, sim, writer, wall0: float, shown: int = 0) -> int:
     from magsoro.simulation import RunResult
 
     along_paths = sim.scene.static.times is not None
-    if along_paths:  # [static] times: one row per time along the paths (first column the time)
-        on_level = lambda s, lev: writer.record(s, stamp=lev.time)  # noqa: E731
-    else:
+    watch = _NewtonProgress(sim, along_paths, enabled=not args.quiet)
+    if not along_paths:
         writer.columns[0] = "level"
         sim.field_scale = 0.0  # the unloaded row: field probes read no applied field
         writer.record(sim, stamp=0.0)
-        on_level = lambda s, lev: writer.record(s, stamp=lev.level)  # noqa: E731
+
+    def on_level(s, lev):  # [static] times: one row per time along the paths (first column the time)
+        writer.record(s, stamp=lev.time if along_paths else lev.level)
+        watch.solved(lev)
+
     try:
-        with writer.beating():  # a level's Newton iterations can take minutes between records
-            res = sim.solve_static(on_level=on_level)
+        with writer.beating(), watch:  # a level's Newton iterations can take minutes between records
+            res = sim.solve_static(on_level=on_level, watch=watch.attach)
         status, message, wall = ("completed" if res.converged else "failed"), res.message, res.wall_time
         writer.info["static"] = {"converged": res.converged, "levels": [asdict(r) for r in res.levels],
                                  "residual_evaluations": res.residual_evaluations, "wall_time": res.wall_time,
@@ -231,17 +313,87 @@ def _static(args, sim, writer, wall0: float, shown: int = 0) -> int:
         with _signals_deferred():
             writer.finish(RunResult("interrupted", 0, sim.time, time.perf_counter() - wall0, message, signum),
                           time.perf_counter() - wall0)
-            _print_notes(sim, "magsoro run --static", shown)
+            _print_notes(sim, "magsoro run --static", shown, quiet=args.quiet)
             print(f"magsoro run --static: interrupted: {message}", file=sys.stderr)
             print(f"results so far in {args.out} (run.json status 'interrupted')", file=sys.stderr)
             return _interrupted_status(signum)
     with _signals_deferred():
         writer.finish(RunResult(status, 0, sim.time, wall, message), time.perf_counter() - wall0)
-        _print_notes(sim, "magsoro run --static", shown)
-        return _report_static(args, status, message, wall, res if status == "completed" else None)
+        _print_notes(sim, "magsoro run --static", shown, quiet=args.quiet)
+        return _report_static(args, sim, status, message, wall, res if status == "completed" else None,
+                              time.perf_counter() - wall0)
 
 
-def _report_static(args, status: str, message: str, wall: float, res) -> int:
+def _level_name(lev, along_paths: bool) -> str:
+    return f"t = {lev.time:.6g} s" if along_paths else f"level {lev.level:.4g}"
+
+
+class _NewtonProgress:
+    """``--static`` output while it solves: one stdout line per converged level (its Newton iterations and
+    residual) and, while a level solves, a stderr status line (a plain line every few seconds when stderr is not
+    a terminal) with the Newton iterations and residual evaluations so far, read from the solver's counters by a
+    helper thread."""
+
+    def __init__(self, sim, along_paths: bool, enabled: bool):
+        from magsoro.console import Progress
+
+        cfg = sim.scene.static
+        self.targets = list(cfg.times) if along_paths else list(cfg.levels)
+        self.along_paths = along_paths
+        self.enabled = enabled
+        self.progress = Progress(sys.stderr, enabled=enabled)
+        self.solver = None
+        self.done = 0
+        self.level_start = (time.perf_counter(), 0, 0)  # wall time, linear solves, residual evaluations
+        self.stop = threading.Event()
+        self.thread = None
+
+    def attach(self, solver) -> None:
+        self.solver = solver
+        self.level_start = (time.perf_counter(), solver.linear_solves, solver.residual_evaluations)
+
+    def solved(self, lev) -> None:
+        self.done += 1
+        if self.enabled:
+            self.progress.line(f"{_level_name(lev, self.along_paths)}: converged in {lev.iterations} Newton iteration"
+                               f"{'' if lev.iterations == 1 else 's'}, |R| {lev.residual:.2e} N ({lev.residual_relative:.1e} "
+                               f"of the load's force scale), {lev.wall_time:.1f} s", stream=sys.stdout)
+        if self.solver is not None:
+            self.level_start = (time.perf_counter(), self.solver.linear_solves, self.solver.residual_evaluations)
+
+    def status(self) -> str | None:
+        solver = self.solver
+        if solver is None or self.done >= len(self.targets):
+            return None
+        from magsoro.console import clock
+
+        t0, solves0, evals0 = self.level_start
+        target = self.targets[self.done]
+        what = f"t = {target:.6g} s" if self.along_paths else f"level {target:.4g}"
+        return (f"{what} ({self.done + 1} of {len(self.targets)}): {solver.linear_solves - solves0} Newton iterations, "
+                f"{solver.residual_evaluations - evals0} residual evaluations, {clock(time.perf_counter() - t0)}")
+
+    def __enter__(self):
+        if self.enabled:
+            def keep_showing():
+                while not self.stop.wait(1.0):
+                    text = self.status()
+                    if text is not None:
+                        self.progress.update(text)
+
+            self.thread = threading.Thread(target=keep_showing, name="magsoro-newton-progress", daemon=True)
+            self.thread.start()
+        return self
+
+    def __exit__(self, *exc):
+        self.stop.set()
+        if self.thread is not None:
+            self.thread.join()
+        self.progress.close()
+        return False
+
+
+def _report_static(args, sim, status: str, message: str, wall: float, res, wall_total: float) -> int:
     if status != "completed":
         print(f"magsoro run --static: failed: {message}", file=sys.stderr)
         return 1
@@ -251,14 +403,21 @@ def _report_static(args, status: str, message: str, wall: float, res) -> int:
         if turns:
             print(f"the equilibrium path turned back (limit points, a snap-through at the first) at field level(s) "
                   f"{', '.join(turns)}: run.json static.levels[].limit_levels")
+        along_paths = sim.scene.static.times is not None
+        last = res.levels[-1]
+        worst = max(res.levels, key=lambda r: r.residual_relative)
+        _print_summary(sim, wall_total, res.metrics, f"probe values at {_level_name(last, along_paths)} (the last)",
+                       f"equilibrium: converged at every {'time' if along_paths else 'level'} ({len(res.levels)}), "
+                       f"largest |R| {worst.residual_relative:.1e} of the load's force scale "
+                       f"(tolerance {sim.scene.static.tolerance:g})")
     return 0
 
 
-def _print_notes(sim, prefix: str, shown: int = 0) -> int:
+def _print_notes(sim, prefix: str, shown: int = 0, quiet: bool = False) -> int:
     """The run's notes on what the scene may not mean (a body in the domain walls' reach, a body the particle
     lattice rounds, a field or remanence out of the plausible range) from the ``shown``-th on, one stderr line
-    each; returns how many there are. run.json's ``notes`` holds them with the others."""
-    for note in sim.scene_notes[shown:]:
+    each (none with ``quiet``); returns how many there are. run.json's ``notes`` holds them with the others."""
+    for note in ([] if quiet else sim.scene_notes[shown:]):
         print(f"{prefix}: note: {note}", file=sys.stderr)
     return len(sim.scene_notes)
 

@@ -258,12 +258,17 @@ def run_content(run_dir, max_frames: int = MAX_FRAMES, max_particles: int = MAX_
     scene = info.get("scene") or {}
     columns, values, n_rows = read_metrics(run_dir)
     charts = []
-    if columns and columns[0] == "time":
+    # a dynamic run's rows are times; a --static run's are field levels ('level') or times along the paths
+    static = info.get("static") if isinstance(info.get("static"), dict) else None
+    if columns and columns[0] in ("time", "level"):
         t = values[0]
+        xlabel = "field level (fraction of the scene's field)" if columns[0] == "level" else "time (s)"
+        units = _probe_units(scene)
         for probe, cols in _probe_groups(columns[1:], scene):
             series = [s for c in cols if (s := _series(c, t, values[columns.index(c)])) is not None]
             if series:
-                charts.append({"title": f"probe {probe}", "xlabel": "time (s)", "ylabel": "position (m)", "series": series})
+                charts.append({"title": f"probe {probe}", "xlabel": xlabel, "ylabel": units.get(probe, "position (m)"),
+                               "series": series})
     facts = [
         ("status", state if not why or state != "stale" else f"stale: {why}"),
         ("message", info.get("message", "")),
@@ -281,7 +286,16 @@ def run_content(run_dir, max_frames: int = MAX_FRAMES, max_particles: int = MAX_
         ("started / finished", f"{info.get('started', '?')} / {info.get('finished', '?')}"),
     ]
     dt = info.get("dt")
-    if isinstance(dt, dict):
+    if static is not None:  # no time steps: the equilibria solved, and the time of the loads
+        levels = static.get("levels") if isinstance(static.get("levels"), list) else []
+        kind = "times" if static.get("times") else "levels"
+        facts[2] = (kind, f"{len(levels)} solved by Newton's method"
+                          + (f": {', '.join(_fmt(lv.get('time' if kind == 'times' else 'level')) for lv in levels if isinstance(lv, dict))}"
+                             if 0 < len(levels) <= 12 else ""))
+        facts[3] = ("loads at t (s)", static.get("t_loads", info.get("time")))
+        facts[5] = ("steps per second", None)
+        facts[6] = ("time step (s)", None)
+    elif isinstance(dt, dict):
         facts[6] = ("time step (s)", ("fixed " if dt.get("fixed") else "automatic, ") + ", ".join(
             f"{k} {_fmt(dt[k])}" for k in ("min", "max", "mean") if dt.get(k) is not None))
     # what the run met that the scene may not mean (a body in the domain walls' reach, a body the lattice rounds)
@@ -301,8 +315,25 @@ def run_content(run_dir, max_frames: int = MAX_FRAMES, max_particles: int = MAX_
         "sweep_params": [(k, json.dumps(v)) for k, v in (sweep.get("params") or {}).items()],
         "scene_rows": _flatten(scene),
         "charts": charts,
-        "viewer": _with_body_names(viewer_data(run_dir, max_frames, max_particles), info),
+        "viewer": _with_stamp(_with_body_names(viewer_data(run_dir, max_frames, max_particles), info),
+                              columns[0] if columns else "time"),
     }
+
+
+def _with_stamp(viewer: dict | None, stamp: str) -> dict | None:
+    """What the viewer's frames are stamped with: 'time' (s), or 'level' (a --static run's field level)."""
+    if viewer is not None:
+        viewer["stamp"] = "level" if stamp == "level" else "time"
+    return viewer
+
+
+def _probe_units(scene: dict) -> dict[str, str]:
+    """The y-axis label of each probe's curve: field probes in T, collider forces in N, the others positions in m."""
+    out = {}
+    for p in scene.get("probes", []):
+        if isinstance(p, dict) and isinstance(p.get("name"), str):
+            out[p["name"]] = {"field": "field (T)", "collider_force": "force (N)"}.get(p.get("type"), "position (m)")
+    return out
 
 
 def _with_body_names(viewer: dict | None, info: dict) -> dict | None:

@@ -231,7 +231,8 @@ JS = r"""
         ctx.strokeStyle = a[4]; ctx.lineWidth = 2 * dpr; ctx.beginPath(); ctx.moveTo(ox, oy); ctx.lineTo(ox + x1 * len, oy - y2 * len); ctx.stroke();
         ctx.fillStyle = a[4]; ctx.font = (11 * dpr) + "px sans-serif"; ctx.fillText(a[3], ox + x1 * len * 1.25 - 3 * dpr, oy - y2 * len * 1.25 + 4 * dpr);
       });
-      label.textContent = "t = " + fmt(V.times[frame]) + " s  (frame " + (frame + 1) + " / " + nf + ")";
+      label.textContent = (V.stamp === "level" ? "level " + fmt(V.times[frame]) : "t = " + fmt(V.times[frame]) + " s")
+        + "  (frame " + (frame + 1) + " / " + nf + ")";
     }
     slider.addEventListener("input", function () { frame = +slider.value; draw(); });
     pick.addEventListener("change", function () { mode = pick.value; drawLegend(); draw(); });
