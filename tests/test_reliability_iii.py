@@ -517,7 +517,8 @@ def test_implausible_field_and_remanence_are_warned():
 
 def test_implausible_values_are_printed_before_the_run(tmp_path, capsys):
     path = _write_scene(tmp_path, SCENE.replace("[0.1, 0.0, 0.0]", "[5.0, 0.0, 0.0]"))
-    assert _run(path, tmp_path / "out") == 0
+    # without --quiet (which prints nothing but errors: the note then lives in run.json only)
+    assert main(["run", str(path), "--out", str(tmp_path / "out")]) == 0
     err = capsys.readouterr().err
     assert err.count("|Br| = 5 T") == 1
     assert any("|Br| = 5 T" in n for n in json.loads((tmp_path / "out" / "run.json").read_text())["notes"])
