@@ -1,9 +1,10 @@
 """A differentiable MLS-MPM rollout on Warp's autodiff (``wp.Tape``) with checkpointed segments.
 
-The physics is the engine's own: the kernels come from :func:`magsoro.mpm.kernels.make_kernels`, launched with
-plain ``wp.launch`` (the engine's recorded launches are not taped) over one fixed grid block chosen for the whole
-rollout. Inside a segment of ``segment`` steps every step has its own State, field and grid arrays, so the tape
-can replay it backwards; across segments only the segment start states are stored (checkpoints), and the
+The physics is the engine's own: the kernels come from :func:`magsoro.mpm.kernels.make_kernels` and run through
+the engine's launchers (:func:`magsoro.mpm.p2g.launch_p2g` and the others), as plain launches (the explicit
+solver's recorded launches are not taped), over one fixed grid block chosen for the whole rollout. Inside a
+segment of ``segment`` steps every step has its own State, field and grid arrays, so the tape can replay it
+backwards; across segments only the segment start states are stored (checkpoints), and the
 backward pass recomputes each segment under a tape and carries the adjoint of its end state into its start state.
 Memory is then O(n_steps / segment + segment) states instead of O(n_steps).
 
@@ -26,9 +27,12 @@ import numpy as np
 import warp as wp
 
 from magsoro.errors import MagsoroError
-from magsoro.fields.device import accumulate_kernel
+from magsoro.fields.device import accumulate_kernel, launch_accumulate
 from magsoro.mpm.colliders import COLLIDER_STRIDE, MODES, collider_table
+from magsoro.mpm.g2p import launch_g2p, launch_remap_F, launch_remap_node_velocity
+from magsoro.mpm.grid import launch_grid_update
 from magsoro.mpm.kernels import F_FROM_GRID, F_FROM_REMAP, make_kernels
+from magsoro.mpm.p2g import launch_p2g
 from magsoro.mpm.materials import LAWS
 from magsoro.mpm.solver import block_struct, bodies_array, contact_grid, grid_settings
 from magsoro.mpm.viscous import viscous_struct
@@ -290,10 +294,11 @@ class Rollout:
         dst.grid_q.zero_()
         dst.grid_clamp.zero_()
         dt = sc(self.dt)
+        for i, (kern, views) in enumerate(zip(self._point_kernels, self._param_views)):
+            launch_accumulate(kern, n, x=src.x, params=views[step], plane_z=wp.float64(st.plane_z), overwrite=1,
+                              B=dst.Bs[i], grad_B=dst.grad_Bs[i], device=dev)
+        wp.launch(self._fill, dim=n, inputs=[self.B_uniform, step, dst.B], device=dev)  # the uniform field per particle
         if self.point_sources:
-            for i, (kern, views) in enumerate(zip(self._point_kernels, self._param_views)):
-                wp.launch(kern, dim=n, inputs=[src.x, views[step], wp.float64(st.plane_z), 1, dst.Bs[i], dst.grad_Bs[i]], device=dev)
-            wp.launch(self._fill, dim=n, inputs=[self.B_uniform, step, dst.B], device=dev)
             # B = uniform + sum of point sources; grad_B = sum of point sources (out of place for the tape)
             b_acc, g_acc = dst.B, self.grad_B_zero
             n_point = len(self.point_sources)
@@ -305,39 +310,27 @@ class Rollout:
                 b_acc, g_acc = b_out, g_out
             B_particle, grad_B_particle = b_acc, g_acc
         else:
-            wp.launch(self._fill, dim=n, inputs=[self.B_uniform, step, dst.B], device=dev)
             B_particle, grad_B_particle = dst.B, self.grad_B_zero
         applied = k["Applied"]()
         applied.has_gradient = 1
         applied.B, applied.grad_B = B_particle, grad_B_particle
         structs = dst.structs(k, self)
-        wp.launch(
-            k["p2g"], dim=n,
-            inputs=[src.structs(k, self)["out"], self._bodies, applied, self._block, dt, structs["grid"], self.error, 0,
-                    self._no_contact, self._no_viscous, self._no_affine, self._no_momentum],
-            device=dev,
-        )
-        wp.launch(
-            k["grid_update"], dim=self.n_nodes,
-            inputs=[
-                dst.grid_p, dst.grid_m, dst.grid_clamp, self._org_v, self._shape_v, self._grid_settings[step],
-                dst.grid_v, self._no_contact, self._no_shift,
-            ],
-            device=dev,
-        )
+        # the engine's phases through its launchers (plain launches: the tape records them)
+        launch_p2g(k, n, src=src.structs(k, self)["out"], bodies=self._bodies, applied=applied, block=self._block, dt=dt,
+                   grid=structs["grid"], error=self.error, flags=0, contact=self._no_contact, viscous=self._no_viscous,
+                   affine=self._no_affine, momentum=self._no_momentum, device=dev)
+        launch_grid_update(k, self.n_nodes, grid_p=dst.grid_p, grid_m=dst.grid_m, grid_clamp=dst.grid_clamp,
+                           org=self._org_v, shape=self._shape_v, settings=self._grid_settings[step], grid_v=dst.grid_v,
+                           contact=self._no_contact, grid_u=self._no_shift, device=dev)
         f_update = F_FROM_REMAP if remap else F_FROM_GRID
-        wp.launch(
-            k["g2p"], dim=n,
-            inputs=[dst.grid_v, self._bodies, self._block, dt, src.x, src.x, src.F, structs["out"], self._checks, f_update,
-                    dst.grid_q, self._no_contact],
-            device=dev,
-        )
+        launch_g2p(k, n, grid_v=dst.grid_v, bodies=self._bodies, block=self._block, dt=dt, x_in=src.x, x_cur=src.x,
+                   F_in=src.F, out=structs["out"], checks=self._checks, f_update=f_update, grid_r=dst.grid_q,
+                   contact=self._no_contact, device=dev)
         if remap:  # the engine's velocity-gradient remap (docs/engine.md), same kernels
-            wp.launch(k["remap_node_velocity"], dim=self.n_nodes,
-                      inputs=[dst.grid_q, dst.grid_m, dst.grid_clamp, dst.grid_w, self.n_nodes], device=dev)
-            wp.launch(k["remap_F"], dim=n,
-                      inputs=[src.x, self._bodies, self._block, dt, dst.grid_w, src.F, dst.F, self.error, self._no_contact],
-                      device=dev)
+            launch_remap_node_velocity(k, self.n_nodes, grid_r=dst.grid_q, grid_m=dst.grid_m, grid_clamp=dst.grid_clamp,
+                                       grid_w=dst.grid_w, n_nodes=self.n_nodes, device=dev)
+            launch_remap_F(k, n, x=src.x, bodies=self._bodies, block=self._block, dt=dt, grid_w=dst.grid_w, F_in=src.F,
+                           F_out=dst.F, error=self.error, contact=self._no_contact, device=dev)
 
     def _run_segment(self, seg: int) -> int:
         """Run segment ``seg`` from slot 0 (already holding its start state); returns its number of steps."""

@@ -48,6 +48,14 @@ def accumulate_kernel(func, dim: int, scalar, differentiable: bool = False):
     return accumulate
 
 
+def launch_accumulate(kernel, n, *, x, params, plane_z, overwrite, B, grad_B, device, record=False):
+    """An :func:`accumulate_kernel` over ``n`` positions ``x``: the source's (B, grad B) with parameters ``params``
+    (float64) written into (``overwrite`` 1) or added to (0) ``B`` and ``grad_B``; ``plane_z`` a wp.float64. The one
+    place its argument order is written; ``record=True`` returns Warp's recorded launch."""
+    return wp.launch(kernel, dim=n, device=device, record_cmd=record,
+                     inputs=[x, params, plane_z, overwrite, B, grad_B])
+
+
 class FieldEvaluator:
     """Holds the sources of a run and fills per-particle B / grad B arrays each step.
 
@@ -99,8 +107,8 @@ class FieldEvaluator:
         """The launches of :meth:`evaluate` for positions ``x``, recorded (``wp.Launch``) for a check window: they
         read the parameters the arrays of :attr:`param_arrays` hold when they run (the window's drive table
         fills them), not those of a time given here."""
-        return [wp.launch(kern, dim=x.shape[0], inputs=[x, prm, wp.float64(self.plane_z), 1 if k == 0 else 0, B, grad_B],
-                          device=self.device, record_cmd=True)
+        return [launch_accumulate(kern, x.shape[0], x=x, params=prm, plane_z=wp.float64(self.plane_z),
+                                  overwrite=1 if k == 0 else 0, B=B, grad_B=grad_B, device=self.device, record=True)
                 for k, (kern, prm) in enumerate(zip(self._kernels, self._params))]
 
     def evaluate(self, x: wp.array, B: wp.array, grad_B: wp.array, t: float) -> None:
@@ -112,7 +120,8 @@ class FieldEvaluator:
             if values.shape != tuple(prm.shape):
                 raise ValueError(f"{type(src).__name__}.device_params changed length during the run")
             prm.assign(values)
-            wp.launch(kern, dim=n, inputs=[x, prm, wp.float64(self.plane_z), 1 if k == 0 else 0, B, grad_B], device=self.device)
+            launch_accumulate(kern, n, x=x, params=prm, plane_z=wp.float64(self.plane_z), overwrite=1 if k == 0 else 0,
+                              B=B, grad_B=grad_B, device=self.device)
 
     def evaluate_host(self, points: np.ndarray, t: float = 0.0):
         """Device evaluation of all sources (uniform included) at (N, dim) points, returned as numpy (B, grad B).

@@ -194,3 +194,12 @@ def make_contact(dim: int, scalar):
         split[idx] = s
 
     return dict(ContactGrid=ContactGrid, field_of=field_of, resolve=resolve, contact_classify=contact_classify)
+
+
+def launch_contact_classify(kernels, n, *, gmin, gmax, moments, fold, spread2, friction, n_groups, split, xbar, axis,
+                            mu, device, record=False):
+    """``contact_classify`` over ``n`` nodes (step 2); ``kernels``: :func:`make_contact`'s table or the engine's
+    (:func:`magsoro.mpm.kernels.make_kernels`). Returns Warp's recorded launch with ``record``. The one place
+    its argument order is written."""
+    return wp.launch(kernels["contact_classify"], dim=n, device=device, record_cmd=record,
+                     inputs=[gmin, gmax, moments, fold, spread2, friction, n_groups, split, xbar, axis, mu])

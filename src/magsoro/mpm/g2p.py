@@ -318,3 +318,56 @@ def make_g2p(dim: int, scalar, two_fields: bool = False, differentiable: bool = 
     return dict(g2p=g2p, remap_scatter=remap_scatter, reset_reductions=reset_reductions, remap_node_velocity=remap_node_velocity, remap_F=remap_F,
                 contact_gather=contact_gather, load_step=load_step,
                 load_params=load_params)
+
+
+# -- launchers: the one place each kernel's argument order is written (as in :mod:`magsoro.mpm.p2g`) ------------
+
+def launch_g2p(kernels, n, *, grid_v, bodies, block, dt, x_in, x_cur, F_in, out, checks, f_update, grid_r, contact,
+               device, record=False):
+    """``g2p`` over ``n`` particles: node velocities ``grid_v``; ``x_in`` where the weights are taken, ``x_cur``
+    the positions advected, ``F_in`` the input F; ``out`` the Particles struct array written, ``checks`` the Checks
+    struct array; ``f_update`` an FUpdate code; ``grid_r`` the remap's scatter target."""
+    return wp.launch(kernels["g2p"], dim=n, device=device, record_cmd=record,
+                     inputs=[grid_v, bodies, block, dt, x_in, x_cur, F_in, out, checks, f_update, grid_r, contact])
+
+
+def launch_remap_scatter(kernels, n, *, x, bodies, block, out, grid_r, contact, spread, device, record=False):
+    """``remap_scatter``: ``n`` = particles (``spread`` 0) or particles x 3^dim (``spread`` 1)."""
+    return wp.launch(kernels["remap_scatter"], dim=n, device=device, record_cmd=record,
+                     inputs=[x, bodies, block, out, grid_r, contact, spread])
+
+
+def launch_remap_node_velocity(kernels, n, *, grid_r, grid_m, grid_clamp, grid_w, n_nodes, device, record=False):
+    """``remap_node_velocity`` over ``n`` slots (velocity fields x ``n_nodes``)."""
+    return wp.launch(kernels["remap_node_velocity"], dim=n, device=device, record_cmd=record,
+                     inputs=[grid_r, grid_m, grid_clamp, grid_w, n_nodes])
+
+
+def launch_remap_F(kernels, n, *, x, bodies, block, dt, grid_w, F_in, F_out, error, contact, device, record=False):
+    """``remap_F`` over ``n`` particles: F_out from F_in and the remapped node velocities ``grid_w``."""
+    return wp.launch(kernels["remap_F"], dim=n, device=device, record_cmd=record,
+                     inputs=[x, bodies, block, dt, grid_w, F_in, F_out, error, contact])
+
+
+def launch_contact_gather(kernels, n, *, x, clamped, block, dt, grid_dv, out, contact, device, record=False):
+    """``contact_gather`` over ``n`` particles: the contact corrections ``grid_dv`` into ``out``'s v and x."""
+    return wp.launch(kernels["contact_gather"], dim=n, device=device, record_cmd=record,
+                     inputs=[x, clamped, block, dt, grid_dv, out, contact])
+
+
+def launch_reset_reductions(kernels, *, bounds, max_speed, big, device, record=False):
+    """``reset_reductions`` (one thread): particle bounds to +-``big``, top speed to 0."""
+    return wp.launch(kernels["reset_reductions"], dim=1, device=device, record_cmd=record,
+                     inputs=[bounds, max_speed, big])
+
+
+def launch_load_step(kernels, *, table, width, cursor, step, colliders, n_collider_values, device, record=False):
+    """``load_step`` (one thread): the drive table's next row into the Step and the collider table."""
+    return wp.launch(kernels["load_step"], dim=1, device=device, record_cmd=record,
+                     inputs=[table, width, cursor, step, colliders, n_collider_values])
+
+
+def launch_load_params(kernels, n, *, table, width, cursor, offset, params, device, record=False):
+    """``load_params`` over the ``n`` values of a field source's parameter array ``params``."""
+    return wp.launch(kernels["load_params"], dim=n, device=device, record_cmd=record,
+                     inputs=[table, width, cursor, offset, params])

@@ -232,3 +232,27 @@ def make_grid(dim: int, scalar, two_fields: bool = False, differentiable: bool =
         grid_dv[slot] = dv1
 
     return dict(grid_update=grid_update, add_grid=add_grid, GridSettings=GridSettings, contact_resolve=contact_resolve)
+
+
+# -- launchers: the one place each kernel's argument order is written (as in :mod:`magsoro.mpm.p2g`) ------------
+
+def launch_grid_update(kernels, n, *, grid_p, grid_m, grid_clamp, org, shape, settings, grid_v, contact, grid_u,
+                       device, record=False):
+    """``grid_update`` over ``n`` nodes of the block at node ``org`` of ``shape``: momenta ``grid_p`` and masses
+    ``grid_m`` to velocities ``grid_v`` under the GridSettings struct ``settings`` (``grid_clamp`` the held nodes,
+    ``grid_u`` the total form's node displacements)."""
+    return wp.launch(kernels["grid_update"], dim=n, device=device, record_cmd=record,
+                     inputs=[grid_p, grid_m, grid_clamp, org, shape, settings, grid_v, contact, grid_u])
+
+
+def launch_add_grid(kernels, n, *, dst_p, src_p, dst_m, src_m, with_mass, device, record=False):
+    """``add_grid`` over ``n`` nodes: a thread's private grid ``src_*`` added into ``dst_*`` (masses too when
+    ``with_mass`` is 1)."""
+    return wp.launch(kernels["add_grid"], dim=n, device=device, record_cmd=record,
+                     inputs=[dst_p, src_p, dst_m, src_m, with_mass])
+
+
+def launch_contact_resolve(kernels, n, *, grid_p, grid_m, contact, grid_dv, device, record=False):
+    """``contact_resolve`` over ``n`` nodes: the contact law's velocity corrections into ``grid_dv``."""
+    return wp.launch(kernels["contact_resolve"], dim=n, device=device, record_cmd=record,
+                     inputs=[grid_p, grid_m, contact, grid_dv])

@@ -366,27 +366,28 @@ class ImplicitIntegrator(StaticSolver):
     def _viscous_argument(self):
         """The overstress of the placed particles: during a step, after the update of the state's internal stresses
         over [t_n, t_a] to the trial F (viscous.trial_overstress's stress); outside a step, the state's own."""
-        from magsoro.mpm.viscous import make_viscous, viscous_struct
+        from magsoro.mpm.viscous import launch_viscous_update, make_viscous, viscous_struct
 
         if not self.model.viscous:
             return self.no_viscous
         if self._inertia is None:
             return viscous_struct(self.model, self.H_n)
         kv = make_viscous(self.dim, self.model.scalar)
-        wp.launch(kv["viscous_update"], dim=self.model.n_particles, device=self.dev,
-                  inputs=[self.F, self.bodies, viscous_struct(self.model, self.H_n), self.H_trial, self.sc(self._dt_a())])
+        launch_viscous_update(kv, self.model.n_particles, F=self.F, bodies=self.bodies,
+                              viscous=viscous_struct(self.model, self.H_n), H_out=self.H_trial, dt=self.sc(self._dt_a()),
+                              device=self.dev)
         return viscous_struct(self.model, self.H_trial)
 
     def _add_material_tangent(self, A) -> None:
         from magsoro.mpm.static import F_STEP
-        from magsoro.mpm.viscous import make_viscous, viscous_struct
+        from magsoro.mpm.viscous import launch_overstress_tangent, make_viscous, viscous_struct
 
         if not self.model.viscous or self._inertia is None:
             return
         kv = make_viscous(self.dim, self.model.scalar)
-        wp.launch(kv["overstress_tangent"], dim=self.model.n_particles, device=self.dev,
-                  inputs=[self.F, self.bodies, viscous_struct(self.model, self.H_n), self.sc(self._dt_a()),
-                          self.sc(F_STEP), A])
+        launch_overstress_tangent(kv, self.model.n_particles, F=self.F, bodies=self.bodies,
+                                  viscous=viscous_struct(self.model, self.H_n), dt=self.sc(self._dt_a()), h=self.sc(F_STEP),
+                                  A=A, device=self.dev)
 
     def _dt_a(self) -> float:
         """The time from t_n to the step's load time t_a."""
@@ -395,12 +396,13 @@ class ImplicitIntegrator(StaticSolver):
 
     def _advance_viscous(self, u1: np.ndarray, dt: float) -> None:
         """The internal stresses at the end of an accepted step: updated over dt to F(u_{n+1})."""
-        from magsoro.mpm.viscous import make_viscous, viscous_struct
+        from magsoro.mpm.viscous import launch_viscous_update, make_viscous, viscous_struct
 
         self._place(u1)
         kv = make_viscous(self.dim, self.model.scalar)
-        wp.launch(kv["viscous_update"], dim=self.model.n_particles, device=self.dev,
-                  inputs=[self.F, self.bodies, viscous_struct(self.model, self.H_n), self.H_trial, self.sc(dt)])
+        launch_viscous_update(kv, self.model.n_particles, F=self.F, bodies=self.bodies,
+                              viscous=viscous_struct(self.model, self.H_n), H_out=self.H_trial, dt=self.sc(dt),
+                              device=self.dev)
         self.H_n, self.H_trial = self.H_trial, self.H_n
 
     def _force_scale(self, t_a: float) -> float:

@@ -191,6 +191,30 @@ def make_interaction_kernels(dim: int, scalar) -> dict:
     return {"deposit_moments": deposit_moments, "gather_field": gather_field, "add_field": add_field}
 
 
+# -- launchers: the one place each kernel's argument order is written (as in :mod:`magsoro.mpm.p2g`); ``kernels``
+# is :func:`make_interaction_kernels`' table -------------------------------------------------------------------
+
+def launch_deposit_moments(kernels, n, *, x, F, Br, follows, vol0, lo, inv_h, shape, n_total, scale, body, select, M,
+                           device, record=False):
+    """``deposit_moments`` over ``n`` particles: their moments onto the field grid (origin ``lo``, 1/spacing
+    ``inv_h``, ``shape`` nodes, ``n_total`` of them) into ``M``; ``select`` >= 0: that body only."""
+    return wp.launch(kernels["deposit_moments"], dim=n, device=device, record_cmd=record,
+                     inputs=[x, F, Br, follows, vol0, lo, inv_h, shape, n_total, scale, body, select, M])
+
+
+def launch_gather_field(kernels, n, *, x, lo, inv_h, shape, n_total, fields, mu0, B, grad_B, device, record=False):
+    """``gather_field`` over ``n`` particles: B and grad B at ``x`` from the node ``fields``."""
+    return wp.launch(kernels["gather_field"], dim=n, device=device, record_cmd=record,
+                     inputs=[x, lo, inv_h, shape, n_total, fields, mu0, B, grad_B])
+
+
+def launch_add_field(kernels, n, *, B_int, grad_B_int, keep, B, grad_B, device, record=False):
+    """``add_field`` over ``n`` particles: the bodies' own field added into (``keep`` 1) or written over (0) ``B``
+    and ``grad_B``."""
+    return wp.launch(kernels["add_field"], dim=n, device=device, record_cmd=record,
+                     inputs=[B_int, grad_B_int, keep, B, grad_B])
+
+
 @functools.lru_cache(maxsize=8)
 def _kernel_spectra(padded: tuple, h: float, dim: int, real: str = "float64") -> np.ndarray:
     """The convolution's spectra as one (dim + len(sym_pairs), dim, ...) array: output c (H_a, then grad H in
@@ -290,8 +314,9 @@ class MagneticInteraction:
         self._M.zero_()
         scale = 1.0 / (MU0 * self.depth)
         select = -1 if self._key == "all" else int(self._key)
-        wp.launch(self.k["deposit_moments"], dim=m.n_particles, device=m.device,
-                  inputs=[x, F, m.Br, m.follows, m.vol0, lo, inv_h, shape, total, m.scalar(scale), m.body, select, self._M])
+        launch_deposit_moments(self.k, m.n_particles, x=x, F=F, Br=m.Br, follows=m.follows, vol0=m.vol0, lo=lo,
+                               inv_h=inv_h, shape=shape, n_total=total, scale=m.scalar(scale), body=m.body, select=select,
+                               M=self._M, device=m.device)
         dim, padded, n = self.dim, self._padded[self._key], tuple(int(v) for v in self._n)
         if not self._on_cpu:
             self.host_reads += 1
@@ -321,8 +346,8 @@ class MagneticInteraction:
     def _gather(self, x: wp.array, B: wp.array, grad_B: wp.array) -> None:
         m = self.model
         lo, inv_h, shape, total = self._grid_args()
-        wp.launch(self.k["gather_field"], dim=m.n_particles, device=m.device,
-                  inputs=[x, lo, inv_h, shape, total, self._fields, m.scalar(MU0), B, grad_B])
+        launch_gather_field(self.k, m.n_particles, x=x, lo=lo, inv_h=inv_h, shape=shape, n_total=total,
+                            fields=self._fields, mu0=m.scalar(MU0), B=B, grad_B=grad_B, device=m.device)
 
     # -- the self-torque -------------------------------------------------------------------------------------
     def moments(self, F_np: np.ndarray) -> np.ndarray:
@@ -412,8 +437,8 @@ class MagneticInteraction:
 
     def add_to(self, B: wp.array, grad_B: wp.array, keep: bool) -> None:
         """Add the last refresh's field into the engine's per-particle arrays (``keep`` False: overwrite)."""
-        wp.launch(self.k["add_field"], dim=self.model.n_particles, device=self.model.device,
-                  inputs=[self.B, self.grad_B, 1 if keep else 0, B, grad_B])
+        launch_add_field(self.k, self.model.n_particles, B_int=self.B, grad_B_int=self.grad_B, keep=1 if keep else 0,
+                         B=B, grad_B=grad_B, device=self.model.device)
 
     def field_at(self, points, x: wp.array, F: wp.array) -> np.ndarray:
         """Flux density B = mu0 (H + M) (T, (P, 3)) of the bodies' magnetisation at ``points`` (P, dim or 3) m, for

@@ -63,6 +63,20 @@ def _stress_kernel(dim: int, scalar) -> dict:
     return {"stress_kernel": stress_kernel, "body_stress_kernel": body_stress_kernel}
 
 
+def launch_stress(kernels, n, *, F, law, shear_modulus, bulk_modulus, params, P, psi, device, record=False):
+    """``stress_kernel`` over ``n`` deformation gradients ``F``: stress ``P`` and energy density ``psi`` of the law
+    code ``law`` with the moduli (Pa) and the law's parameters ``params``. The one place its argument order is
+    written."""
+    return wp.launch(kernels["stress_kernel"], dim=n, device=device, record_cmd=record,
+                     inputs=[F, law, shear_modulus, bulk_modulus, params, P, psi])
+
+
+def launch_body_stress(kernels, n, *, F, bodies, P, psi, device, record=False):
+    """``body_stress_kernel`` over the ``n`` particles of a model: elastic stress ``P`` and energy density ``psi`` at
+    ``F``. The one place its argument order is written."""
+    return wp.launch(kernels["body_stress_kernel"], dim=n, device=device, record_cmd=record, inputs=[F, bodies, P, psi])
+
+
 @functools.cache
 def make_kernels(dim: int, scalar, contact: bool = False, differentiable: bool = False) -> dict:
     """Every kernel and type of the engine for ``dim`` in (2, 3) and ``scalar`` in (wp.float32, wp.float64).

@@ -323,3 +323,46 @@ def make_p2g(dim: int, scalar, two_fields: bool = False, differentiable: bool = 
                 wp.atomic_add(net, row, pressure_force(F[p], b.pressure_area[p], b.pressure_value[row]))
 
     return dict(p2g=p2g, p2g_scatter=p2g_scatter, pressure_net=pressure_net, node_displacement=node_displacement, contact_scan=contact_scan, contact_scatter=contact_scatter)
+
+
+# -- launchers: the one place each kernel's argument order is written ------------------------------------------
+# Each takes the kernel table of :func:`magsoro.mpm.kernels.make_kernels` (or of :func:`make_p2g`), the launch
+# size ``n`` and the arguments by name; ``record=True`` returns Warp's recorded launch (the explicit solver's
+# recorded launches and CUDA graphs), else the kernel runs at once.
+
+def launch_p2g(kernels, n, *, src, bodies, applied, block, dt, grid, error, flags, contact, viscous, affine, momentum,
+               device, record=False):
+    """:func:`make_p2g`'s ``p2g`` over ``n`` particles: ``src`` the Particles struct array read (x where the weights
+    are taken, v, C, F), ``grid`` the GridArrays struct array written, ``flags`` P2GFlag bits, ``contact`` the
+    ContactGrid array, ``viscous`` the Viscous struct, ``affine``/``momentum`` the P2GFlag.APART outputs."""
+    return wp.launch(kernels["p2g"], dim=n, device=device, record_cmd=record,
+                     inputs=[src, bodies, applied, block, dt, grid, error, flags, contact, viscous, affine, momentum])
+
+
+def launch_p2g_scatter(kernels, n, *, x, bodies, block, affine, momentum, grid, contact, spread, device, record=False):
+    """``p2g_scatter``: ``n`` = particles (``spread`` 0) or particles x 3^dim (``spread`` 1)."""
+    return wp.launch(kernels["p2g_scatter"], dim=n, device=device, record_cmd=record,
+                     inputs=[x, bodies, block, affine, momentum, grid, contact, spread])
+
+
+def launch_node_displacement(kernels, n, *, X, x, mass, block, grid_u, contact, device, record=False):
+    """``node_displacement`` over ``n`` particles: reference positions ``X``, current ``x``, into ``grid_u``."""
+    return wp.launch(kernels["node_displacement"], dim=n, device=device, record_cmd=record,
+                     inputs=[X, x, mass, block, grid_u, contact])
+
+
+def launch_contact_scan(kernels, n, *, x, X, mass, group, block, fold, gmin, gmax, moments, device, record=False):
+    """``contact_scan`` over ``n`` particles at ``x`` (reference positions ``X``, contact ``group`` per particle)."""
+    return wp.launch(kernels["contact_scan"], dim=n, device=device, record_cmd=record,
+                     inputs=[x, X, mass, group, block, fold, gmin, gmax, moments])
+
+
+def launch_contact_scatter(kernels, n, *, x, v, mass, block, grid, contact, device, record=False):
+    """``contact_scatter`` over ``n`` particles: velocities ``v`` at ``x`` into the GridArrays ``grid``."""
+    return wp.launch(kernels["contact_scatter"], dim=n, device=device, record_cmd=record,
+                     inputs=[x, v, mass, block, grid, contact])
+
+
+def launch_pressure_net(kernels, n, *, bodies, F, net, device, record=False):
+    """``pressure_net`` over ``n`` particles: the closed cavities' net pressure force at ``F`` summed into ``net``."""
+    return wp.launch(kernels["pressure_net"], dim=n, device=device, record_cmd=record, inputs=[bodies, F, net])

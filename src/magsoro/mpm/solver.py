@@ -27,7 +27,13 @@ from magsoro.errors import MagsoroError, SimulationError
 from magsoro.fields.device import FieldEvaluator
 from magsoro.mpm.colliders import COLLIDER_STRIDE, Collider, collider_table
 from magsoro.mpm.interaction import MagneticInteraction
+from magsoro.mpm.contact import launch_contact_classify
+from magsoro.mpm.g2p import (launch_contact_gather, launch_g2p, launch_load_params, launch_load_step, launch_remap_F,
+                             launch_remap_node_velocity, launch_remap_scatter, launch_reset_reductions)
+from magsoro.mpm.grid import launch_add_grid, launch_contact_resolve, launch_grid_update
 from magsoro.mpm.kernels import make_kernels
+from magsoro.mpm.p2g import (launch_contact_scan, launch_contact_scatter, launch_node_displacement, launch_p2g,
+                             launch_p2g_scatter, launch_pressure_net)
 from magsoro.mpm.settings import (COLLIDER_MODES, FORMULATIONS, INTERACTION_MODES, VELOCITY_GRADIENTS, ColliderMode,
                                   ColliderModeName, Formulation, FUpdate, InteractionMode, MagnetizationFollows, P2GFlag,
                                   VelocityGradient)
@@ -35,7 +41,7 @@ from magsoro.mpm.materials import LAW_PARAM_COUNT, LAWS, describe_codes
 from magsoro.mpm.stencil import host_bspline
 from magsoro.mpm.timestep import cfl_time_step
 from magsoro.mpm.prony import device_tables, prony_table
-from magsoro.mpm.viscous import make_viscous, viscous_struct
+from magsoro.mpm.viscous import launch_viscous_update, make_viscous, viscous_struct
 
 PRECISIONS = {"float32": (wp.float32, np.float32), "float64": (wp.float64, np.float64)}
 
@@ -862,16 +868,19 @@ class Solver:
         for v, fill in zip(self._ct_group_views, (2**31 - 1, -1)):
             v.fill_(fill)
         scan, classify = self._classify_inputs(self._X0, block_struct(self.model, self.org, self.shape), 0, self._ct)
-        wp.launch(self.k["contact_scan"], dim=m.n_particles, device=dev, inputs=scan)
-        wp.launch(self.k["contact_classify"], dim=self.n_active, device=dev, inputs=classify)
+        launch_contact_scan(self.k, m.n_particles, device=dev, **scan)
+        launch_contact_classify(self.k, self.n_active, device=dev, **classify)
 
     def _classify_inputs(self, x, block, fold: int, arrays: dict):
-        """Inputs of the contact scan (particles at ``x`` on ``block``) and of the node classification, over the
-        node arrays ``arrays`` (:func:`contact_node_arrays`)."""
+        """Arguments of the contact scan's launcher (particles at ``x`` on ``block``) and of the node
+        classification's, over the node arrays ``arrays`` (:func:`contact_node_arrays`)."""
         m, c = self.model, self.settings.contact
-        scan = [x, m.X0, m.mass, m.contact_group, block, fold, arrays["gmin"], arrays["gmax"], arrays["moments"]]
-        classify = [arrays["gmin"], arrays["gmax"], arrays["moments"], fold, self.scalar((c.fold_spread * m.dx) ** 2),
-                    self._contact_friction, self._contact_groups, arrays["split"], arrays["xbar"], arrays["axis"], arrays["mu"]]
+        scan = dict(x=x, X=m.X0, mass=m.mass, group=m.contact_group, block=block, fold=fold, gmin=arrays["gmin"],
+                    gmax=arrays["gmax"], moments=arrays["moments"])
+        classify = dict(gmin=arrays["gmin"], gmax=arrays["gmax"], moments=arrays["moments"], fold=fold,
+                        spread2=self.scalar((c.fold_spread * m.dx) ** 2), friction=self._contact_friction,
+                        n_groups=self._contact_groups, split=arrays["split"], xbar=arrays["xbar"], axis=arrays["axis"],
+                        mu=arrays["mu"])
         return scan, classify
 
     def _contact_grid(self, arrays: dict, n_nodes: int, gap: float) -> wp.array:
@@ -959,10 +968,9 @@ class Solver:
                 checks=wp.array([checks], dtype=k["Checks"], device=dev),
             ))
 
-        def particles(kernel, inputs_of, per_thread=1):
-            return [wp.launch(kernel, dim=th["n"] * per_thread, inputs=inputs_of(th, th["cut"]), device=dev,
-                              record_cmd=True)
-                    for th in threads]
+        def particles(launcher, args_of, per_thread=1):
+            """One recorded launch per thread, over its slice; ``args_of(thread, cut)`` gives the launcher's arguments."""
+            return [launcher(k, th["n"] * per_thread, device=dev, record=True, **args_of(th, th["cut"])) for th in threads]
 
         spread = 1 if self.spread_scatter else 0
         f_update = FUpdate.TOTAL if self._total else (FUpdate.FROM_REMAP if self._remap else FUpdate.FROM_GRID)
@@ -974,30 +982,32 @@ class Solver:
             self.particle_momentum = wp.zeros(m.n_particles, dtype=k["vec"], device=dev)
         spread_threads = 3**self.dim if spread else 1
 
-        def nodes(kernel, inputs, n=n_act):
-            return wp.launch(kernel, dim=n, inputs=inputs, device=dev, record_cmd=True)
-
+        rec = dict(device=dev, record=True)
         L = {
             # with the scatter threads (docs/engine.md, "Scatter threads") p2g stores each particle's affine matrix
             # and momentum, and p2g_scatter spreads them with one thread per (particle, node)
-            "p2g": particles(k["p2g"], lambda th, cut: [
-                th["src"], th["bodies"], th["applied"], block, sc(0.0), th["grid"], self.error,
-                int(p2g_flags), ct, viscous_struct(m, state_in.H, cut),
+            "p2g": particles(launch_p2g, lambda th, cut: dict(
+                src=th["src"], bodies=th["bodies"], applied=th["applied"], block=block, dt=sc(0.0), grid=th["grid"],
+                error=self.error, flags=int(p2g_flags), contact=ct, viscous=viscous_struct(m, state_in.H, cut),
                 # read only when spread; otherwise empty, and not sliced per thread
-                cut(self.particle_affine) if spread else self.particle_affine,
-                cut(self.particle_momentum) if spread else self.particle_momentum]),
-            "p2g_scatter": particles(k["p2g_scatter"], lambda th, cut: [
-                cut(x_grid), th["bodies"], block, cut(self.particle_affine), cut(self.particle_momentum), th["grid"], ct,
-                spread], spread_threads) if spread else [],
-            "grid_update": nodes(k["grid_update"], [
-                self.grid_p, self.grid_m, self.held_mask if self._total else self.grid_clamp, org, block.shape, gs,
-                self.grid_v, ct, self.grid_u]),
-            "g2p": particles(k["g2p"], lambda th, cut: [
-                self.grid_v, th["bodies"], block, sc(0.0), cut(x_grid), cut(state_in.x), cut(state_in.F), th["out"],
-                th["checks"], int(f_update), grid_p[th["t"]],
-                ct]),
-            "sum_mass": [nodes(k["add_grid"], [self.grid_p, grid_p[t], self.grid_m, grid_m[t], 1]) for t in range(1, self.threads)],
-            "sum_momentum": [nodes(k["add_grid"], [self.grid_p, grid_p[t], self.grid_m, grid_m[t], 0]) for t in range(1, self.threads)],
+                affine=cut(self.particle_affine) if spread else self.particle_affine,
+                momentum=cut(self.particle_momentum) if spread else self.particle_momentum)),
+            "p2g_scatter": particles(launch_p2g_scatter, lambda th, cut: dict(
+                x=cut(x_grid), bodies=th["bodies"], block=block, affine=cut(self.particle_affine),
+                momentum=cut(self.particle_momentum), grid=th["grid"], contact=ct, spread=spread),
+                spread_threads) if spread else [],
+            "grid_update": launch_grid_update(
+                k, n_act, grid_p=self.grid_p, grid_m=self.grid_m,
+                grid_clamp=self.held_mask if self._total else self.grid_clamp, org=org, shape=block.shape, settings=gs,
+                grid_v=self.grid_v, contact=ct, grid_u=self.grid_u, **rec),
+            "g2p": particles(launch_g2p, lambda th, cut: dict(
+                grid_v=self.grid_v, bodies=th["bodies"], block=block, dt=sc(0.0), x_in=cut(x_grid), x_cur=cut(state_in.x),
+                F_in=cut(state_in.F), out=th["out"], checks=th["checks"], f_update=int(f_update), grid_r=grid_p[th["t"]],
+                contact=ct)),
+            "sum_mass": [launch_add_grid(k, n_act, dst_p=self.grid_p, src_p=grid_p[t], dst_m=self.grid_m, src_m=grid_m[t],
+                                         with_mass=1, **rec) for t in range(1, self.threads)],
+            "sum_momentum": [launch_add_grid(k, n_act, dst_p=self.grid_p, src_p=grid_p[t], dst_m=self.grid_m,
+                                             src_m=grid_m[t], with_mass=0, **rec) for t in range(1, self.threads)],
             # keep the states' arrays and the argument structs alive: the set is found again by the arrays' ids
             "_arrays": (state_in.x, state_in.v, state_in.C, state_in.F, state_out.x, state_out.v, state_out.C, state_out.F,
                         state_in.H, state_out.H),
@@ -1007,29 +1017,31 @@ class Solver:
             "_contact_grid": ct,  # referenced by pointer from the recorded launches
         }
         if m.viscous:  # the Prony internal stresses of state_out from its new F (magsoro.mpm.viscous)
-            L["viscous"] = [nodes(make_viscous(m.dim, m.scalar)["viscous_update"], [
-                state_out.F, bodies_array(m, step=self._step_values), viscous_struct(m, state_in.H), state_out.H, sc(0.0)],
-                m.n_particles)]
+            L["viscous"] = [launch_viscous_update(
+                make_viscous(m.dim, m.scalar), m.n_particles, F=state_out.F, bodies=bodies_array(m, step=self._step_values),
+                viscous=viscous_struct(m, state_in.H), H_out=state_out.H, dt=sc(0.0), **rec)]
         if m.closed_pressures:  # the closed cavities' net pressure force, taken back in p2g
-            L["pressure_net"] = nodes(k["pressure_net"], [bodies_array(m, step=self._step_values), state_in.F,
-                                                          m.pressure_net], m.n_particles)
+            L["pressure_net"] = launch_pressure_net(k, m.n_particles, bodies=bodies_array(m, step=self._step_values),
+                                                    F=state_in.F, net=m.pressure_net, **rec)
         if self._total:
-            L["node_displacement"] = nodes(k["node_displacement"], [self._X0, state_in.x, m.mass, block, self.grid_u, ct],
-                                           m.n_particles)
+            L["node_displacement"] = launch_node_displacement(k, m.n_particles, X=self._X0, x=state_in.x, mass=m.mass,
+                                                              block=block, grid_u=self.grid_u, contact=ct, **rec)
         if self.contact_active and not self._total:
             scan, classify = self._classify_inputs(state_in.x, block, 1 if st.contact.self_contact else 0, self._ct)
-            L["contact"] = [nodes(k["contact_scan"], scan, m.n_particles), nodes(k["contact_classify"], classify)]
+            L["contact"] = [launch_contact_scan(k, m.n_particles, **scan, **rec),
+                            launch_contact_classify(k, n_act, **classify, **rec)]
         if self._remap:
             # second half of the remap: g2p has scattered the new affine velocities into grid_p (free after the
             # grid update); node velocities go to grid_v (free after g2p), and F is gathered from them
-            L["remap_scatter"] = particles(k["remap_scatter"], lambda th, cut: [
-                cut(state_in.x), th["bodies"], block, th["out"], grid_p[th["t"]], ct, spread],
-                spread_threads) if spread else []
-            L["remap_nodes"] = nodes(k["remap_node_velocity"], [self.grid_p, self.grid_m, self.grid_clamp, self.grid_v, n_act],
-                                     self._fields_per_node * n_act)
-            L["remap_F"] = particles(k["remap_F"], lambda th, cut: [
-                cut(state_in.x), th["bodies"], block, sc(0.0), self.grid_v, cut(state_in.F), cut(state_out.F),
-                self.error, ct])
+            L["remap_scatter"] = particles(launch_remap_scatter, lambda th, cut: dict(
+                x=cut(state_in.x), bodies=th["bodies"], block=block, out=th["out"], grid_r=grid_p[th["t"]], contact=ct,
+                spread=spread), spread_threads) if spread else []
+            L["remap_nodes"] = launch_remap_node_velocity(
+                k, self._fields_per_node * n_act, grid_r=self.grid_p, grid_m=self.grid_m, grid_clamp=self.grid_clamp,
+                grid_w=self.grid_v, n_nodes=n_act, **rec)
+            L["remap_F"] = particles(launch_remap_F, lambda th, cut: dict(
+                x=cut(state_in.x), bodies=th["bodies"], block=block, dt=sc(0.0), grid_w=self.grid_v, F_in=cut(state_in.F),
+                F_out=cut(state_out.F), error=self.error, contact=ct))
         return L
 
     def _launch_set(self, state_in: State, state_out: State, control: Control, has_gradient: bool) -> dict:
@@ -1163,8 +1175,8 @@ class Solver:
         else:
             self.error.zero_()
             for t in range(self.threads):
-                wp.launch(self.k["reset_reductions"], dim=1, device=self.device,
-                          inputs=[self._thread_bounds[t], self._thread_speed[t], self.scalar(1e30)])
+                launch_reset_reductions(self.k, bounds=self._thread_bounds[t], max_speed=self._thread_speed[t],
+                                        big=self.scalar(1e30), device=self.device)
         self._window_open = True
         self._window_dt = 0.0
 
@@ -1297,12 +1309,12 @@ class Solver:
             table = wp.zeros(rows * width, dtype=wp.float64, device=dev)
             host = table if self._on_cpu else wp.zeros(rows * width, dtype=wp.float64, device="cpu", pinned=True)
             cursor = wp.zeros(1, dtype=wp.int32, device=dev)
-            launch = wp.launch(self.k["load_step"], dim=1, device=dev, record_cmd=True,
-                               inputs=[table, width, cursor, self._step_values, self._collider_array, n_values])
+            launch = launch_load_step(self.k, table=table, width=width, cursor=cursor, step=self._step_values,
+                                      colliders=self._collider_array, n_collider_values=n_values, device=dev, record=True)
             param_loads, offset = [], 5 + n_values
             for a in prm:
-                param_loads.append(wp.launch(self.k["load_params"], dim=int(a.shape[0]), device=dev, record_cmd=True,
-                                             inputs=[table, width, cursor, offset, a]))
+                param_loads.append(launch_load_params(self.k, int(a.shape[0]), table=table, width=width, cursor=cursor,
+                                                      offset=offset, params=a, device=dev, record=True))
                 offset += int(a.shape[0])
             d = self._drive = {"width": width, "rows": rows, "table": table, "host": host, "host_np": host.numpy(),
                                "cursor": cursor, "cursor_np": cursor.numpy() if self._on_cpu else None, "launch": launch,
@@ -1594,11 +1606,12 @@ class Solver:
             tc["key"] = key
         ct, N = tc["ct"], m.n_particles
         scan, classify = self._classify_inputs(x, block, fold, tc)
-        wp.launch(k["contact_scan"], dim=N, device=dev, inputs=scan)
-        wp.launch(k["contact_classify"], dim=n, device=dev, inputs=classify)
-        wp.launch(k["contact_scatter"], dim=N, device=dev, inputs=[x, state_out.v, m.mass, block, tc["grid"], ct])
-        wp.launch(k["contact_resolve"], dim=n, device=dev, inputs=[tc["p"], tc["m"], ct, tc["dv"]])
-        wp.launch(k["contact_gather"], dim=N, device=dev, inputs=[x, m.clamped, block, self.scalar(dt), tc["dv"], tc["out"], ct])
+        launch_contact_scan(k, N, device=dev, **scan)
+        launch_contact_classify(k, n, device=dev, **classify)
+        launch_contact_scatter(k, N, x=x, v=state_out.v, mass=m.mass, block=block, grid=tc["grid"], contact=ct, device=dev)
+        launch_contact_resolve(k, n, grid_p=tc["p"], grid_m=tc["m"], contact=ct, grid_dv=tc["dv"], device=dev)
+        launch_contact_gather(k, N, x=x, clamped=m.clamped, block=block, dt=self.scalar(dt), grid_dv=tc["dv"],
+                              out=tc["out"], contact=ct, device=dev)
 
     def _check_motion(self, state_in: State, dt: float) -> None:
         """A particle that moves more than a cell in a step was not resolved by the time step (a fixed dt too

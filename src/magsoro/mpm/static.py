@@ -57,7 +57,7 @@ from magsoro.mpm.colliders import WALL_CELLS, Collider
 from magsoro.mpm.linear import (FACTOR_CHECK, DirectSolver, IterativeSolver, Ordering, factor, forcing_term,  # noqa: F401 (re-exported)
                                 make_linear_solver, rigid_body_modes)
 from magsoro.mpm import linear as _linear
-from magsoro.mpm.p2g import P2G_TOTAL
+from magsoro.mpm.p2g import P2G_TOTAL, launch_p2g, launch_pressure_net
 from magsoro.mpm.solver import block_struct, bodies_array, contact_grid
 from magsoro.mpm.stencil import host_bspline, make_stencil
 from magsoro.mpm.viscous import viscous_struct
@@ -309,6 +309,28 @@ def make_static_kernels(dim: int, scalar) -> dict:
 
     return {"place_particles": place_particles, "particle_stress": particle_stress,
             "material_tangent": material_tangent, "assemble_tangent": assemble_tangent, "FieldTerms": FieldTerms}
+
+
+# -- launchers: the one place each kernel's argument order is written (as in :mod:`magsoro.mpm.p2g`); ``kernels``
+# is :func:`make_static_kernels`' table ------------------------------------------------------------------------
+
+def launch_place_particles(kernels, n, *, X, u, block, clamped, x, F, device, record=False):
+    """``place_particles`` over ``n`` particles: positions ``x`` and ``F`` from the node displacements ``u``."""
+    return wp.launch(kernels["place_particles"], dim=n, device=device, record_cmd=record,
+                     inputs=[X, u, block, clamped, x, F])
+
+
+def launch_material_tangent(kernels, n, *, F, bodies, h, A, device, record=False):
+    """``material_tangent`` over ``n`` particles: dP/dF by central differences of step ``h`` into ``A``."""
+    return wp.launch(kernels["material_tangent"], dim=n, device=device, record_cmd=record, inputs=[F, bodies, h, A])
+
+
+def launch_assemble_tangent(kernels, n, *, X, block, bodies, A, field_terms, dof, indptr, slots, data, device,
+                            record=False):
+    """``assemble_tangent`` over ``n`` = particles x 3^dim: the tangent's entries into ``data`` (CSC pattern of
+    ``indptr`` and ``slots``)."""
+    return wp.launch(kernels["assemble_tangent"], dim=n, device=device, record_cmd=record,
+                     inputs=[X, block, bodies, A, field_terms, dof, indptr, slots, data])
 
 
 @dataclass
@@ -569,8 +591,8 @@ class StaticSolver:
     # -- residual -----------------------------------------------------------------------------------------
     def _place(self, u_nodes: np.ndarray) -> None:
         self.u.assign(u_nodes.astype(self.model.np_scalar))
-        wp.launch(self.kk["place_particles"], dim=self.model.n_particles, device=self.dev,
-                  inputs=[self.model.X0, self.u, self.block, self.model.clamped, self.x, self.F])
+        launch_place_particles(self.kk, self.model.n_particles, X=self.model.X0, u=self.u, block=self.block,
+                               clamped=self.model.clamped, x=self.x, F=self.F, device=self.dev)
 
     def _scatter(self, u_nodes: np.ndarray, field_level: float, gravity_level: float) -> np.ndarray:
         """Node forces (n_nodes, dim) at the displacement ``u_nodes`` under the given load levels."""
@@ -608,11 +630,10 @@ class StaticSolver:
             # a closed cavity's net pressure force at the trial F, taken back in p2g as in a step (the tangent
             # leaves this correction out, as it leaves out the load's own stiffness)
             model.pressure_net.zero_()
-            wp.launch(k["pressure_net"], dim=model.n_particles, device=self.dev,
-                      inputs=[self.bodies, self.F, model.pressure_net])
-        wp.launch(k["p2g"], dim=model.n_particles, device=self.dev,
-                  inputs=[self.src, self.bodies, applied, self.block, sc(1.0), self.grid, solver.error, P2G_TOTAL, self.ct,
-                          self._viscous_argument(), solver.particle_affine, solver.particle_momentum])
+            launch_pressure_net(k, model.n_particles, bodies=self.bodies, F=self.F, net=model.pressure_net, device=self.dev)
+        launch_p2g(k, model.n_particles, src=self.src, bodies=self.bodies, applied=applied, block=self.block, dt=sc(1.0),
+                   grid=self.grid, error=solver.error, flags=P2G_TOTAL, contact=self.ct, viscous=self._viscous_argument(),
+                   affine=solver.particle_affine, momentum=solver.particle_momentum, device=self.dev)
         self.residual_evaluations += 1
         f = solver.grid_p.numpy()[: self.n_nodes].astype(np.float64)
         m = solver.grid_m.numpy()[: self.n_nodes].astype(np.float64)
@@ -865,7 +886,7 @@ class StaticSolver:
                                     wp.array(self.dof_of_node.astype(np.int32), dtype=wp.int32, device=dev),
                                     wp.zeros(len(indices), dtype=self.sc, device=dev))
         A, dof, data = self._tangent_arrays
-        wp.launch(self.kk["material_tangent"], dim=n, device=dev, inputs=[self.F, self.bodies, self.sc(F_STEP), A])
+        launch_material_tangent(self.kk, n, F=self.F, bodies=self.bodies, h=self.sc(F_STEP), A=A, device=dev)
         self._add_material_tangent(A)
         fterms = self.kk["FieldTerms"]()
         terms = self._field_terms(field_level)
@@ -881,8 +902,8 @@ class StaticSolver:
             fterms.br = wp.array(br.astype(npsc), dtype=k["vec"], device=dev)
             fterms.H = wp.array(np.einsum("pbae,pb->pae", dG, m).astype(npsc), dtype=k["mat"], device=dev)
         data.zero_()
-        wp.launch(self.kk["assemble_tangent"], dim=n * 3 ** dim, device=dev,
-                  inputs=[self.model.X0, self.block, self.bodies, A, fterms, dof, d_indptr, d_slots, data])
+        launch_assemble_tangent(self.kk, n * 3 ** dim, X=self.model.X0, block=self.block, bodies=self.bodies, A=A,
+                                field_terms=fterms, dof=dof, indptr=d_indptr, slots=d_slots, data=data, device=dev)
         n_dof = len(self.free) * dim
         J = sparse.csc_matrix((data.numpy().astype(np.float64), indices, indptr), shape=(n_dof, n_dof))
         if self.contact is not None:  # the colliders' springs at u (the scatter above evaluated them)

@@ -173,6 +173,28 @@ def make_viscous(dim: int, scalar):
                 add_overstress=add_overstress, trial_overstress=trial_overstress, overstress_tangent=overstress_tangent)
 
 
+# -- launchers: the one place each kernel's argument order is written (as in :mod:`magsoro.mpm.p2g`); ``kernels``
+# is :func:`make_viscous`'s table, ``record=True`` returns Warp's recorded launch ---------------------------------
+
+def launch_viscous_update(kernels, n, *, F, bodies, viscous, H_out, dt, device, record=False):
+    """``viscous_update`` over ``n`` particles: the internal stresses ``H_out`` at the new ``F`` from the Viscous
+    struct ``viscous`` (the step's input H) over ``dt``."""
+    return wp.launch(kernels["viscous_update"], dim=n, device=device, record_cmd=record,
+                     inputs=[F, bodies, viscous, H_out, dt])
+
+
+def launch_overstress_tangent(kernels, n, *, F, bodies, viscous, dt, h, A, device, record=False):
+    """``overstress_tangent`` over ``n`` particles: d(trial overstress)/dF by central differences of step ``h``,
+    added to ``A``."""
+    return wp.launch(kernels["overstress_tangent"], dim=n, device=device, record_cmd=record,
+                     inputs=[F, bodies, viscous, dt, h, A])
+
+
+def launch_add_overstress(kernels, n, *, F, viscous, P, device, record=False):
+    """``add_overstress`` over ``n`` particles: each particle's overstress added to ``P``."""
+    return wp.launch(kernels["add_overstress"], dim=n, device=device, record_cmd=record, inputs=[F, viscous, P])
+
+
 def viscous_struct(model, H, cut=lambda arr: arr):
     """The ``Viscous`` struct of ``model`` with the state array ``H`` (None: a model without Prony materials),
     over the particle slice ``cut``."""
@@ -192,6 +214,7 @@ def prescribed_history(model, F_path, times):
     dim) float64: the law's stress (with its stimulus, if any) plus the Prony overstress."""
     import numpy as np
 
+    from magsoro.mpm.kernels import launch_body_stress  # kernels imports this module (through p2g)
     from magsoro.mpm.solver import bodies_array
 
     k, dev, s = model.kernels, model.device, model.np_scalar
@@ -210,13 +233,13 @@ def prescribed_history(model, F_path, times):
         if model.viscous:
             dt = times[i] - times[i - 1] if i > 0 else 0.0
             if dt > 0:
-                wp.launch(kv["viscous_update"], dim=n, device=dev,
-                          inputs=[F, bodies, viscous_struct(model, H[0]), H[1], model.scalar(dt)])
+                launch_viscous_update(kv, n, F=F, bodies=bodies, viscous=viscous_struct(model, H[0]), H_out=H[1],
+                                      dt=model.scalar(dt), device=dev)
                 H.reverse()
             elif i > 0 or not np.allclose(F_path[0], np.eye(dim)):
                 raise ValueError("times must increase, and the path start at F = I")
-        wp.launch(k["body_stress_kernel"], dim=n, device=dev, inputs=[F, bodies, P, W])
+        launch_body_stress(k, n, F=F, bodies=bodies, P=P, psi=W, device=dev)
         if model.viscous:
-            wp.launch(kv["add_overstress"], dim=n, device=dev, inputs=[F, viscous_struct(model, H[0]), P])
+            launch_add_overstress(kv, n, F=F, viscous=viscous_struct(model, H[0]), P=P, device=dev)
         out[i] = P.numpy()
     return out

@@ -117,13 +117,14 @@ def cauchy_stress(sim) -> np.ndarray:
     """(n, dim, dim) Cauchy stress of every particle now (elastic part of its law, Pa)."""
     import warp as wp
 
+    from magsoro.mpm.kernels import launch_body_stress
     from magsoro.mpm.solver import bodies_array
 
     m = sim.model
     k = m.kernels
     P = wp.zeros(m.n_particles, dtype=k["mat"], device=m.device)
     W = wp.zeros(m.n_particles, dtype=m.scalar, device=m.device)
-    wp.launch(k["body_stress_kernel"], dim=m.n_particles, device=m.device, inputs=[sim.state.F, bodies_array(m), P, W])
+    launch_body_stress(k, m.n_particles, F=sim.state.F, bodies=bodies_array(m), P=P, psi=W, device=m.device)
     F = sim.state.F.numpy().astype(np.float64)
     J = np.linalg.det(F)
     return np.einsum("nij,nkj->nik", P.numpy().astype(np.float64), F) / J[:, None, None]

@@ -138,18 +138,14 @@ def _stress_and_energy(dim, Fs, G, K):
     """First Piola stress (Pa) and energy density (J/m^3) of the engine's Neo-Hookean kernel, float64."""
     import warp as wp
 
-    from magsoro.mpm.kernels import make_kernels
+    from magsoro.mpm.kernels import launch_stress, make_kernels
 
     k = make_kernels(dim, wp.float64)
     F = wp.array(np.asarray(Fs, dtype=np.float64), dtype=k["mat"], device="cpu")
     P = wp.zeros(len(Fs), dtype=k["mat"], device="cpu")
     psi = wp.zeros(len(Fs), dtype=wp.float64, device="cpu")
-    kernel = k["stress_kernel"]
-    if len(kernel.adj.args) == 5:  # (F, G, K, P, psi)
-        inputs = [F, G, K, P, psi]
-    else:  # (F, material_model, G, K, params, P, psi): material model 0 is Neo-Hookean
-        inputs = [F, 0, G, K, k["vprm"](), P, psi]
-    wp.launch(kernel, dim=len(Fs), inputs=inputs, device="cpu")
+    # material model 0 is Neo-Hookean
+    launch_stress(k, len(Fs), F=F, law=0, shear_modulus=G, bulk_modulus=K, params=k["vprm"](), P=P, psi=psi, device="cpu")
     return P.numpy(), psi.numpy()
 
 
