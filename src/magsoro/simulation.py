@@ -67,6 +67,86 @@ def prepare_static(scene: Scene) -> list[str]:
     return notes
 
 
+def prepare_relax(scene: Scene) -> list[str]:
+    """Dynamic relaxation (``magsoro run --equilibrium``, :meth:`Simulation.relax`) runs in float64, the static
+    solver's precision: float32 forces of a stiff or slender body stall the kinetic-energy peaks at round-off
+    (a float32 arch stalled 14 % above its float64 rise, issue 56). Sets it on ``scene``; returns the notes."""
+    sim = scene.simulation
+    if sim.precision == "float64":
+        return []
+    sim.precision = "float64"
+    return ["dynamic relaxation runs in float64 (simulation.precision = 'float32' is not used: float32 round-off "
+            "stalls a relaxation short of the equilibrium)"]
+
+
+class DriftWatch:
+    """How far the bodies move while the kinetic energy stays tiny: the precision report of a dynamic run.
+
+    At each record it takes the free particles' positions and kinetic energy. A record is quiet when its kinetic
+    energy is at most ``quiet`` (SETTLE_ENERGY) times the largest seen so far; over the quiet records at the run's
+    end (the last stretch, at least ``min_records`` of them) the drift is the largest particle displacement from
+    the first of them to the last, and the late drift that over the stretch's second half. A body coming to rest
+    moves less and less (a decaying motion: the late drift a small part of the drift); one that keeps creeping at a
+    steady rate although almost none of its motion's energy is left (the late drift at least ``steady`` of the
+    drift) was seen in float32 near a bifurcation (a pre-buckled arch's rise 3.70 -> 4.34 mm in 0.5 s where float64
+    held 3.70 mm, issue 56). :meth:`report` gives the numbers (run.json 'drift') and, for a float32 run whose drift
+    is steady and exceeds ``tolerance`` of the bodies' displacement from the reference (and 1e-6 of a cell), the
+    note that says so."""
+
+    KEEP = 64  # positions kept of a quiet stretch (every other one dropped when full: the first and last stay)
+
+    def __init__(self, dx: float, precision: str, quiet: float = 1e-4, min_records: int = 3, tolerance: float = 1e-3,
+                 steady: float = 0.25):
+        self.dx, self.precision = float(dx), precision
+        self.quiet, self.min_records, self.tolerance, self.steady = quiet, min_records, tolerance, steady
+        self.peak = 0.0
+        self.stretch: list = []  # (time, positions) of the current quiet stretch's records (thinned)
+        self.count = 0  # records in it
+        self.reference = None
+
+    def sample(self, sim) -> None:
+        energy, _ = sim.kinetic_energy()
+        free = sim.model.host["clamped"] == 0
+        self.add(sim.time, sim.state.x.numpy().astype(np.float64)[free], energy, sim.model.host["positions"][free])
+
+    def add(self, t: float, x: np.ndarray, energy: float, reference: np.ndarray) -> None:
+        """One record: time (s), free particles' positions (m), kinetic energy (J), their reference positions."""
+        self.peak = max(self.peak, energy)
+        self.reference = np.asarray(reference, dtype=np.float64)[:, : x.shape[1]]
+        if not (self.peak > 0.0 and energy <= self.quiet * self.peak):
+            self.stretch, self.count = [], 0
+            return
+        if len(self.stretch) >= self.KEEP:
+            self.stretch = self.stretch[:1] + self.stretch[2::2]
+        self.stretch.append((t, np.array(x, dtype=np.float64)))
+        self.count += 1
+
+    def report(self) -> tuple[dict, str | None]:
+        """(run.json 'drift', a note or None)."""
+        if self.count < self.min_records or len(self.stretch) < 2:
+            return {"judged": False, "why": f"the run did not end with {self.min_records} records whose kinetic energy "
+                                            f"was at most {self.quiet:g} of its peak"}, None
+        (t0, x0), (t1, x1) = self.stretch[0], self.stretch[-1]
+        tm = 0.5 * (t0 + t1)
+        _, xm = min(self.stretch, key=lambda r: abs(r[0] - tm))
+        moved = float(np.max(np.linalg.norm(x1 - x0, axis=1), initial=0.0))
+        late = float(np.max(np.linalg.norm(x1 - xm, axis=1), initial=0.0))
+        scale = float(np.max(np.linalg.norm(x0 - self.reference, axis=1), initial=0.0))
+        relative = moved / scale if scale > 0 else (0.0 if moved == 0 else math.inf)
+        steady = moved > 0 and late >= self.steady * moved
+        out = {"judged": True, "from": t0, "to": t1, "records": self.count, "max_displacement": moved,
+               "late_displacement": late, "cells": moved / self.dx, "of_displacement": relative, "steady": steady,
+               "precision": self.precision}
+        note = None
+        if self.precision == "float32" and steady and moved > 1e-6 * self.dx and relative > self.tolerance:
+            note = (f"precision: from t = {t0:.6g} to {t1:.6g} s the kinetic energy stayed below {self.quiet:g} of its "
+                    f"peak, yet the bodies kept moving at a steady rate, up to {moved:.3g} m ({100 * relative:.2g} % of "
+                    f"their displacement from the reference, {moved / self.dx:.2g} cells): float32 may not hold this "
+                    f"settled state (slender bodies near a bifurcation creep); unless the loads still change, rerun "
+                    f"with simulation.precision = 'float64' (run.json 'drift')")
+        return out, note
+
+
 def metrics_table(columns: list[str], rows: list) -> np.ndarray:
     """A numpy structured array (one float64 field per column, one record per row): the metrics.csv table."""
     table = np.zeros(len(rows), dtype=[(c, np.float64) for c in columns])
@@ -196,6 +276,7 @@ class Simulation:
         # also in ``notes``; magsoro run prints them, magsoro reproduce collects them
         self.scene_notes: list[str] = []
         self._checkpoint = None  # the first state of the current check window
+        self.started_from: dict | None = None  # where the state came from (start_from): run.json's 'initial'
         self.steps = 0
         self.last_good_time = 0.0
         # particles that start out of the domain walls' reach (check_wall_reach): a body that moves into it meets
@@ -333,6 +414,56 @@ class Simulation:
             "magnetization": direction,
         }
 
+    # -- phases --------------------------------------------------------------------------------------------
+    def restart_arrays(self) -> dict[str, np.ndarray]:
+        """What final.npz holds besides :meth:`particles`, so that another run can start from it
+        (:meth:`start_from`): C, H (Prony materials), the reference positions, the body names, the precision, the
+        state's step count and the particle speed the next time step is bounded by."""
+        s = self.state
+        out = {"C": s.C.numpy(), "reference_positions": np.asarray(self.model.host["positions"], dtype=np.float64),
+               "body_names": np.array([str(n) for n in self.built.body_names]),
+               "precision": np.array(self.model.precision), "step": np.array(int(s.step), dtype=np.int64),
+               "speed_bound": np.array(float(self._checked_speed()))}
+        if s.H is not None:
+            out["H"] = s.H.numpy()
+        return out
+
+    def start_from(self, path, key: str = "--from") -> list[str]:
+        """Start from the final state of another run (its final.npz, or its folder): positions, velocities, affine
+        velocities, deformation gradients, Prony internal stresses, the step count and the time, which this run
+        continues (fields, collider paths, keyframes and a damping profile see the continued time; :meth:`run`'s
+        duration counts from it). The bodies must match (:func:`magsoro.io.start.read_start`: particle count, body
+        names and ids, reference positions to rounding, clamped particles, precision, Prony terms); a mismatch
+        raises SceneError in one line naming the file and what differs. The next time step is bounded by the speed
+        the last one was (saved with the state), so an explicit run split in two takes the same steps as in one
+        piece. Call before the first step. Returns the notes (also in :attr:`notes`)."""
+        from magsoro.io.start import read_start, start_file
+
+        if self.steps:
+            raise SimulationError(f"start_from: this simulation has taken {self.steps} steps; start from a state "
+                                  f"before the first step", self.steps, self.state.time)
+        data, notes = read_start(path, self.model, self.built.body_names, key)
+        st, sc = self.state, self.model.np_scalar
+        for name in ("x", "v", "C", "F") + (("H",) if st.H is not None else ()):
+            getattr(st, name).assign(np.ascontiguousarray(data[name], dtype=sc))
+        st.time = float(data["time"])
+        st.step = int(data["step"]) if "step" in data else 0
+        v = np.asarray(data["v"], dtype=np.float64)
+        speed = float(np.max(np.linalg.norm(v, axis=1), initial=0.0))
+        self._initial_speed = float(data["speed_bound"]) if "speed_bound" in data else speed
+        if self.fixed_dt is None and self.integrator != "implicit":
+            self.dt = self._cfl_dt(self._initial_speed)
+            self.dt_min = self.dt_max = self.dt
+        self._impulse_time = self.last_good_time = st.time
+        # walls the bodies are within reach of at the start are the scene's (check_wall_reach)
+        self._wall_far = self._wall_distances(np.asarray(data["x"])) > WALL_REACH_CELLS * self.model.dx
+        self._wall_far &= (self.model.host["clamped"] == 0)[:, None]
+        self.started_from = {"from": str(start_file(path, key)), "time": st.time, "step": st.step,
+                             "precision": str(data["precision"]) if "precision" in data else str(data["x"].dtype)}
+        for text in notes:
+            self._note(text)
+        return notes
+
     # -- statics -------------------------------------------------------------------------------------------
     def solve_static(self, levels=None, t: float | None = None, on_level: Callable | None = None, times=None,
                      watch: Callable | None = None):
@@ -374,6 +505,7 @@ class Simulation:
         levels = cfg.levels if levels is None else list(levels)
         t0 = _time.perf_counter()
         solver = StaticSolver(self, t, tolerance=cfg.tolerance, max_iterations=cfg.max_iterations, arc_length=cfg.arc_length)
+        self._static_guess(solver)
         self.state.time = t
         if watch is not None:
             watch(solver)
@@ -409,6 +541,27 @@ class Simulation:
             out.message = f"{len(levels)} {'time' if times is not None else 'level'}(s) converged"
         return out
 
+    def _static_guess(self, solver) -> None:
+        """A state away from the reference (one started from another run's, :meth:`start_from`) is where the static
+        solver's Newton iterations start: its displacements and deformation gradients projected on the grid nodes
+        as the implicit integrator projects its start (least squares), so that the solve stays on the state's
+        branch (a pre-buckled arch). Where the solver slaves light nodes (3D) there is no such projection yet: the
+        solve starts from the reference, and :attr:`notes` says so."""
+        if self.started_from is None:
+            return
+        dim = self.dim
+        x = self.state.x.numpy().astype(np.float64)[:, :dim]
+        d = x - self.model.host["positions"][:, :dim]
+        if not np.any(d != 0.0):
+            return
+        if solver.E.shape[0] != solver.E.shape[1]:
+            self._note("the static solve starts from the reference configuration, not from the state of "
+                       f"{self.started_from['from']}: the solver slaves light nodes here, which the projection of a "
+                       "state onto the nodes does not handle yet")
+            return
+        F = self.state.F.numpy().astype(np.float64)[:, :dim, :dim]
+        solver.u_nodes = solver.fit_nodes(d, F - np.eye(dim))  # the implicit integrator's start, the same fit
+
     def _rebuild_for_static(self) -> None:
         """Rebuild in float64 and the total form (:func:`prepare_static`) when built otherwise, keeping the state,
         the field sources and the device."""
@@ -420,12 +573,19 @@ class Simulation:
                                   "the static solver needs float64 and the total-Lagrangian form (as magsoro run "
                                   "--static): set scene.simulation.precision = 'float64' and formulation = 'total' "
                                   "before building the Simulation")
-        notes = prepare_static(self.scene)
+        self._rebuild(prepare_static)
+
+    def _rebuild(self, prepare: Callable) -> None:
+        """Rebuild with the settings ``prepare`` (prepare_static, prepare_relax) sets on the scene, keeping the
+        state, its start, the field sources and the device."""
+        notes = prepare(self.scene)
         state, t, sources = self.state.numpy(), self.state.time, list(self.control.sources)
+        start, speed, step = self.started_from, self._initial_speed, self.state.step
         self.__init__(self.scene, device=self.model.device, source=self.source)
         for name, values in state.items():
             getattr(self.state, name).assign(values.astype(self.model.np_scalar))
-        self.state.time = t
+        self.state.time, self.state.step = t, step
+        self.started_from, self._initial_speed = start, speed
         self.set_sources(sources)
         for text in notes:
             self._note(text)
@@ -621,6 +781,10 @@ class Simulation:
                                         f"the rounded body (make them whole numbers of spacings, or refine "
                                         f"simulation.dx)")
 
+    def note(self, text: str, scene: bool = False) -> None:
+        """Add ``text`` to the run's notes (run.json, printed; ``scene``: a note about the scene as given)."""
+        self._note(text, scene=scene)
+
     def _note(self, text: str, scene: bool = False) -> None:
         if text not in self.notes:
             self.notes.append(text)
@@ -753,16 +917,23 @@ class Simulation:
         set by round-off (float32 forces of a stiff body under a small load) and the relaxation stops with
         ``stalled=True`` (``converged=False``); above it the motion is not dying out and it stops with neither.
         Time steps are the scene's (fixed, or the automatic CFL bound with the safety factor ``cfl``, default
-        the scene's); the simulated time is not advanced. Returns a :class:`RelaxResult`; a SimulationError
+        the scene's); the simulated time is not advanced. Precision: float64 (:func:`prepare_relax`); a Simulation
+        built in float32 that has not stepped is rebuilt so, keeping its state (one that has stepped relaxes in
+        float32, noted). Returns a :class:`RelaxResult`; a SimulationError
         (invalid state) propagates."""
+        if self.model.np_scalar != np.float64 and not self.steps:
+            self._rebuild(prepare_relax)  # float64, as magsoro run --equilibrium (prepare_relax)
+        elif self.model.np_scalar != np.float64:
+            self._note("relax: this simulation has taken steps in float32, so it relaxes in float32, whose round-off "
+                       "may stall short of the equilibrium (build it with simulation.precision = 'float64')")
         settings = self.solver.settings
-        damping, cfl0 = settings.damping, settings.cfl
+        damping, profile, cfl0 = settings.damping, settings.damping_profile, settings.cfl
         if cfl is not None:
             if not 0.0 < cfl <= 1.0:
                 raise ValueError(f"relax: cfl must be in (0, 1], got {cfl!r}")
             settings.cfl = float(cfl)
         if not viscous:
-            settings.damping = 0.0
+            settings.damping, settings.damping_profile = 0.0, None
         t_freeze = self.state.time
         wall0 = _time.perf_counter()
         prev_e, prev_v = 0.0, 0.0
@@ -813,7 +984,7 @@ class Simulation:
                 if callback is not None:
                     callback(self)
         finally:
-            settings.damping, settings.cfl = damping, cfl0
+            settings.damping, settings.damping_profile, settings.cfl = damping, profile, cfl0
             if n_colliders:
                 # the last complete cycle's forces were read at its peak; without one, those of the steps taken
                 rest = self._take_impulse(n_colliders)

@@ -30,6 +30,11 @@ def register(sub):
                         "form) under the loads at t = duration, the fields scaled by each of [static] levels; writes one "
                         "metrics row and frame per level (first column 'level'); or, with [static] times, the equilibria along the "
                         "scene's paths at those times (first column 'time'); rigid colliders, no contact between bodies yet")
+    p.add_argument("--from", dest="from_run", metavar="RUN_DIR",
+                   help="start from the final state of an earlier run (its folder or its final.npz): positions, "
+                        "velocities, deformation gradients, Prony internal stresses and its time, which this run "
+                        "continues for --duration (fields, paths and keyframes see the continued time); the bodies "
+                        "must match. Overrides the scene's [initial] from")
     p.add_argument("--quiet", action="store_true",
                    help="print nothing when the run succeeds: no progress, notes (run.json keeps them) or summary; "
                         "errors and failures still go to stderr")
@@ -49,7 +54,7 @@ def run(args) -> int:
     from magsoro.limits import check_memory, check_steps
     from magsoro.scene import load_scene
     from magsoro.scene.load import read_scene_toml
-    from magsoro.simulation import Simulation, check_run_length, prepare_static
+    from magsoro.simulation import Simulation, check_run_length, prepare_relax, prepare_static
 
     from magsoro.console import configure_warp
 
@@ -69,9 +74,12 @@ def run(args) -> int:
             prepare_static(scene)  # float64, total form: the rule Simulation.solve_static follows
         except SceneError as exc:
             raise SceneError(f"{args.scene}: {exc}") from None
+    relax_notes = prepare_relax(scene) if getattr(args, "equilibrium", False) and not static else []
     allow_large = getattr(args, "allow_large", False)
     check_memory(scene, args.scene, allow_large)  # before anything is allocated
     sim = Simulation(scene, device=args.device, source=args.scene)
+    for text in relax_notes:
+        sim.note(text)
     if static:
         from magsoro.errors import SimulationError
         from magsoro.mpm.static import check_supported
@@ -88,6 +96,7 @@ def run(args) -> int:
             check_implicit_supported(sim)
         except SimulationError as exc:
             raise SceneError(f"{args.scene}: {exc}") from None
+    _start(args, scene, sim)
     echo = read_scene_toml(args.scene)
     if preview:
         from magsoro.scene.load import apply_preview
@@ -101,17 +110,20 @@ def run(args) -> int:
     writer = RunWriter(args.out, sim, echo, particles=scene.output.particles)
     shown = _print_notes(sim, "magsoro run", quiet=args.quiet)  # what the scene may not mean, before the run rather than after it
     if getattr(args, "equilibrium", False):
-        return _relax(args, sim, writer, duration, wall0, shown)
+        return _relax(args, sim, writer, sim.time + duration, wall0, shown)
     if static:
         return _static(args, sim, writer, wall0, shown)
     from magsoro.console import SettleWatch
+    from magsoro.simulation import DriftWatch
 
-    show = _DynamicProgress(duration, enabled=not args.quiet)
+    show = _DynamicProgress(duration, enabled=not args.quiet, t0=sim.time)
     settle = SettleWatch()
+    drift = DriftWatch(sim.model.dx, sim.model.precision)
 
     def record(s):
         writer.record(s)
         settle.sample(s)
+        drift.sample(s)
 
     def heartbeat(s):
         writer.beat(s)
@@ -129,6 +141,9 @@ def run(args) -> int:
     finally:
         show.close()
     settled, why = settle.verdict(sim.model.dx)
+    writer.info["drift"], creep = drift.report()  # the precision report: bodies creeping while at rest
+    if creep is not None:
+        sim.note(creep, scene=True)
     writer.info["settled"] = {"settled": settled, "criterion": why, "kinetic_energy": settle.energies[-1:],
                               "max_speed": settle.speeds[-1:]}
     with _signals_deferred():  # run.json's status and the exit status must agree
@@ -137,13 +152,28 @@ def run(args) -> int:
         return _report_run(args, sim, result, time.perf_counter() - wall0, (settled, why))
 
 
+def _start(args, scene, sim) -> None:
+    """--from RUN_DIR, else the scene's [initial] from (relative to the scene file): start ``sim`` from that run's
+    final state (:meth:`magsoro.simulation.Simulation.start_from`), refusing in one line what does not match."""
+    from pathlib import Path
+
+    if getattr(args, "from_run", None) is not None:
+        sim.start_from(args.from_run, key="--from")
+    elif scene.initial.from_ is not None:
+        base = scene.base_dir
+        path = Path(scene.initial.from_)
+        path = path if path.is_absolute() or base is None else Path(base) / path
+        sim.start_from(path, key=f"{args.scene}: initial.from")
+
+
 class _DynamicProgress:
     """Progress of a dynamic run on stderr: a tqdm bar on a terminal, else a plain line every few seconds."""
 
-    def __init__(self, duration: float, enabled: bool):
+    def __init__(self, duration: float, enabled: bool, t0: float = 0.0):
         from magsoro.console import Progress, is_terminal
 
         self.duration = duration
+        self.t0 = t0  # the time the run starts at (--from: the earlier run's)
         self.wall0 = time.perf_counter()
         self.steps0 = None
         self.bar = None
@@ -176,16 +206,16 @@ class _DynamicProgress:
         if self.bar is not None:
             if record or now - self.last_bar > 0.2:
                 self.last_bar = now
-                self.bar.n = min(s.time, self.duration)
+                self.bar.n = min(s.time - self.t0, self.duration)
                 self.bar.set_postfix_str(post, refresh=False)
                 self.bar.refresh()
             return
         from magsoro.console import clock
 
-        done = min(s.time / self.duration, 1.0) if self.duration > 0 else 1.0
+        done = min((s.time - self.t0) / self.duration, 1.0) if self.duration > 0 else 1.0
         elapsed = now - self.wall0
         left = f", about {clock(elapsed * (1 - done) / done)} left" if done > 0 else ""
-        self.lines.update(f"t = {s.time:.4g} of {self.duration:.4g} s ({100 * done:.0f} %), {post.replace('=', ' ')}, "
+        self.lines.update(f"t = {s.time:.4g} of {self.t0 + self.duration:.4g} s ({100 * done:.0f} %), {post.replace('=', ' ')}, "
                           f"{clock(elapsed)} elapsed{left}")
 
     def close(self) -> None:
@@ -297,7 +327,9 @@ def _static(args, sim, writer, wall0: float, shown: int = 0) -> int:
 
     try:
         with writer.beating(), watch:  # a level's Newton iterations can take minutes between records
-            res = sim.solve_static(on_level=on_level, watch=watch.attach)
+            # from an earlier run's state (--from) the loads are those at the end of this phase, t0 + duration
+            t_loads = None if along_paths or sim.started_from is None else sim.time + sim.scene.simulation.duration
+            res = sim.solve_static(on_level=on_level, watch=watch.attach, t=t_loads)
         status, message, wall = ("completed" if res.converged else "failed"), res.message, res.wall_time
         writer.info["static"] = {"converged": res.converged, "levels": [asdict(r) for r in res.levels],
                                  "residual_evaluations": res.residual_evaluations, "wall_time": res.wall_time,

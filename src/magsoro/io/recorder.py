@@ -1,5 +1,8 @@
 """Write a run's results to a directory: run.json, metrics.csv, frames/*.vtp + particles.pvd, final.npz.
 
+final.npz holds the particle arrays and what another run needs to start from it (``magsoro run --from``,
+:mod:`magsoro.io.start`).
+
 Every file is replaced atomically; run.json says 'running' until the run ends, then 'completed', 'failed' or
 'interrupted', so a reader can always tell a finished result from a partial one. While it runs, run.json carries
 the process id and a heartbeat time, so a run killed without a chance to write (SIGKILL) reads as stale
@@ -72,6 +75,8 @@ class RunWriter:
             # what this run writes here, and so all that --overwrite may remove (magsoro.io.outdir.RUN_FILES)
             "files": list(RUN_FILES),
         }
+        if getattr(sim, "started_from", None) is not None:  # --from / [initial] from: the state this run continues
+            self.info["initial"] = dict(sim.started_from)
         # remove leftovers of an earlier run in the same folder, so no stale file looks like ours
         for stale in ("final.npz", "last_good.npz", "metrics.csv", "particles.pvd"):
             (self.dir / stale).unlink(missing_ok=True)
@@ -153,7 +158,8 @@ class RunWriter:
         message = result.message
         name = "last_good.npz" if result.status == "failed" else "final.npz"
         try:
-            atomic_save_npz(self.dir / name, time=sim.time, **p)
+            extra = sim.restart_arrays() if hasattr(sim, "restart_arrays") else {}  # what --from needs to continue
+            atomic_save_npz(self.dir / name, time=sim.time, **p, **extra)
         except OutputError as exc:
             message = f"{message}; {name} not written: {exc}" if message else f"{name} not written: {exc}"
         self.info.update(

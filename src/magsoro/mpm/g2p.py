@@ -93,10 +93,12 @@ def make_g2p(dim: int, scalar, two_fields: bool = False, differentiable: bool = 
         xp = x_in[p]
         xc = x_cur[p]
         o = out[0]
-        if bodies[0].clamped[p] != 0:
-            # held particles keep their place and shape
-            o.x[p] = xc
-            o.v[p] = vec()
+        code = bodies[0].clamped[p]
+        if code != 0:
+            # held particles keep their shape and move with their clamp (at rest unless it follows a path)
+            vc = bodies[0].clamp_velocity[code]
+            o.x[p] = xc + dts * vc
+            o.v[p] = vc
             o.C[p] = mat()
             o.F[p] = F_in[p]
         else:

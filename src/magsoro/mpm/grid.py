@@ -53,6 +53,7 @@ def grid_settings_struct(dim: int, scalar):
         stepped: int
         collider_impulse: wp.array(dtype=wp.float64)
         record_impulse: int
+        clamp_velocity: wp.array(dtype=vec)  # velocity of held nodes per clamp code (Bodies.clamp_velocity)
 
     return GridSettings
 
@@ -166,10 +167,14 @@ def make_grid(dim: int, scalar, two_fields: bool = False, differentiable: bool =
         colliders."""
         idx = wp.tid()
         m = grid_m[idx]
-        held = grid_clamp[idx] != 0
+        code = grid_clamp[idx]
+        held = code != 0
         if wp.static(not two_fields):
-            if m <= scalar(0.0) or held:
-                grid_v[idx] = vec()  # empty or held node: most of the grid block
+            if m <= scalar(0.0):
+                grid_v[idx] = vec()  # empty node: most of the grid block
+                return
+            if held:  # a held node moves with its clamp (at rest unless the clamp follows a path)
+                grid_v[idx] = gs.clamp_velocity[code]
                 return
         n = node_of_flat(idx, shape) + org
         pos = vec()
@@ -181,6 +186,8 @@ def make_grid(dim: int, scalar, two_fields: bool = False, differentiable: bool =
         vel = vec()
         if m > scalar(0.0) and not held:
             vel = node_velocity(grid_p[idx], m, pos0, gs)
+        elif m > scalar(0.0):
+            vel = gs.clamp_velocity[code]
         if wp.static(two_fields):
             slot = idx + ct[0].n_nodes
             m1 = grid_m[slot]

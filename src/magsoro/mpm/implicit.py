@@ -9,7 +9,7 @@ A step from t_n to t_{n+1} = t_n + dt solves, for u_{n+1},
 
 with R the static solver's node force (every elastic law, magnetic stress and gradient force, gravity, colliders
 with Coulomb friction, pressure loads, eigenstrains, clamps as held nodes) and c the scene's mass damping
-(simulation.damping, f = -c p, as in the explicit engine). This is the stationarity condition of the incremental
+(simulation.damping, f = -c p, as in the explicit engine; a damping profile at the step's load time t_a). This is the stationarity condition of the incremental
 potential 1/2 |u - u_pred|^2_M / (beta dt^2) + E(u) - W_ext(u) (Gast et al. 2015) for conservative loads; friction
 enters as the static solver's lagged Coulomb law, its anchors updated after each step. Prony materials keep their
 internal stresses (:mod:`magsoro.mpm.viscous`): each trial F of a step takes them updated over [t_n, t_a] to itself,
@@ -43,7 +43,6 @@ import numpy as np
 import warp as wp
 
 from magsoro.errors import SimulationError
-from magsoro.mpm.linear import factor
 from magsoro.mpm.static import StaticSolver, check_supported
 
 #: the step's force scale is never below the force of this strain over one cell face of the stiffest material
@@ -69,11 +68,6 @@ KEEP_DT_RTOL = 1.0e-6
 #: one factorisation for many solves: 7 ms a solve against 0.4 s a factorisation on the 3D strip's 8937 unknowns);
 #: the bound is the factorisation's memory (a 3D tangent of about 70,000 unknowns needed more than 23 GB)
 DIRECT_MAX_UNKNOWNS = 50_000
-#: _project's least squares is shifted by this fraction of its median diagonal (regular where a node moves nothing)
-PROJECT_SHIFT = 1.0e-16
-#: and refined this many times on the fit's own residual (the normal equations square the light nodes' condition: the
-#: settled strip's lightest nodes came back 4e-7 cells off unrefined, 6e-10 after three refinements)
-PROJECT_REFINEMENTS = 3
 #: Anderson acceleration of the iterations with a kept tangent (class Anderson): the iterates it mixes, and how many
 #: times longer than the plain step a mixed step may be
 ANDERSON_DEPTH = 5
@@ -173,7 +167,6 @@ def check_implicit_supported(sim) -> None:
 
 class ImplicitIntegrator(StaticSolver):
     _inertia = None  # (scheme, dt, u_n, v_n, a_n) while a step's Newton runs; None: the static solver's residual
-    _projector = None  # (Q^T W, factorisation) of _project's least squares, made once
     _anderson = None  # the Anderson history of the kept tangent's iterations (class Anderson), kept across steps
     _scattered = None  # the node displacements of the last evaluation of a step's balance (None: another since)
     direct_max_unknowns = DIRECT_MAX_UNKNOWNS
@@ -197,7 +190,6 @@ class ImplicitIntegrator(StaticSolver):
         self._set_collider_time(self.t)
         self.field_time = self.t
         self.field_level = self.gravity_level = 1.0
-        self.damping = float(self.solver.settings.damping)
         from scipy import sparse
 
         free_mass = np.repeat(self.node_mass[self.free], self.dim)
@@ -209,6 +201,13 @@ class ImplicitIntegrator(StaticSolver):
         self._start_from_state()
         self.a_nodes = self.consistent_acceleration()
 
+    @property
+    def damping(self) -> float:
+        """The mass damping c (1/s) of simulation.damping: during a step at its load time t_a (the residual and its
+        tangent alike), else at the current time; a damping profile is followed in time."""
+        t = self.t + self._dt_a() if self._inertia is not None else self.t
+        return self.solver.settings.damping_at(t)
+
     def light_fraction(self) -> float:
         """No node is slaved: the mass term makes the step's tangent definite along the combinations of light nodes
         that move no particle (the static solver's reason to slave them in 3D), and slaving stiffens the body. The
@@ -217,49 +216,6 @@ class ImplicitIntegrator(StaticSolver):
         return 0.0
 
     # -- the state on the nodes -----------------------------------------------------------------------------
-    def _project(self, values: np.ndarray, gradients: np.ndarray) -> np.ndarray:
-        """Node values (n_nodes, dim) on the unknowns (held nodes zero) whose interpolation best fits the particles'
-        ``values`` (n_particles, dim) and their reference gradients ``gradients`` (n_particles, dim, dim: d value_a /
-        dX_b), in the mass-weighted least-squares sense with the gradients weighted by dx^2 (clamped particles left
-        out: they do not follow their nodes). The gradients matter:
-        combinations of light nodes at a body's faces move no particle but change the particles' F, so a fit of the
-        positions alone leaves them free, and a state at rest came back out of balance (the 3D strip of
-        benchmarks/implicit_vs_explicit.py, settled: its light nodes 4 cells, its face nodes 0.13 cells from where
-        they were, |R| from 6e-9 to 1e-2 N; with the gradients it came back to 1e-10 cells)."""
-        from scipy import sparse
-
-        if self._projector is None:
-            # the integrator slaves no node (light_fraction), so the unknowns are the free nodes' components and the
-            # fit splits into one scalar least-squares problem per component, with the same matrix
-            assert self.E.shape[0] == self.E.shape[1], "the implicit integrator slaves no node"
-            P = self.interpolation()[:, self.free]
-            nodes, _, grad = self._stencil()
-            rows = np.repeat(np.arange(self.model.n_particles), nodes.shape[1])
-            column = np.full(self.n_nodes, -1)
-            column[self.free] = np.arange(len(self.free))
-            cols, keep = column[nodes.ravel()], column[nodes.ravel()] >= 0
-            dx = float(self.model.dx)
-            blocks = [P] + [sparse.csr_matrix((dx * grad[:, :, b].ravel()[keep], (rows[keep], cols[keep])),
-                                              shape=P.shape) for b in range(self.dim)]
-            Q = sparse.vstack(blocks, format="csr")
-            # clamped particles stay where they are whatever their nodes do (the static solver's placement)
-            mass = np.where(self.model.host["clamped"] != 0, 0.0, self.model.host["mass"].astype(np.float64))
-            QtW = (Q.T @ sparse.diags(np.tile(mass, self.dim + 1))).tocsr()
-            A = (QtW @ Q).tocsc()
-            shift = PROJECT_SHIFT * float(np.median(np.abs(A.diagonal()))) if A.shape[0] else 0.0
-            self._projector = (Q, QtW, factor(A + shift * sparse.identity(A.shape[0], format="csc")))
-        Q, QtW, lu = self._projector
-        dx = float(self.model.dx)
-        gradients = np.asarray(gradients, dtype=np.float64)
-        data = np.concatenate([np.asarray(values, dtype=np.float64)] + [dx * gradients[:, :, b] for b in range(self.dim)])
-        # the normal equations square Q's condition (the light nodes'): refined on the residual of the fit itself
-        x = np.zeros((Q.shape[1], self.dim))
-        for _ in range(PROJECT_REFINEMENTS + 1):
-            x = x + lu.solve(QtW @ (data - Q @ x))
-        out = np.zeros((self.n_nodes, self.dim))
-        out[self.free] = x
-        return out
-
     def _free_dofs(self) -> np.ndarray:
         return (self.free[:, None] * self.dim + np.arange(self.dim)[None, :]).ravel()
 
@@ -273,10 +229,10 @@ class ImplicitIntegrator(StaticSolver):
         v = state.v.numpy().astype(np.float64)[:, :dim]
         F = state.F.numpy().astype(np.float64)[:, :dim, :dim]
         if np.any(d != 0.0):
-            self.u_nodes = self._project(d, F - np.eye(dim))
+            self.u_nodes = self.fit_nodes(d, F - np.eye(dim))
         if np.any(v != 0.0):  # with dF/dt = C F, C the state's velocity gradient
             C = state.C.numpy().astype(np.float64)[:, :dim, :dim]
-            self.v_nodes = self._project(v, np.einsum("pab,pbc->pac", C, F))
+            self.v_nodes = self.fit_nodes(v, np.einsum("pab,pbc->pac", C, F))
 
     def consistent_acceleration(self) -> np.ndarray:
         """a = M^-1 R(u) at the current state (the acceleration the loads give; generalised-alpha starts from it)."""

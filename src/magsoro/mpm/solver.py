@@ -138,6 +138,7 @@ def grid_settings(model: "Model", settings: "SolverSettings", gravity, colliders
     gs.wall_friction = sc(settings.wall_friction)
     gs.colliders = colliders
     gs.n_colliders = n_colliders
+    gs.clamp_velocity = model.clamp_velocity
     gs.plane_z = wp.float64(settings.plane_z)
     total = settings.formulation == "total"
     gs.node_shift = 1 if total else 0
@@ -168,6 +169,7 @@ def bodies_array(model: "Model", cut=lambda arr: arr, step: wp.array | None = No
     b.vol0, b.mass, b.shear, b.bulk = cut(model.vol0), cut(model.mass), cut(model.shear), cut(model.bulk)
     b.material_model, b.material_params = cut(model.material_model), cut(model.material_params)
     b.Br, b.follows, b.clamped = cut(model.Br), cut(model.follows), cut(model.clamped)
+    b.clamp_velocity = model.clamp_velocity  # indexed by clamp code, not by particle: never cut
     # the stimulus tables are indexed by each particle's stimulus row, not by particle: never cut
     b.stimulus, b.stretch_inv, b.stretch_scale = cut(model.stimulus), model.stretch_inv, model.stretch_scale
     b.n_stimuli = len(model.stimuli)
@@ -310,6 +312,10 @@ class Model:
         pressure_area=None,
         pressure_row=None,
         pressures=(),
+        clamp_row=None,
+        clamp_paths=(),
+        initial_displacement=None,
+        initial_deformation=None,
     ):
         if precision not in PRECISIONS:
             raise ValueError(f"precision must be one of {sorted(PRECISIONS)}, got {precision!r}")
@@ -360,7 +366,12 @@ class Model:
         self.follows = wp.array(h["magnetization_follows"], dtype=wp.int32, device=dev)
         self.material_params = wp.array(h["material_params"].astype(s), dtype=k["vprm"], device=dev)
         self.body = wp.array(h["body"], dtype=wp.int32, device=dev)
-        self.clamped = wp.array(h["clamped"].astype(np.int32), dtype=wp.int32, device=dev)
+        self._init_clamps(clamp_row, clamp_paths)
+        # an initial displacement u (N, dim) m and the F = I + grad u that goes with it (new states start there)
+        if initial_displacement is not None:
+            h["initial_displacement"] = np.asarray(initial_displacement, dtype=np.float64).reshape(n, self.dim).copy()
+        if initial_deformation is not None:
+            h["initial_deformation"] = np.asarray(initial_deformation, dtype=np.float64).reshape(n, self.dim, self.dim).copy()
         # contact groups (magsoro.mpm.contact): bodies that move as one piece share one; default one per body
         group = h["body"] if contact_group is None else np.broadcast_to(np.asarray(contact_group, dtype=np.int32), (n,)).copy()
         if np.any(group < 0):
@@ -388,6 +399,60 @@ class Model:
         if self._placeholder_impulse is None:
             self._placeholder_impulse = wp.zeros(3, dtype=wp.float64, device=self.device)
         return self._placeholder_impulse
+
+    def _init_clamps(self, rows, paths) -> None:
+        """Held particles and moving clamps. ``clamp_paths``: per moving clamp its path (times (K,) s increasing,
+        displacements (K, dim) m of the clamped region from its reference place, linear between, held outside the
+        table); ``clamp_row`` (N,) int the path of each held particle (-1: held in place). The kernels' clamp code
+        of a particle (``clamped``): 0 free, 1 held in place, 2 + row on a path; ``clamp_velocity`` (2 + paths,
+        dim) is the velocity of each code over the current step (codes 0 and 1: zero), which :meth:`update_clamps`
+        sets before every step."""
+        n, dim, h, dev = self.n_particles, self.dim, self.host, self.device
+        self.clamp_paths = []
+        for times, disp in paths:
+            times = np.asarray(times, dtype=np.float64).ravel()
+            disp = np.asarray(disp, dtype=np.float64).reshape(len(times), dim)
+            if len(times) == 0 or np.any(np.diff(times) <= 0) or not np.all(np.isfinite(disp)):
+                raise ValueError("a clamp path needs increasing times and finite displacements, one per time")
+            self.clamp_paths.append((times, disp))
+        rows = np.broadcast_to(np.asarray(-1 if rows is None else rows, dtype=np.int32), (n,)).copy()
+        if np.any(rows < -1) or np.any(rows >= len(self.clamp_paths)):
+            raise ValueError(f"clamp_row must be -1 (none) or a row of the {len(self.clamp_paths)} clamp paths")
+        rows[~h["clamped"]] = -1
+        h["clamp_row"] = rows
+        h["clamp_code"] = np.where(h["clamped"], np.where(rows >= 0, rows + 2, 1), 0).astype(np.int32)
+        self.clamped = wp.array(h["clamp_code"], dtype=wp.int32, device=dev)
+        self.clamp_velocity = wp.zeros(2 + len(self.clamp_paths), dtype=self.kernels["vec"], device=dev)
+        self._clamp_values = None
+
+    def clamp_displacement(self, row: int, t: float) -> np.ndarray:
+        """The displacement (dim,) m of clamp path ``row`` at time ``t`` (linear between its times, held outside)."""
+        times, disp = self.clamp_paths[row]
+        return np.array([np.interp(t, times, disp[:, a]) for a in range(self.dim)])
+
+    def clamp_positions(self, t: float) -> np.ndarray:
+        """The positions (N, dim) m the held particles take at time ``t`` (reference positions plus their clamp's
+        displacement); free particles' rows hold their reference positions."""
+        X = self.host["positions"].copy()
+        for row in range(len(self.clamp_paths)):
+            X[self.host["clamp_row"] == row] += self.clamp_displacement(row, t)
+        return X
+
+    def update_clamps(self, t: float, dt: float) -> bool:
+        """Set the moving clamps' velocities the kernels read for the step from ``t`` to ``t + dt``: the path's
+        displacement over the step divided by dt, so that the held particles' positions, summed step by step, land
+        on the path. Copies only when a value changed; returns whether it copied."""
+        if not self.clamp_paths or not dt > 0:
+            return False
+        v = np.zeros((2 + len(self.clamp_paths), self.dim))
+        for row in range(len(self.clamp_paths)):
+            v[2 + row] = (self.clamp_displacement(row, t + dt) - self.clamp_displacement(row, t)) / dt
+        key = v.tobytes()
+        if key == self._clamp_values:
+            return False
+        self.clamp_velocity.assign(v.astype(self.np_scalar))
+        self._clamp_values = key
+        return True
 
     def _init_pressures(self, area, rows, pressures) -> None:
         """Pressure loads (:func:`magsoro.scene.build.pressure_faces`): per particle its reference face area vector
@@ -627,6 +692,24 @@ class SolverSettings:
     magnetic_interaction: InteractionMode = "none"  # "dipole": the bodies' own field acts on them (magsoro.mpm.interaction)
     interaction_every: int = 1  # steps between refreshes of the bodies' field
     depth: float = 1.0  # 2D: the out-of-plane thickness the particle volumes include (m), for the 2D field
+    # damping in time ((times, values), linear between, held outside; simulation.damping = { times, values }): None
+    # for a constant ``damping``. A profile given as ``damping`` (a table with times and values) is moved here.
+    damping_profile: tuple | None = None
+
+    def __post_init__(self):
+        d = self.damping
+        if not isinstance(d, (int, float)):
+            times, values = (d["times"], d["values"]) if isinstance(d, dict) else (d.times, d.values)
+            self.damping_profile = (tuple(float(t) for t in times), tuple(float(v) for v in values))
+        if self.damping_profile is not None:
+            self.damping = self.damping_profile[1][0]
+        self.damping = float(self.damping)
+
+    def damping_at(self, t: float) -> float:
+        """The damping c (1/s) at time ``t`` (s): ``damping``, or the profile's value there."""
+        if self.damping_profile is None:
+            return self.damping
+        return float(np.interp(t, *self.damping_profile))
 
 
 class Solver:
@@ -766,14 +849,19 @@ class Solver:
 
     # -- states -------------------------------------------------------------------------------------------
     def new_state(self, velocity=None) -> State:
-        """A state at the reference configuration (F = I) with optional initial velocities (N, dim) m/s."""
+        """A state at the reference configuration (F = I), or at the model's initial displacement and its F, with
+        optional initial velocities (N, dim) m/s."""
         m, k = self.model, self.k
         n, dim = m.n_particles, m.dim
         v = np.zeros((n, dim)) if velocity is None else np.broadcast_to(np.asarray(velocity, dtype=np.float64), (n, dim))
         eye = np.broadcast_to(np.eye(dim), (n, dim, dim))
+        x0 = m.host["positions"]
+        if "initial_displacement" in m.host:  # a body that starts displaced and strained (Model initial_displacement)
+            x0 = x0 + m.host["initial_displacement"]
+        eye = m.host.get("initial_deformation", eye)
         s = m.np_scalar
         return State(
-            x=wp.array(m.host["positions"].astype(s), dtype=k["vec"], device=m.device),
+            x=wp.array(x0.astype(s), dtype=k["vec"], device=m.device),
             v=wp.array(np.ascontiguousarray(v, dtype=s), dtype=k["vec"], device=m.device),
             C=wp.zeros(n, dtype=k["mat"], device=m.device),
             F=wp.array(np.ascontiguousarray(eye, dtype=s), dtype=k["mat"], device=m.device),
@@ -893,11 +981,15 @@ class Solver:
         """Held-node mask of the grid block for the total-Lagrangian form (flat, int32): a node is held when at
         least half of the mass the reference particles give it comes from clamped particles. For a clamped region
         whose face lies on a lattice line this holds the nodes up to and including the face, where the
-        updated-Lagrangian rule (every node a clamped particle touches) holds one more layer."""
+        updated-Lagrangian rule (every node a clamped particle touches) holds one more layer. A held node's value
+        is the clamp code (Model ``clamped``) that gives it the most mass: 1 held in place, 2 + row on a path."""
         m, dim = self.model, self.dim
         X = m.host["positions"]
         mass = m.host["mass"]
         held_p = m.host["clamped"]
+        codes = m.host["clamp_code"]
+        n_codes = int(codes.max()) + 1
+        by_code = np.zeros((max(n_codes - 1, 0), int(np.prod(self.shape)))) if n_codes > 2 else None
         base, _, w = host_bspline(X, m.domain_lo, m.dx)
         n_nodes = int(np.prod(self.shape))
         total = np.zeros(n_nodes)
@@ -912,7 +1004,14 @@ class Solver:
                 flat = flat * int(self.shape[a]) + (local[:, a] + o[a])
             total += np.bincount(flat, weights=weight, minlength=n_nodes)
             clamped += np.bincount(flat[held_p], weights=weight[held_p], minlength=n_nodes)
-        return ((total > 0) & (clamped >= (0.5 - 1e-9) * total)).astype(np.int32)
+            if by_code is not None:
+                for c in range(1, n_codes):
+                    mine = codes == c
+                    by_code[c - 1] += np.bincount(flat[mine], weights=weight[mine], minlength=n_nodes)
+        held = ((total > 0) & (clamped >= (0.5 - 1e-9) * total)).astype(np.int32)
+        if by_code is not None:  # moving clamps: each held node follows the clamp that gives it the most mass
+            held = np.where(held != 0, 1 + np.argmax(by_code, axis=0), 0).astype(np.int32)
+        return held
 
     def enable_phase_timing(self, on: bool = True) -> None:
         """Time the phases of each step (p2g, grid, g2p, other) into ``phase_times`` (seconds, summed).
@@ -1135,12 +1234,9 @@ class Solver:
             self.open_window()
         b0, has_gradient = self._particle_fields(control, state_in)
         self._update_colliders(control, t)
-        if self.model.stimuli:
-            self.model.update_stimuli(t)
-        if self.model.pressures:
-            self.model.update_pressures(t)
+        self._update_drives(t, dt)
         L = self._launch_set(state_in, state_out, control, has_gradient)
-        self._set_step_values(b0, dt)
+        self._set_step_values(b0, dt, t)
         self._clear_grid()
         tick = self._phase("other", tick)
         self._scatter(L)
@@ -1159,6 +1255,16 @@ class Solver:
             self._phase("other", tick)
             self._raise_on_error(err, state_in)
             self._check_motion(state_in, dt)
+
+    def _update_drives(self, t: float, dt: float) -> None:
+        """The model's drives over the step from ``t``: the stimuli of eigenstrain materials and the pressures at
+        t, the moving clamps' velocities over [t, t + dt]."""
+        if self.model.stimuli:
+            self.model.update_stimuli(t)
+        if self.model.pressures:
+            self.model.update_pressures(t)
+        if self.model.clamp_paths:
+            self.model.update_clamps(t, dt)
 
     # -- check windows ----------------------------------------------------------------------------------------
     def open_window(self) -> None:
@@ -1225,6 +1331,8 @@ class Solver:
             return "stimulus eigenstrain: the stimulus tables are set on the host at every step"
         if self.model.pressure_ramps:
             return "a pressure ramp: the pressures are set on the host at every step"
+        if self.model.clamp_paths:
+            return "a moving clamp: its velocity over the step is set on the host at every step"
         if self._tcontact:
             return "the total form with contact fits its contact grid to the positions on the host at every step"
         if self.phase_times is not None:
@@ -1327,7 +1435,7 @@ class Solver:
         for k in range(n):
             row = rows[k]
             row[0] = dts[k]
-            row[1] = math.exp(-st.damping * dts[k])
+            row[1] = math.exp(-st.damping_at(times[k]) * dts[k])
             row[2:5] = fields.uniform_value(times[k])
             if n_values:
                 row[5 : 5 + n_values] = collider_table(control.colliders, times[k])
@@ -1488,13 +1596,13 @@ class Solver:
         elif self._collider_array is None:
             self._collider_array = wp.zeros(COLLIDER_STRIDE, dtype=wp.float64, device=self.device)
 
-    def _set_step_values(self, b0, dt: float) -> None:
-        """Uniform field, time step and damping factor of a plain step into the device's Step, written only when they
-        change (CPU: through a numpy view of the same memory)."""
-        values = (tuple(float(b) for b in b0), float(dt), float(self.settings.damping))
+    def _set_step_values(self, b0, dt: float, t: float = 0.0) -> None:
+        """Uniform field, time step and damping factor (the damping at the step's start time ``t``) of a plain step
+        into the device's Step, written only when they change (CPU: through a numpy view of the same memory)."""
+        values = (tuple(float(b) for b in b0), float(dt), self.settings.damping_at(t))
         if values == self._step_written:
             return
-        damping = math.exp(-self.settings.damping * dt)
+        damping = math.exp(-values[2] * dt)
         if self._step_np is not None:
             v = self._step_np
             v["dt"][0], v["damping_factor"][0], v["B_uniform"][0] = dt, damping, values[0]

@@ -106,6 +106,11 @@ ARC_MIN = 1e-4
 LIGHT = {2: 0.0, 3: 1.0e-2}
 #: the tangent's diagonal shift (relative to its median diagonal) that regularises any null mode left
 NULL_SHIFT = 1.0e-12
+#: fit_nodes' least squares is shifted by this fraction of its median diagonal (regular where a node moves nothing)
+PROJECT_SHIFT = 1.0e-16
+#: and refined this many times on the fit's own residual (the normal equations square the light nodes' condition: the
+#: settled strip's lightest nodes came back 4e-7 cells off unrefined, 6e-10 after three refinements)
+PROJECT_REFINEMENTS = 3
 #: with the bodies' own field: the finite-difference step of the Jacobian's products (cells: the largest node
 #: displacement of the probe), the Krylov solver's relative tolerance and its restarts (_solve_linear)
 FD_CELLS = 1.0e-6
@@ -398,6 +403,11 @@ def check_supported(sim, who: str = "the static solver", viscous: bool = False) 
     if any(c.mode == "symmetry" for c in sim.control.colliders):
         raise SimulationError(f"{who} has no symmetry colliders (mirror planes) yet; give them mode = "
                               "'slip' if the body presses on them, or use --equilibrium (relax)")
+    if sim.model.clamp_paths:
+        raise SimulationError(f"{who} has no moving clamps (clamps[].path) yet; run the explicit engine")
+    if "initial_displacement" in sim.model.host:
+        raise SimulationError(f"{who} starts from the undeformed body: it has no bodies[].initial_displacement yet; "
+                              "run the explicit engine")
     if sim.model.viscous and not viscous:
         # the equilibrium under held loads is the relaxed one: the law with its isochoric moduli scaled by g_inf
         raise SimulationError(f"{who} has no viscoelastic (prony) materials; the equilibrium under held loads "
@@ -668,6 +678,52 @@ class StaticSolver:
         """Per particle: flat node indices (N, 3^dim), weights (N, 3^dim) and reference weight gradients (N, 3^dim,
         dim, 1/m) of the engine's quadratic B-splines on the reference grid block (computed once)."""
         return self._stencil()
+
+    def fit_nodes(self, values: np.ndarray, gradients: np.ndarray) -> np.ndarray:
+        """Node values (n_nodes, dim) on the unknowns (held nodes zero) whose interpolation best fits the particles'
+        ``values`` (n_particles, dim) and their reference gradients ``gradients`` (n_particles, dim, dim: d value_a /
+        dX_b), in the mass-weighted least-squares sense with the gradients weighted by dx^2 (clamped particles left
+        out: they do not follow their nodes). The gradients matter:
+        combinations of light nodes at a body's faces move no particle but change the particles' F, so a fit of the
+        positions alone leaves them free, and a state at rest came back out of balance (the 3D strip of
+        benchmarks/implicit_vs_explicit.py, settled: its light nodes 4 cells, its face nodes 0.13 cells from where
+        they were, |R| from 6e-9 to 1e-2 N; with the gradients it came back to 1e-10 cells). Needs a solver that
+        slaves no node (the implicit integrator; the static solver in 2D)."""
+        from scipy import sparse
+
+        if self._projector is None:
+            # without slaved nodes the unknowns are the free nodes' components and the fit splits into one scalar
+            # least-squares problem per component, with the same matrix
+            if self.E.shape[0] != self.E.shape[1]:
+                raise ValueError("fit_nodes: the solver slaves light nodes (3D static solver); the fit takes free "
+                                 "nodes only")
+            P = self.interpolation()[:, self.free]
+            nodes, _, grad = self._stencil()
+            rows = np.repeat(np.arange(self.model.n_particles), nodes.shape[1])
+            column = np.full(self.n_nodes, -1)
+            column[self.free] = np.arange(len(self.free))
+            cols, keep = column[nodes.ravel()], column[nodes.ravel()] >= 0
+            dx = float(self.model.dx)
+            blocks = [P] + [sparse.csr_matrix((dx * grad[:, :, b].ravel()[keep], (rows[keep], cols[keep])),
+                                              shape=P.shape) for b in range(self.dim)]
+            Q = sparse.vstack(blocks, format="csr")
+            # clamped particles stay where they are whatever their nodes do (the static solver's placement)
+            mass = np.where(self.model.host["clamped"] != 0, 0.0, self.model.host["mass"].astype(np.float64))
+            QtW = (Q.T @ sparse.diags(np.tile(mass, self.dim + 1))).tocsr()
+            A = (QtW @ Q).tocsc()
+            shift = PROJECT_SHIFT * float(np.median(np.abs(A.diagonal()))) if A.shape[0] else 0.0
+            self._projector = (Q, QtW, factor(A + shift * sparse.identity(A.shape[0], format="csc")))
+        Q, QtW, lu = self._projector
+        dx = float(self.model.dx)
+        gradients = np.asarray(gradients, dtype=np.float64)
+        data = np.concatenate([np.asarray(values, dtype=np.float64)] + [dx * gradients[:, :, b] for b in range(self.dim)])
+        # the normal equations square Q's condition (the light nodes'): refined on the residual of the fit itself
+        x = np.zeros((Q.shape[1], self.dim))
+        for _ in range(PROJECT_REFINEMENTS + 1):
+            x = x + lu.solve(QtW @ (data - Q @ x))
+        out = np.zeros((self.n_nodes, self.dim))
+        out[self.free] = x
+        return out
 
     def interpolation(self):
         """P (n_particles x n_nodes, sparse CSR): the particles' B-spline weights on the reference grid block, so
@@ -1084,6 +1140,7 @@ class StaticSolver:
     #: 'auto' solves directly up to this many unknowns (None: linear.DIRECT_MAX_UNKNOWNS, read when used)
     direct_max_unknowns = None
     _ordering = None  # the direct solver's fill-reducing ordering of the tangents' pattern (linear.Ordering)
+    _projector = None  # (Q, Q^T W, factorisation) of fit_nodes' least squares, made once
 
     def _linear_kind(self, unknowns: int) -> str:
         """'direct' or 'iterative': the scene's linear_solver, 'auto' decided by the number of unknowns."""

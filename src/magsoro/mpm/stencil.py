@@ -89,6 +89,7 @@ def make_types(dim: int, scalar) -> SimpleNamespace:
         Br: wp.array(dtype=v3)
         follows: wp.array(dtype=wp.int32)
         clamped: wp.array(dtype=wp.int32)
+        clamp_velocity: wp.array(dtype=vec)  # per clamp code (0 free, 1 held in place, 2 + path row): m/s this step
         stimulus: wp.array(dtype=wp.int32)
         stretch_inv: wp.array(dtype=mat)
         stretch_scale: wp.array(dtype=scalar)

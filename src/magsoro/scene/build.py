@@ -309,6 +309,39 @@ class Particles:
     pressure_area: np.ndarray | None = None
     pressure_row: np.ndarray | None = None
     pressures: list = field(default_factory=list)
+    displacement: np.ndarray | None = None  # (N, dim) m: the bodies' initial displacement u(X) (None: none)
+    deformation: np.ndarray | None = None  # (N, dim, dim): F = I + grad u that goes with it
+
+
+def initial_displacement(expressions, X: np.ndarray, step: float):
+    """The displacement u (N, dim) m of expressions ``expressions`` (one per axis, in x, y, z of the reference
+    positions ``X`` (N, dim) m; 2D: z = 0), evaluated safely (:func:`magsoro.geometry.magnetization.compile_expression`),
+    and F = I + grad u (N, dim, dim) from central differences of half-width ``step`` (m), exact for a field linear in
+    X up to rounding. Raises ExpressionError / ValueError for a bad or non-finite expression."""
+    X = np.asarray(X, dtype=np.float64)
+    n, dim = X.shape
+    if len(expressions) != dim:
+        raise ValueError(f"needs {dim} components (one per axis of a {dim}D scene), got {len(expressions)}")
+    funcs = [magprofiles.compile_expression(e) for e in expressions]
+
+    def u_at(Y):
+        xyz = [Y[:, a] for a in range(dim)] + [np.zeros(n)] * (3 - dim)
+        return np.stack([np.broadcast_to(np.asarray(f(*xyz), dtype=np.float64), (n,)) for f in funcs], axis=1)
+
+    u = u_at(X)
+    F = np.broadcast_to(np.eye(dim), (n, dim, dim)).copy()
+    for b in range(dim):
+        e = np.zeros(dim)
+        e[b] = step
+        F[:, :, b] += (u_at(X + e) - u_at(X - e)) / (2.0 * step)
+    if not (np.all(np.isfinite(u)) and np.all(np.isfinite(F))):
+        bad = int(np.flatnonzero(~(np.all(np.isfinite(u), axis=1) & np.all(np.isfinite(F), axis=(1, 2))))[0])
+        raise ValueError(f"not finite (or not differentiable) at x = {X[bad].tolist()} m")
+    det = np.linalg.det(F)
+    if np.any(det <= 0):
+        bad = int(np.flatnonzero(det <= 0)[0])
+        raise ValueError(f"inverts the material (det(I + grad u) = {det[bad]:.3g}) at x = {X[bad].tolist()} m")
+    return u, F
 
 
 def pressure_faces(pts: np.ndarray, occupied: np.ndarray, cavity, lo: np.ndarray, h: float, depth: float) -> np.ndarray:
@@ -477,6 +510,20 @@ def fill_bodies(scene: Scene, source: str = "scene", magnetization=None) -> Part
             pressure_row[start : start + n_b][loaded] = len(pressures)
             pressures.append((float(b.pressure.value), float(b.pressure.ramp)))
         start += n_b
+    displacement = deformation = None
+    if any(b.initial_displacement is not None for b in scene.bodies):
+        displacement = np.zeros((len(X), dim))
+        deformation = np.broadcast_to(np.eye(dim), (len(X), dim, dim)).copy()
+        start = 0
+        for b, pb in zip(scene.bodies, per_body):
+            n_b = len(pb["pts"])
+            if b.initial_displacement is not None and n_b:
+                try:
+                    u, F = initial_displacement(b.initial_displacement.expression, pb["pts"], 1e-3 * h)
+                except (ValueError, TypeError, ArithmeticError) as exc:  # ExpressionError included
+                    raise SceneError(f"{pb['src']}: {pb['key']}.initial_displacement.expression: body '{b.name}': {exc}") from None
+                displacement[start : start + n_b], deformation[start : start + n_b] = u, F
+            start += n_b
     stimuli, pronies = [], []
     for pb in per_body:  # one row per body whose material has a stimulus, one per body with a Prony series
         pb["stimulus_row"] = -1 if pb["stimulus"] is None else len(stimuli)
@@ -507,6 +554,8 @@ def fill_bodies(scene: Scene, source: str = "scene", magnetization=None) -> Part
         pressure_area=pressure_area,
         pressure_row=pressure_row,
         pressures=pressures,
+        displacement=displacement,
+        deformation=deformation,
     )
 
 
@@ -657,12 +706,16 @@ def contact_settings(scene: Scene, groups: np.ndarray, names: list[str], source:
     return ContactSettings(table, self_contact=c.self_contact, fold_spread=c.fold_spread)
 
 
-def held_particles(scene: Scene, p: Particles, source: str = "scene") -> np.ndarray:
+def held_particles(scene: Scene, p: Particles, source: str = "scene", paths: list | None = None) -> np.ndarray:
     """(N,) bool: the particles of ``p`` (from :func:`fill_bodies`) that are held, those of clamped bodies and
     those inside a ``[[clamps]]`` region (of its body, when it names one). SceneError for a region that holds no
-    particle."""
+    particle. ``paths``: a list that receives the moving clamps, (row (N,) int: each particle's path or -1,
+    [(times, displacements), ...]); a particle in two clamps follows the later one."""
     base_dir = scene.base_dir
     clamped = p.clamped.copy()
+    dim = scene.simulation.dim
+    rows = np.full(len(clamped), -1, dtype=np.int32)
+    tables = []
     for i, c in enumerate(scene.clamps):
         try:
             region = make_shape(c.region, base_dir, scene.simulation.dim)
@@ -674,6 +727,23 @@ def held_particles(scene: Scene, p: Particles, source: str = "scene") -> np.ndar
         if not inside.any():
             raise SceneError(f"{source}: clamps[{i}].region: holds no particle; check the region against the bodies")
         clamped |= inside
+        if c.path is not None:
+            disp = np.zeros((len(c.path.positions), dim))
+            for j, v in enumerate(c.path.positions):
+                if len(v) != dim:
+                    raise SceneError(f"{source}: clamps[{i}].path.positions[{j}]: needs {dim} components in a {dim}D scene, got {len(v)}")
+                disp[j] = v
+            times = np.asarray(c.path.times, dtype=np.float64)
+            start = [np.interp(0.0, times, disp[:, a]) for a in range(dim)]
+            if np.any(np.abs(start) > 0.0):
+                raise SceneError(f"{source}: clamps[{i}].path: the displacement at t = 0 is {start} m; it must be zero "
+                                 f"(the held particles start at their reference positions)")
+            rows[inside] = len(tables)
+            tables.append((times, disp))
+        else:
+            rows[inside] = -1
+    if paths is not None:
+        paths[:] = [rows, tables]
     return clamped
 
 
@@ -697,7 +767,9 @@ def build(scene: Scene, device: str | None = None, source: str = "scene", magnet
         except ValueError as exc:  # MeshError included
             raise SceneError(f"{source}: {key}: {exc}") from None
 
-    clamped = held_particles(scene, p, source)
+    moving = []
+    clamped = held_particles(scene, p, source, moving)
+    clamp_row, clamp_paths = moving
     body_group = contact_groups(scene, X, body_id)
     contact = contact_settings(scene, body_group, names, source)
     model = Model(
@@ -706,7 +778,8 @@ def build(scene: Scene, device: str | None = None, source: str = "scene", magnet
         material_model=p.material_model, material_params=p.material_params, contact_group=body_group[body_id],
         stimulus=p.stimulus, stimuli=p.stimuli, magnetization_follows=p.magnetization_follows,
         prony=p.prony, pronies=p.pronies, pressure_area=p.pressure_area, pressure_row=p.pressure_row,
-        pressures=p.pressures,
+        pressures=p.pressures, clamp_row=clamp_row, clamp_paths=clamp_paths,
+        initial_displacement=p.displacement, initial_deformation=p.deformation,
     )
     report = p.report
     p_vel = p.velocity
@@ -720,6 +793,12 @@ def build(scene: Scene, device: str | None = None, source: str = "scene", magnet
     touching = contact.active(int(body_group.max()) + 1)
     # 'auto': the form that settles, unless bodies (or parts of one) touch each other
     formulation = ("updated" if touching else "total") if sim.formulation == "auto" else sim.formulation
+    if clamp_paths and formulation == "updated" and sim.integrator == "explicit":
+        i = next(i for i, c in enumerate(scene.clamps) if c.path is not None)
+        raise SceneError(f"{source}: clamps[{i}].path: a moving clamp needs the total formulation in the explicit engine "
+                         f"(simulation.formulation = 'total'; 'auto' chose 'updated' because bodies touch)"
+                         if sim.formulation == "auto" else
+                         f"{source}: clamps[{i}].path: a moving clamp needs simulation.formulation = 'total' in the explicit engine")
     settings = SolverSettings(
         damping=sim.damping,
         gravity=tuple(sim.gravity) if sim.gravity is not None else (0.0,) * dim,

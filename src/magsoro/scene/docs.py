@@ -82,6 +82,6 @@ def scene_reference() -> str:
                         limits.append(f"{sym} {v}")
             if limits:
                 desc += f" Allowed: {', '.join(limits)}."
-            out.append(f"| `{name}` | {_type_name(f.annotation)} | {default} | {desc} |")
+            out.append(f"| `{f.alias or name}` | {_type_name(f.annotation)} | {default} | {desc} |")  # the file's key
         out.append("")
     return "\n".join(out) + "\n"

@@ -426,6 +426,16 @@ class Pressure(Strict):
     ramp: float = Field(default=0.0, ge=0, description="Rise time, s: the pressure grows linearly from 0 to value over [0, ramp], then stays (0: applied at once).")
 
 
+class InitialDisplacement(Strict):
+    """A displacement field the body starts with (an initial imperfection, a pre-strain): components as expressions
+    in the reference position x, y, z (m), giving m, with the arithmetic of an expression magnetisation (numbers,
+    x, y, z, pi, e, + - * / ** %, comparisons, sin cos tan ... where; in 2D z = 0). Each particle starts at X + u(X)
+    with the deformation gradient F = I + grad u (central differences), so the body starts displaced and strained
+    accordingly (docs/geometry.md, "Initial displacement")."""
+
+    expression: list[str] = Field(min_length=2, max_length=3, description="Components [ux, uy] (2D) or [ux, uy, uz] (3D) of u(x, y, z), m; e.g. [\"0\", \"1e-5 * sin(pi * x / 0.12)\"].")
+
+
 class Body(Strict):
     """A body (or a robot part): a shape filled with particles of one material, with a magnetisation profile."""
 
@@ -441,6 +451,7 @@ class Body(Strict):
     priority: int | None = Field(default=None, description="Where bodies overlap, the one with the higher priority keeps the shared particles (unset loses to any set value); overlapping bodies with equal or no priorities are refused.")
     velocity: Vec | None = Field(default=None, description="Initial velocity, m/s. Default at rest.")
     pressure: Pressure | None = Field(default=None, description="A gauge pressure on the body's surface facing a cavity: a table [Pressure](#pressure).")
+    initial_displacement: InitialDisplacement | None = Field(default=None, description="A displacement field the body starts with, u(x, y, z) as expressions: a table [InitialDisplacement](#initialdisplacement). Default none.")
     _base_dir: object = PrivateAttr(default=None)
     _key: object = PrivateAttr(default=None)
     _source: object = PrivateAttr(default=None)
@@ -504,11 +515,29 @@ RobotSpec = Annotated[Union[Annotated[str, Tag("name")], Annotated[Robot, Tag("t
 
 
 # ---------------------------------------------------------------- clamps
+class ClampPath(Strict):
+    """A clamp's prescribed translation: its displacement from the reference place at times, linearly interpolated,
+    held outside the table (zero at t = 0)."""
+
+    times: list[Annotated[float, Field(allow_inf_nan=False)]] = Field(min_length=1, description="Increasing times, s.")
+    positions: list[Vec] = Field(min_length=1, description="Displacements of the clamped region at those times, m (dim components); the held particles sit at their reference position plus this.")
+
+    @model_validator(mode="after")
+    def _same_len(self):
+        if len(self.times) != len(self.positions):
+            raise ValueError("times and positions must have the same length")
+        if any(b <= a for a, b in zip(self.times, self.times[1:])):
+            raise ValueError("times must be strictly increasing")
+        return self
+
+
 class Clamp(Strict):
-    """Particles whose reference position lies in ``region`` are held fixed (with their grid nodes)."""
+    """Particles whose reference position lies in ``region`` are held (with their grid nodes): fixed, or moved
+    along ``path`` (docs/engine.md, "Moving clamps")."""
 
     region: AnyShape = Field(description="Region in the reference configuration (a shape, as for bodies).")
     body: str | None = Field(default=None, description="Only clamp particles of this body. Default: all bodies.")
+    path: ClampPath | None = Field(default=None, description="Optional translation of the held particles: a table [ClampPath](#clamppath) of times and displacements; they sit at reference + displacement and move at its rate. The explicit engine in the total formulation (the static solver and the implicit integrator refuse it for now). Default: held in place.")
 
 
 # ---------------------------------------------------------------- colliders
@@ -791,6 +820,28 @@ AnyProbe = Annotated[Union[CentroidProbe, PointProbe, BoundsProbe, FieldProbe, C
 
 
 # ---------------------------------------------------------------- settings
+class DampingProfile(Strict):
+    """Grid damping that changes in time: c(t) interpolated linearly between values at increasing times, held
+    outside the table (heavy damping to settle, none for the motion that follows)."""
+
+    times: list[float] = Field(min_length=1, description="Strictly increasing times, s (the run's time: a run started with --from continues the time of the run it starts from).")
+    values: list[float] = Field(min_length=1, description="Damping c at those times, 1/s (each >= 0).")
+
+    @model_validator(mode="after")
+    def _rows(self):
+        if len(self.times) != len(self.values):
+            raise ValueError(f"times and values must have the same length, got {len(self.times)} and {len(self.values)}")
+        if any(b <= a for a, b in zip(self.times, self.times[1:])):
+            raise ValueError("times must be strictly increasing")
+        if any(v < 0.0 for v in self.values):
+            raise ValueError(f"every damping value must be >= 0 1/s (got {self.values})")
+        return self
+
+
+DampingSpec = Annotated[Union[Annotated[float, Field(ge=0), Tag("number")], Annotated[DampingProfile, Tag("profile")]],
+                        Discriminator(_is_table("profile", "number"))]
+
+
 class Simulation(Strict):
     """Numerical settings."""
 
@@ -807,7 +858,7 @@ class Simulation(Strict):
         "grid block or the domain, more than a cell per step): the steps in between run without reading anything "
         "back from the device, with the time step fixed; a window that fails a check is run again step by step "
         "from its first state, so errors still name their exact step. 1: check every step."))
-    damping: float = Field(default=0.0, ge=0, description="Grid damping c in f = -c p, 1/s.")
+    damping: DampingSpec = Field(default=0.0, description="Grid damping c in f = -c p, 1/s: a number, or a time profile { times = [...], values = [...] } (linear between the times, held outside them), used by the explicit engine at each step's start time and by the implicit integrator at each step's load time.")
     gravity: Vec | None = Field(default=None, description="Gravity, m/s^2. Default none.")
     walls: Literal["sticky", "slip", "friction"] = Field(default="slip", description="Contact law at the domain walls.")
     wall_friction: float = Field(default=0.0, ge=0, description="Friction coefficient of the domain walls.")
@@ -941,6 +992,14 @@ class Implicit(Strict):
         return self
 
 
+class Initial(Strict):
+    """Where a run starts: the bodies' reference configuration at rest (default), or the final state of another
+    run (its final.npz): positions, velocities, affine velocities, deformation gradients, Prony internal stresses and
+    its time, which the run continues (fields, paths and keyframes see the continued time)."""
+
+    from_: str | None = Field(default=None, alias="from", description="final.npz (or the folder) of an earlier run to start from, relative to the scene file. The bodies must match (particle count, body names, reference positions, clamped particles, precision); `magsoro run --from RUN_DIR` overrides it.")
+
+
 class Output(Strict):
     """What a run writes."""
 
@@ -980,6 +1039,7 @@ class Scene(Strict):
     preview: Preview | None = Field(default=None, description="[preview] table: coarser settings for `magsoro run --preview`.")
     static: Static = Field(default_factory=Static, description="[static] table: load levels and tolerance of `magsoro run --static`.")
     implicit: Implicit = Field(default_factory=Implicit, description="[implicit] table: scheme and time steps of simulation.integrator = 'implicit'.")
+    initial: Initial = Field(default_factory=Initial, description="[initial] table: start from another run's final state (from = \"RUN/final.npz\").")
     _base_dir: object = PrivateAttr(default=None)
     _source_path: object = PrivateAttr(default=None)
     _material_libraries: object = PrivateAttr(default_factory=list)

@@ -10,12 +10,12 @@ from pydantic import BaseModel
 
 from magsoro.errors import SceneError
 from magsoro.io.tomlwrite import dumps
-from magsoro.scene.schema import Body, FileMagnetization, KeyframedField, Material, MeshShape, Robot, Scene
+from magsoro.scene.schema import Body, FileMagnetization, Initial, KeyframedField, Material, MeshShape, Robot, Scene
 
 # the keys that hold file names, relative to the scene file (or to a body's file): rewritten when the scene is
 # written to another folder; tests/test_write_scene.py checks that every key described as relative is listed
 PATH_KEYS = {(Scene, "robot"), (Scene, "material_library"), (Robot, "file"), (MeshShape, "file"), (FileMagnetization, "file"),
-             (KeyframedField, "file"), (Material, "file")}
+             (KeyframedField, "file"), (Material, "file"), (Initial, "from_")}
 
 
 def _same(a, b) -> bool:
@@ -47,7 +47,7 @@ class _Writer:
             sub = f"{key}.{name}" if key else name
             if (type(model), name) in PATH_KEYS and not isinstance(value, BaseModel):
                 value = self.path(value, sub, base)
-            out[name] = self.value(value, sub, base)
+            out[field.alias or name] = self.value(value, sub, base)  # the file's key ([initial] from: alias)
         if "type" in out:  # a tagged table reads best with its type first (a base class's keys come before it)
             out = {"type": out.pop("type"), **out}
         return out
