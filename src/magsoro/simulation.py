@@ -39,13 +39,20 @@ def _prepare_implicit(scene: Scene) -> list[str]:
     sim = scene.simulation
     if sim.integrator != "implicit":
         return []
+    return _newton_float64_total(
+        scene, "simulation.formulation = 'updated': the implicit integrator (simulation.integrator = 'implicit') "
+        "solves the total-Lagrangian form; set simulation.formulation = 'total' or 'auto'",
+        "simulation.integrator = 'implicit' runs in float64 (simulation.precision = 'float32' is not used: Newton's "
+        "tolerance needs the digits)")
+
+
+def _newton_float64_total(scene: Scene, refusal: str, note: str) -> list[str]:
+    """The Newton solvers' precision and form on ``scene``: an 'updated' formulation raises SceneError(``refusal``);
+    float64 and the total-Lagrangian form are set, with ``note`` returned when the scene asked for float32."""
+    sim = scene.simulation
     if sim.formulation == "updated":
-        raise SceneError("simulation.formulation = 'updated': the implicit integrator (simulation.integrator = "
-                         "'implicit') solves the total-Lagrangian form; set simulation.formulation = 'total' or 'auto'")
-    notes = []
-    if sim.precision != "float64":
-        notes.append("simulation.integrator = 'implicit' runs in float64 (simulation.precision = 'float32' is not "
-                     "used: Newton's tolerance needs the digits)")
+        raise SceneError(refusal)
+    notes = [note] if sim.precision != "float64" else []
     sim.precision, sim.formulation = "float64", "total"
     return notes
 
@@ -55,16 +62,11 @@ def prepare_static(scene: Scene) -> list[str]:
     :meth:`Simulation.solve_static`: float64 (Newton's tolerance, 1e-8 of the first residual by default, lies below
     float32's round-off, so float32 Newton steps stall short of it) and the total-Lagrangian form. Sets them on
     ``scene`` (an 'updated' formulation is refused) and returns the notes for run.json."""
-    sim = scene.simulation
-    if sim.formulation == "updated":
-        raise SceneError("simulation.formulation: the static solver (magsoro run --static, Simulation.solve_static) "
-                         "solves the total-Lagrangian form; set it to 'auto' or 'total'")
-    notes = []
-    if sim.precision != "float64":
-        notes.append("the static solver runs in float64 (simulation.precision = 'float32' is not used: Newton's "
-                     "tolerance needs the digits)")
-    sim.precision, sim.formulation = "float64", "total"
-    return notes
+    return _newton_float64_total(
+        scene, "simulation.formulation: the static solver (magsoro run --static, Simulation.solve_static) solves the "
+        "total-Lagrangian form; set it to 'auto' or 'total'",
+        "the static solver runs in float64 (simulation.precision = 'float32' is not used: Newton's tolerance needs "
+        "the digits)")
 
 
 def prepare_relax(scene: Scene) -> list[str]:

@@ -193,6 +193,14 @@ class StimulusRamp(Strict):
     final: float = Field(default=1.0, description="Stimulus after the ramp.")
 
 
+def _check_time_table(times: list[float], values: list[float]) -> None:
+    """A table of values at times: one value per time, the times strictly increasing (ValueError otherwise)."""
+    if len(times) != len(values):
+        raise ValueError(f"times and values must have the same length, got {len(times)} and {len(values)}")
+    if any(b <= a for a, b in zip(times, times[1:])):
+        raise ValueError("times must be strictly increasing")
+
+
 class StimulusKeyframes(Strict):
     """Stimulus interpolated linearly between values at increasing times, held outside the table (e.g. a measured
     temperature history)."""
@@ -203,10 +211,7 @@ class StimulusKeyframes(Strict):
 
     @model_validator(mode="after")
     def _rows(self):
-        if len(self.times) != len(self.values):
-            raise ValueError(f"times and values must have the same length, got {len(self.times)} and {len(self.values)}")
-        if any(b <= a for a, b in zip(self.times, self.times[1:])):
-            raise ValueError("times must be strictly increasing")
+        _check_time_table(self.times, self.values)
         return self
 
 
@@ -829,10 +834,7 @@ class DampingProfile(Strict):
 
     @model_validator(mode="after")
     def _rows(self):
-        if len(self.times) != len(self.values):
-            raise ValueError(f"times and values must have the same length, got {len(self.times)} and {len(self.values)}")
-        if any(b <= a for a, b in zip(self.times, self.times[1:])):
-            raise ValueError("times must be strictly increasing")
+        _check_time_table(self.times, self.values)
         if any(v < 0.0 for v in self.values):
             raise ValueError(f"every damping value must be >= 0 1/s (got {self.values})")
         return self
