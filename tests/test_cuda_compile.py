@@ -16,7 +16,9 @@ time"). The quick suite compiles a covering subset instead (``quick_plan``: 63 c
   other module: ``contact_classify`` and ``stress_kernel`` for all four (dimension, precision), the field
   accumulate kernel with every field source's device function in all four, the magnetic interaction's deposit and
   gather kernels, the static solver's kernels and the Prony update kernels in all four, the bench reference (2D, 3D) and the differentiable rollout's kernels;
-  and the rollout's variant with adjoints in 2D float64 (p2g, g2p, grid and the field module).
+  and the rollout's variant with adjoints in 2D float64 (p2g, g2p, grid and the field module); the 2D float32
+  plane-stress variants of the kernels that evaluate a law (p2g without contact, the stress kernels, the static
+  solver's).
 - sm_80 (A100): the other two 2D engine variants (2D float32 with contact, 2D float64 without), with which every
   engine kernel is compiled in both precisions and both contact forms, ``contact_classify`` and ``stress_kernel``
   in all four (dimension, precision), one field module (3D float32: the accumulate kernel with every field
@@ -24,7 +26,7 @@ time"). The quick suite compiles a covering subset instead (``quick_plan``: 63 c
   function the package defines, at least once. What changes between sm_80 and sm_90 is the arch-guarded code in
   Warp's CUDA headers, which depends on the builtins and types a kernel uses, not on the variant.
 
-The rest (the two 3D variants left out, 3D float32 without contact and 3D float64 with, the 3D engine, three
+The rest (the other plane-stress variants, the two 3D variants left out, 3D float32 without contact and 3D float64 with, the 3D engine, three
 field modules and the 3D bench reference on sm_80, the other adjoint variants) is compiled by the ``slow`` test, which with the quick one
 covers every module of ``warp_modules()`` for both archs. PTX goes to Warp's kernel cache under content-hashed
 names: a second run with unchanged kernels compiles nothing.
@@ -79,6 +81,8 @@ SM80_ONE_OF = {"fields ": "fields 3D float32: device", "bench reference ": "benc
 
 
 def _quick_arch(label: str, arch: int) -> bool:
+    if " plane stress" in label:  # the laws' 2D plane-stress variants: one precision, one arch, no contact here
+        return arch == 90 and " float32 " in label and "(contact)" not in label
     a = _ADJOINT.match(label)
     if a is not None:
         return (a.group(2), a.group(3), arch) == QUICK_ADJOINT

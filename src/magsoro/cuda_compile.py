@@ -282,6 +282,14 @@ def _catalogue() -> tuple:
                     # stencil (magsoro.mpm.stencil) has already put it
                     groups += _groups_of(label, _fresh(_stress_kernel, dim, sc), seen)
                     groups += _groups_of(label, _kernels_in(make_contact(dim, sc)["contact_classify"]), seen)
+    # the 2D plane-stress variants of the kernels that evaluate a law (magsoro.mpm.stencil.make_body_elastic)
+    for sname in SCALAR_NAMES:
+        sc = scalars[sname]
+        for contact in (False, True):
+            label = f"engine 2D {sname} plane stress" + (" (contact)" if contact else "")
+            groups += _groups_of(label, _fresh(make_p2g, 2, sc, contact, False, "stress"), seen)
+        groups += _groups_of(f"engine 2D {sname} plane stress", _fresh(_stress_kernel, 2, sc, "stress"), seen)
+        groups += _groups_of(f"static 2D {sname} plane stress", _fresh(make_static_kernels, 2, sc, "stress"), seen)
     field_funcs = _field_device_functions()
     for dim in DIMS:
         for sname in SCALAR_NAMES:

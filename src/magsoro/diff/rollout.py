@@ -178,6 +178,10 @@ class Rollout:
         if st.contact is not None and st.contact.active(groups):
             raise ValueError("the differentiable rollout has no contact between bodies or self-contact; give the scene "
                              "contact.friction = 'sticky' (one velocity field) or a single body")
+        if getattr(m, "plane", "strain") == "stress":
+            # the thickness stretch is solved by an inner Newton loop, which Warp's tape does not differentiate
+            raise ValueError('the differentiable rollout has no plane stress yet; give the scene simulation.plane = '
+                             '"strain" (or run it with magsoro run)')
         self.k = k = make_kernels(m.dim, m.scalar, differentiable=True)  # the engine's kernels, with their adjoints
         self._no_contact = contact_grid(m)  # one velocity field per node
         self._no_viscous = viscous_struct(m, None)

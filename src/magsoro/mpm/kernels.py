@@ -1,4 +1,4 @@
-"""MLS-MPM kernels (seed 000 eqs 1-19), generated for a dimension (2 = plane strain, 3) and a precision.
+"""MLS-MPM kernels (seed 000 eqs 1-19), generated for a dimension (2: plane strain or plane stress, 3) and a precision.
 
 One factory per phase builds its kernels from the same source for 2D/3D and float32/float64, so the variants
 never drift apart; Warp compiles them for CPU and CUDA alike:
@@ -22,7 +22,7 @@ import warp as wp
 from magsoro.mpm.contact import make_contact
 from magsoro.mpm.g2p import F_FROM_GRID, F_FROM_REMAP, F_REMAP_APART, F_TOTAL, make_g2p
 from magsoro.mpm.grid import grid_settings_struct, make_grid
-from magsoro.mpm.materials import make_material_functions
+from magsoro.mpm.materials import make_material_functions, make_plane_stress_functions
 from magsoro.mpm.p2g import make_p2g
 from magsoro.mpm.stencil import make_body_elastic, make_types
 
@@ -30,11 +30,15 @@ __all__ = ["make_kernels", "grid_settings_struct", "F_FROM_GRID", "F_FROM_REMAP"
 
 
 @functools.cache
-def _stress_kernel(dim: int, scalar) -> dict:
+def _stress_kernel(dim: int, scalar, plane: str = "strain") -> dict:
     t = make_types(dim, scalar)
-    elastic = make_material_functions(dim, scalar)
-    elastic_stress, elastic_energy = elastic["elastic_stress"], elastic["elastic_energy"]
-    body = make_body_elastic(dim, scalar)
+    if plane == "stress":
+        elastic = make_plane_stress_functions(scalar)
+        elastic_stress, elastic_energy = elastic["plane_stress_stress"], elastic["plane_stress_energy"]
+    else:
+        elastic = make_material_functions(dim, scalar)
+        elastic_stress, elastic_energy = elastic["elastic_stress"], elastic["elastic_energy"]
+    body = make_body_elastic(dim, scalar, plane)
     body_elastic_stress, body_elastic_energy = body.body_elastic_stress, body.body_elastic_energy
     mat, vprm, Bodies = t.mat, t.vprm, t.Bodies
 
@@ -78,7 +82,7 @@ def launch_body_stress(kernels, n, *, F, bodies, P, psi, device, record=False):
 
 
 @functools.cache
-def make_kernels(dim: int, scalar, contact: bool = False, differentiable: bool = False) -> dict:
+def make_kernels(dim: int, scalar, contact: bool = False, differentiable: bool = False, plane: str = "strain") -> dict:
     """Every kernel and type of the engine for ``dim`` in (2, 3) and ``scalar`` in (wp.float32, wp.float64).
 
     ``contact``: the variant with two velocity fields per node (:mod:`magsoro.mpm.contact`). Without it the
@@ -86,15 +90,17 @@ def make_kernels(dim: int, scalar, contact: bool = False, differentiable: bool =
     nanoseconds per node against about 4 ns for the whole update). ``differentiable``: p2g, grid_update, g2p,
     remap_node_velocity and remap_F with their adjoints, for the differentiable rollout (:mod:`magsoro.diff`), the
     only caller that records kernels on a wp.Tape; without it Warp builds no adjoint, which on a cold cache saves
-    most of the engine's compile time (docs/engine.md, "Compile time")."""
+    most of the engine's compile time (docs/engine.md, "Compile time"). ``plane`` (2D): the laws in plane strain
+    or plane stress (:func:`magsoro.mpm.stencil.make_body_elastic`), chosen at compile time: the kernels that
+    evaluate a law (p2g and the stress kernels) are built for one of them."""
     t = make_types(dim, scalar)
     two_fields = bool(contact)
     ct_ns = make_contact(dim, scalar)
     return dict(
-        **make_p2g(dim, scalar, two_fields, differentiable),
+        **make_p2g(dim, scalar, two_fields, differentiable, plane),
         **make_grid(dim, scalar, two_fields, differentiable),
         **make_g2p(dim, scalar, two_fields, differentiable),
-        **_stress_kernel(dim, scalar),
+        **_stress_kernel(dim, scalar, plane),
         ContactGrid=ct_ns["ContactGrid"],
         contact_classify=ct_ns["contact_classify"],
         Block=t.Block, Bodies=t.Bodies, Applied=t.Applied, GridArrays=t.GridArrays, Particles=t.Particles,

@@ -2,7 +2,8 @@
 
 Every law is a compressible hyperelastic solid W(F) = W_iso + K/2 (J - 1)^2 with J = det F, C = F^T F,
 I1 = tr C, I2 = (I1^2 - tr C^2) / 2 and the isochoric invariants I1b = J^(-2/3) I1, I2b = J^(-4/3) I2
-(2D is plane strain: F_zz = 1); the isochoric invariants separate the deviatoric and volumetric responses, as in
+(2D: plane strain, F_zz = 1, or plane stress with F_zz solved per particle from a zero normal stress,
+:func:`make_plane_stress_functions`); the isochoric invariants separate the deviatoric and volumetric responses, as in
 the incompressible fits of seed 001. The kinematics and the volumetric part are shared; a law supplies W_iso.
 Units: moduli and parameters in Pa, W in J/m^3 of reference volume, first Piola stress P = dW/dF in Pa.
 
@@ -564,3 +565,82 @@ def make_material_functions(dim: int, scalar):
 
     return dict(elastic_stress=elastic_stress, elastic_energy=elastic_energy, invariants=invariants,
                 principal_stretches=principal_stretches, laws=functions)
+
+
+#: most Newton iterations of the plane-stress thickness stretch (a dynamic loop: it stops when converged, in 2-4
+#: iterations from the incompressible guess at the strains of the scenes)
+PLANE_STRESS_ITERATIONS = 12
+
+
+@functools.cache
+def make_plane_stress_functions(scalar) -> dict:
+    """The 2D plane-stress form of every law (docs/engine.md, "Plane stress"): the law is evaluated in 3D at
+    F = diag(F_2D, lam_3), with the out-of-plane stretch lam_3 solved from a zero normal stress P_33 = 0 by Newton's
+    method (its slope by central differences of P_33) from the incompressible guess det(F_2D)^(-1/2). The in-plane
+    block of that 3D stress is dW/dF_2D of the reduced energy W(F_2D, lam_3(F_2D)) (P_33 = 0 removes the lam_3
+    term), so stress and energy stay a consistent pair and the static solver's central-difference tangent of
+    P(F_2D) is the consistent plane-stress tangent. Same signatures as :func:`make_material_functions`:
+
+    - ``plane_stress_stretch(F, model, G, K, prm)``: lam_3;
+    - ``plane_stress_stress`` / ``plane_stress_energy(F, model, G, K, prm)``: P (2 x 2, Pa) and W (J/m^3 of
+      reference volume)."""
+    import warp as wp
+
+    mat = wp.types.matrix(shape=(2, 2), dtype=scalar)
+    vprm = wp.types.vector(length=LAW_PARAM_COUNT, dtype=scalar)
+    m3 = wp.types.matrix(shape=(3, 3), dtype=scalar)
+    f3 = make_material_functions(3, scalar)
+    stress3, energy3 = f3["elastic_stress"], f3["elastic_energy"]
+    double = scalar == wp.float64
+    # converged when |P_33| <= tol (K + G): above the rounding of P_33 (float64 ~1e-16, float32 ~1e-7 of K);
+    # the slope's central-difference step relative to lam_3: its error (step^2) only slows Newton's last digits
+    tol = 1.0e-13 if double else 2.0e-6
+    fd = 1.0e-6 if double else 1.0e-3
+    iterations = PLANE_STRESS_ITERATIONS
+    four_thirds = 4.0 / 3.0
+
+    @wp.func
+    def thick(F: mat, l3: scalar):
+        """diag(F, l3) as a 3 x 3 deformation gradient."""
+        z = scalar(0.0)
+        return m3(F[0, 0], F[0, 1], z, F[1, 0], F[1, 1], z, z, z, l3)
+
+    @wp.func
+    def normal_stress(F: mat, l3: scalar, model: int, G: scalar, K: scalar, prm: vprm):
+        P = stress3(thick(F, l3), model, G, K, prm)
+        return P[2, 2]
+
+    @wp.func
+    def plane_stress_stretch(F: mat, model: int, G: scalar, K: scalar, prm: vprm):
+        """Out-of-plane stretch lam_3 with P_33(diag(F, lam_3)) = 0."""
+        J = wp.determinant(F)
+        l3 = scalar(1.0)
+        if J > scalar(0.0):
+            l3 = scalar(1.0) / wp.sqrt(J)
+        it = int(0)
+        while it < iterations:
+            r = normal_stress(F, l3, model, G, K, prm)
+            if wp.abs(r) <= scalar(tol) * (K + G):
+                break
+            h = scalar(fd) * l3
+            slope = (normal_stress(F, l3 + h, model, G, K, prm) - normal_stress(F, l3 - h, model, G, K, prm)) / (scalar(2.0) * h)
+            if slope <= scalar(0.0):  # not expected of a stable law: step by the small-strain slope
+                slope = K + scalar(four_thirds) * G
+            # keep lam_3 > 0: at most halve or double it per step
+            l3 = wp.clamp(l3 - r / slope, scalar(0.5) * l3, scalar(2.0) * l3)
+            it += 1
+        return l3
+
+    @wp.func
+    def plane_stress_stress(F: mat, model: int, G: scalar, K: scalar, prm: vprm):
+        l3 = plane_stress_stretch(F, model, G, K, prm)
+        P = stress3(thick(F, l3), model, G, K, prm)
+        return mat(P[0, 0], P[0, 1], P[1, 0], P[1, 1])
+
+    @wp.func
+    def plane_stress_energy(F: mat, model: int, G: scalar, K: scalar, prm: vprm):
+        l3 = plane_stress_stretch(F, model, G, K, prm)
+        return energy3(thick(F, l3), model, G, K, prm)
+
+    return dict(plane_stress_stretch=plane_stress_stretch, plane_stress_stress=plane_stress_stress,
+                plane_stress_energy=plane_stress_energy)

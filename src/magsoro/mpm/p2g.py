@@ -7,7 +7,7 @@ import warp as wp
 
 from magsoro.constants import MU0
 from magsoro.mpm.settings import P2GFlag
-from magsoro.mpm.stencil import make_stencil
+from magsoro.mpm.stencil import make_body_elastic, make_stencil
 from magsoro.mpm.viscous import make_viscous
 
 #: bits of p2g's ``flags`` (:class:`magsoro.mpm.settings.P2GFlag`): the total-Lagrangian form; the affine matrix
@@ -20,10 +20,11 @@ wp.set_module_options({"max_unroll": 32})
 
 
 @functools.cache
-def make_p2g(dim: int, scalar, two_fields: bool = False, differentiable: bool = False) -> dict:
+def make_p2g(dim: int, scalar, two_fields: bool = False, differentiable: bool = False, plane: str = "strain") -> dict:
     """Scatter kernels for ``dim``, ``scalar``; ``two_fields``: the contact variant (:mod:`magsoro.mpm.contact`);
     ``differentiable``: with the adjoints of the kernels the differentiable rollout (:mod:`magsoro.diff`) records
-    on its wp.Tape. Warp otherwise builds none (docs/engine.md, "Compile time")."""
+    on its wp.Tape. Warp otherwise builds none (docs/engine.md, "Compile time"). ``plane``: the 2D idealisation of
+    the laws, "strain" or "stress" (:func:`magsoro.mpm.stencil.make_body_elastic`)."""
     s = make_stencil(dim, scalar, two_fields)
     t = s.types
     vec, mat, v3, m3, ivec = t.vec, t.mat, t.v3, t.m3, t.ivec
@@ -34,7 +35,7 @@ def make_p2g(dim: int, scalar, two_fields: bool = False, differentiable: bool = 
     local_coords, outside_block, flat_index, stencil_node = s.local_coords, s.outside_block, s.flat_index, s.stencil_node
     # Constants are computed here in double precision: literal arithmetic inside a kernel runs in float32.
     inv_mu0 = 1.0 / MU0
-    body_elastic_stress = s.body_elastic_stress
+    body_elastic_stress = make_body_elastic(dim, scalar, plane).body_elastic_stress
     moment_map, rotation_stress = s.moment_map, s.rotation_stress
     visc = make_viscous(dim, scalar)
     Viscous, overstress = visc["Viscous"], visc["overstress"]

@@ -22,6 +22,19 @@ FORMULATIONS: tuple[str, ...] = get_args(Formulation)
 VelocityGradient = Literal["remap", "grid"]
 VELOCITY_GRADIENTS: tuple[str, ...] = get_args(VelocityGradient)
 
+#: the 2D idealisation (Model ``plane``, scene key simulation.plane): "strain" (F_zz = 1, long bodies) or "stress"
+#: (zero normal stress, the thickness stretch solved per particle: thin plates loaded in their plane, wide strips
+#: bending like beams; :func:`magsoro.mpm.materials.make_plane_stress_functions`). A compile-time choice: the
+#: kernels that evaluate a law (p2g, the static solver's, the stress kernels) are built for one of them.
+Plane = Literal["strain", "stress"]
+PLANES: tuple[str, ...] = get_args(Plane)
+
+
+def plane_stress_modulus(shear_modulus, bulk_modulus):
+    """E / (1 - nu^2) = 4 G (3 K + G) / (3 K + 4 G), Pa: the plane-stress P-wave (and beam) modulus, which
+    replaces K + 4 G / 3 (plane strain, 3D) in the wave speed of a plane-stress body."""
+    return 4.0 * shear_modulus * (3.0 * bulk_modulus + shear_modulus) / (3.0 * bulk_modulus + 4.0 * shear_modulus)
+
 #: the bodies' own field (SolverSettings ``magnetic_interaction``): "none", or "dipole" (:mod:`magsoro.mpm.interaction`)
 InteractionMode = Literal["none", "dipole"]
 INTERACTION_MODES: tuple[str, ...] = get_args(InteractionMode)

@@ -36,7 +36,7 @@ from magsoro.mpm.p2g import (launch_contact_scan, launch_contact_scatter, launch
                              launch_p2g_scatter, launch_pressure_net)
 from magsoro.mpm.settings import (COLLIDER_MODES, FORMULATIONS, INTERACTION_MODES, VELOCITY_GRADIENTS, ColliderMode,
                                   ColliderModeName, Formulation, FUpdate, InteractionMode, MagnetizationFollows, P2GFlag,
-                                  VelocityGradient)
+                                  PLANES, VelocityGradient, plane_stress_modulus)
 from magsoro.mpm.materials import LAW_PARAM_COUNT, LAWS, describe_codes
 from magsoro.mpm.stencil import host_bspline
 from magsoro.mpm.timestep import cfl_time_step
@@ -281,6 +281,8 @@ class Model:
     read to a time (t = 0 at construction; the solver calls it every step).
     pronies: Prony tables [[g, tau], ...] (viscoelastic materials, :mod:`magsoro.mpm.viscous`), with prony (N,) int
     the row of each particle's (-1: elastic); a particle cannot have both a stimulus and a Prony row.
+    plane (2D): "strain" (default, F_zz = 1) or "stress" (zero normal stress, the thickness stretch solved per
+    particle; no Prony rows), :data:`magsoro.mpm.settings.PLANES`; the kernels are built for it.
     """
 
     MATERIAL_MODELS = {name: law.code for name, law in LAWS.items()}
@@ -316,6 +318,7 @@ class Model:
         clamp_paths=(),
         initial_displacement=None,
         initial_deformation=None,
+        plane: str = "strain",
     ):
         if precision not in PRECISIONS:
             raise ValueError(f"precision must be one of {sorted(PRECISIONS)}, got {precision!r}")
@@ -331,7 +334,8 @@ class Model:
         self.dx = float(dx)
         self.domain_lo = np.asarray(domain_lo, dtype=np.float64).reshape(self.dim)
         self.domain_hi = np.asarray(domain_hi, dtype=np.float64).reshape(self.dim)
-        k = make_kernels(self.dim, self.scalar)
+        self._init_plane(plane)
+        k = make_kernels(self.dim, self.scalar, plane=self.plane)
         self.kernels = k
         self.host = dict(
             positions=X,
@@ -381,6 +385,9 @@ class Model:
         self._init_stimuli(stimulus, stimuli)
         self._init_prony(prony, pronies)
         self._init_pressures(pressure_area, pressure_row, pressures)
+        if self.plane == "stress" and np.any(self.host["prony"] >= 0):
+            raise ValueError('simulation.plane = "stress" does not take Prony (viscoelastic) materials yet: their '
+                             'out-of-plane overstress is not tracked; use plane = "strain"')
         self._placeholder_step = self._placeholder_impulse = None
 
     @property
@@ -578,13 +585,27 @@ class Model:
         self._stimulus_values = values
         return True
 
+    def _init_plane(self, plane) -> None:
+        """The 2D idealisation (:data:`magsoro.mpm.settings.PLANES`): "strain" (F_zz = 1) or "stress" (zero normal
+        stress); the kernels are built for it."""
+        if plane not in PLANES:
+            raise ValueError(f"simulation.plane must be one of {list(PLANES)}, got {plane!r}")
+        if plane == "stress" and self.dim != 2:
+            raise ValueError('simulation.plane = "stress" needs simulation.dim = 2 (a 3D body has no plane idealisation)')
+        self.plane = plane
+
     def wave_speed(self, field_magnitude: float = 0.0) -> float:
         """Largest elastic wave speed sqrt((c (K + 4G/3) + |B||Br|/mu0) / rho) over particles, m/s.
         The magnetic term bounds the stiffening a field of magnitude ``field_magnitude`` (T) adds; c bounds that of
         a stimulus, the largest f det F_s it reaches (:meth:`magsoro.mpm.eigenstrain.Stimulus.stiffening`; 1 without)."""
         h = self.host
         br = np.linalg.norm(h["remanence"], axis=1)
-        modulus = (h["bulk_modulus"] + 4.0 * h["shear_modulus"] / 3.0) * h["stiffening"] + field_magnitude * br / MU0
+        # P-wave modulus: K + 4G/3, in plane stress E / (1 - nu^2) (smaller)
+        if self.plane == "stress":
+            elastic = plane_stress_modulus(h["shear_modulus"], h["bulk_modulus"])
+        else:
+            elastic = h["bulk_modulus"] + 4.0 * h["shear_modulus"] / 3.0
+        modulus = elastic * h["stiffening"] + field_magnitude * br / MU0
         return float(np.sqrt(np.max(modulus / h["density"])))
 
 
@@ -770,7 +791,7 @@ class Solver:
             self._contact_groups = groups
         if self.contact_active:
             self.threads = 1
-            self.k = make_kernels(dim, sc, contact=True)
+            self.k = make_kernels(dim, sc, contact=True, plane=model.plane)
         self._tc = None  # the total form's contact grid (allocated at the first pass)
         self._fields_per_node = 2 if self.contact_active else 1
         cuts = np.linspace(0, model.n_particles, self.threads + 1).round().astype(int)

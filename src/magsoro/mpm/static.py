@@ -59,7 +59,7 @@ from magsoro.mpm.linear import (FACTOR_CHECK, DirectSolver, IterativeSolver, Ord
 from magsoro.mpm import linear as _linear
 from magsoro.mpm.p2g import P2G_TOTAL, launch_p2g, launch_pressure_net
 from magsoro.mpm.solver import block_struct, bodies_array, contact_grid
-from magsoro.mpm.stencil import host_bspline, make_stencil
+from magsoro.mpm.stencil import host_bspline, make_body_elastic, make_stencil
 from magsoro.mpm.viscous import viscous_struct
 
 # No kernel here runs under wp.Tape (only magsoro.diff's rollout does): Warp need not build their adjoints.
@@ -170,7 +170,9 @@ def _vertex(points) -> float:
 
 
 @functools.cache
-def make_static_kernels(dim: int, scalar) -> dict:
+def make_static_kernels(dim: int, scalar, plane: str = "strain") -> dict:
+    """The static solver's kernels for ``dim``, ``scalar`` and, in 2D, the laws' ``plane`` idealisation ("strain" or
+    "stress", :func:`magsoro.mpm.stencil.make_body_elastic`)."""
     s = make_stencil(dim, scalar)
     t = s.types
     vec, mat, Block = t.vec, t.mat, t.Block
@@ -202,7 +204,7 @@ def make_static_kernels(dim: int, scalar) -> dict:
         x[p] = X[p] + disp
         F[p] = wp.identity(n=dim, dtype=scalar) + (scalar(4.0) * inv_dx) * (S - wp.outer(disp, fx))
 
-    body_elastic_stress = s.body_elastic_stress
+    body_elastic_stress = make_body_elastic(dim, scalar, plane).body_elastic_stress
     Bodies = t.Bodies
 
     @wp.kernel
@@ -456,7 +458,7 @@ class StaticSolver:
         self.dim, self.dev, self.sc = model.dim, model.device, model.scalar
         k = model.kernels
         self.k = k
-        self.kk = make_static_kernels(self.dim, self.sc)
+        self.kk = make_static_kernels(self.dim, self.sc, model.plane)
         state = sim.state
         model.update_stimuli(self.t)  # eigenstrains (material.stimulus) at the solve's time
         model.update_pressures(self.t)  # pressure loads at the solve's time

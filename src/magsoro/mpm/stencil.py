@@ -17,7 +17,7 @@ import warp as wp
 
 from magsoro.constants import MU0
 from magsoro.mpm.contact import make_contact
-from magsoro.mpm.materials import LAW_PARAM_COUNT, make_material_functions
+from magsoro.mpm.materials import LAW_PARAM_COUNT, make_material_functions, make_plane_stress_functions
 from magsoro.mpm.settings import MagnetizationFollows
 
 
@@ -145,7 +145,7 @@ def make_types(dim: int, scalar) -> SimpleNamespace:
 
 
 @functools.cache
-def make_body_elastic(dim: int, scalar) -> SimpleNamespace:
+def make_body_elastic(dim: int, scalar, plane: str = "strain") -> SimpleNamespace:
     """The elastic stress and energy of a particle of the model, the one place where a particle's law, moduli and
     stimulus eigenstrain (:mod:`magsoro.mpm.eigenstrain`) meet; every kernel that needs a particle's elastic
     response calls these:
@@ -153,11 +153,23 @@ def make_body_elastic(dim: int, scalar) -> SimpleNamespace:
     - ``body_elastic_stress(F, b, p)``: first Piola stress (Pa) of particle ``p`` of the Bodies ``b`` at ``F``,
       P = c P_e(F F_s^-1) F_s^-T with c = f det F_s of its stimulus now, P_e its law; without a stimulus
       (``b.n_stimuli`` = 0 or its row -1) exactly its law's stress at F, to the bit;
-    - ``body_elastic_energy(F, b, p)``: the matching energy c W_e(F F_s^-1), J/m^3 of reference volume."""
+    - ``body_elastic_energy(F, b, p)``: the matching energy c W_e(F F_s^-1), J/m^3 of reference volume.
+
+    ``plane`` (2D only): "strain" (F_zz = 1) or "stress" (the laws of
+    :func:`magsoro.mpm.materials.make_plane_stress_functions`); a compile-time choice, so that plane-strain kernels
+    carry no trace of the plane-stress solve."""
     t = make_types(dim, scalar)
     mat, Bodies = t.mat, t.Bodies
-    elastic = make_material_functions(dim, scalar)
-    elastic_stress, elastic_energy = elastic["elastic_stress"], elastic["elastic_energy"]
+    if plane == "stress":
+        if dim != 2:
+            raise ValueError("plane stress is a 2D idealisation (dim = 2)")
+        elastic = make_plane_stress_functions(scalar)
+        elastic_stress, elastic_energy = elastic["plane_stress_stress"], elastic["plane_stress_energy"]
+    elif plane == "strain":
+        elastic = make_material_functions(dim, scalar)
+        elastic_stress, elastic_energy = elastic["elastic_stress"], elastic["elastic_energy"]
+    else:
+        raise ValueError(f"plane must be 'strain' or 'stress', got {plane!r}")
 
     @wp.func
     def stimulus_row(b: Bodies, p: int):
@@ -410,10 +422,8 @@ def make_stencil(dim: int, scalar, two_fields: bool = False) -> SimpleNamespace:
             of[a] = scalar(o[a])
         return weight, of, first + flat_index(o, shape)
 
-    body = make_body_elastic(dim, scalar)
     mag = make_magnetization(dim, scalar)
     return SimpleNamespace(moment_map=mag.moment_map, rotation_stress=mag.rotation_stress, types=t, NS=3**dim, ContactGrid=ContactGrid, slot_of=slot_of, inplane=inplane,
                            bspline_weights=bspline_weights, stencil_offset=stencil_offset, flat_index=flat_index,
                            node_of_flat=node_of_flat, local_coords=local_coords, outside_block=outside_block,
-                           stencil_node=stencil_node, body_elastic_stress=body.body_elastic_stress,
-                           body_elastic_energy=body.body_elastic_energy)
+                           stencil_node=stencil_node)

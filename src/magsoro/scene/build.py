@@ -454,6 +454,10 @@ def fill_bodies(scene: Scene, source: str = "scene", magnetization=None) -> Part
         if len(pts) == 0:
             raise SceneError(f"{bsrc}: {bkey}.shape: body '{b.name}' holds no particle at dx = {dx} m; refine simulation.dx or enlarge the shape")
         mat = resolve_material(b.material, base_dir, f"{bsrc}: {bkey}.material", library)
+        if mat["prony"] is not None and dim == 2 and getattr(sim, "plane", "strain") == "stress":
+            raise SceneError(f"{bsrc}: {bkey}.material.prony: plane stress (simulation.plane = 'stress') does not take "
+                             "viscoelastic materials yet (their out-of-plane overstress is not tracked); use "
+                             "plane = 'strain' or an elastic material")
         fn = magnetization.get(b.name) if isinstance(magnetization, dict) else magnetization
         key = "magnetization (Python callable)" if fn is not None else f"{bkey}.magnetization"
         if fn is None:
@@ -779,7 +783,7 @@ def build(scene: Scene, device: str | None = None, source: str = "scene", magnet
         stimulus=p.stimulus, stimuli=p.stimuli, magnetization_follows=p.magnetization_follows,
         prony=p.prony, pronies=p.pronies, pressure_area=p.pressure_area, pressure_row=p.pressure_row,
         pressures=p.pressures, clamp_row=clamp_row, clamp_paths=clamp_paths,
-        initial_displacement=p.displacement, initial_deformation=p.deformation,
+        initial_displacement=p.displacement, initial_deformation=p.deformation, plane=sim.plane,
     )
     report = p.report
     p_vel = p.velocity

@@ -847,7 +847,7 @@ DampingSpec = Annotated[Union[Annotated[float, Field(ge=0), Tag("number")], Anno
 class Simulation(Strict):
     """Numerical settings."""
 
-    dim: Literal[2, 3] = Field(default=3, description="2 (plane strain in x-y) or 3.")
+    dim: Literal[2, 3] = Field(default=3, description="2 (the x-y plane: plane strain or plane stress, simulation.plane) or 3.")
     dx: float = Field(gt=0, description="Grid spacing, m.")
     particles_per_cell: int = Field(default=2, ge=1, le=4, description="Particles per cell along each axis.")
     domain_lo: Vec = Field(description="Lower corner of the domain, m.")
@@ -866,6 +866,13 @@ class Simulation(Strict):
     wall_friction: float = Field(default=0.0, ge=0, description="Friction coefficient of the domain walls.")
     depth: float = Field(default=1e-3, gt=0, description="2D only: out-of-plane thickness giving particle volumes, m.")
     plane_z: float = Field(default=0.0, description="2D only: z coordinate of the plane for field sources, m.")
+    plane: Literal["strain", "stress"] = Field(
+        default="strain",
+        description="2D only: 'strain' (plane strain, F_zz = 1: long bodies, the section of a prism) or 'stress' (plane "
+        "stress, zero normal stress with the thickness stretch solved per particle: thin plates loaded in their plane, "
+        "wide strips bending like beams, with E rather than E / (1 - nu^2)); every elastic law and stimulus "
+        "eigenstrain, not Prony materials (docs/engine.md, 'Plane stress').",
+    )
     device: str = Field(default="cpu", pattern=r"^(cpu|cuda(:\d+)?)$", description="'cpu', 'cuda' or 'cuda:N'.")
     precision: Literal["float32", "float64"] = Field(default="float32", description="Floating-point precision of the kernels.")
     velocity_gradient: Literal["remap", "grid"] = Field(
@@ -913,6 +920,12 @@ class Simulation(Strict):
         description="CPU threads a step is split over. Default: automatic, one per 4000 particles up to the usable "
         "cores (the environment variable MAGSORO_THREADS overrides it; sweep workers use 1). Ignored on CUDA.",
     )
+
+    @model_validator(mode="after")
+    def _plane_needs_2d(self):
+        if self.plane == "stress" and self.dim != 2:
+            raise ValueError('simulation.plane = "stress" needs simulation.dim = 2 (plane stress is a 2D idealisation)')
+        return self
 
 
 def _friction(value):
