@@ -544,12 +544,13 @@ class Simulation:
         return out
 
     def _static_guess(self, solver) -> None:
-        """A state away from the reference (one started from another run's, :meth:`start_from`) is where the static
-        solver's Newton iterations start: its displacements and deformation gradients projected on the grid nodes
-        as the implicit integrator projects its start (least squares), so that the solve stays on the state's
-        branch (a pre-buckled arch). Where the solver slaves light nodes (3D) there is no such projection yet: the
-        solve starts from the reference, and :attr:`notes` says so."""
-        if self.started_from is None:
+        """A state away from the reference (one started from another run's, :meth:`start_from`, or bodies given an
+        initial_displacement) is where the static solver's Newton iterations start: its displacements and
+        deformation gradients projected on the grid nodes as the implicit integrator projects its start (least
+        squares), so that the solve stays on the state's branch (a pre-buckled arch, an imperfection). Where the
+        solver slaves light nodes (3D) there is no such projection yet: the solve starts from the reference, and
+        :attr:`notes` says so."""
+        if self.started_from is None and "initial_displacement" not in self.model.host:
             return
         dim = self.dim
         x = self.state.x.numpy().astype(np.float64)[:, :dim]
@@ -557,12 +558,14 @@ class Simulation:
         if not np.any(d != 0.0):
             return
         if solver.E.shape[0] != solver.E.shape[1]:
-            self._note("the static solve starts from the reference configuration, not from the state of "
-                       f"{self.started_from['from']}: the solver slaves light nodes here, which the projection of a "
-                       "state onto the nodes does not handle yet")
+            what = (f"the state of {self.started_from['from']}" if self.started_from is not None
+                    else "the bodies' initial_displacement")
+            self._note(f"the static solve starts from the reference configuration, not from {what}: the solver "
+                       "slaves light nodes here, which the projection of a state onto the nodes does not handle yet")
             return
         F = self.state.F.numpy().astype(np.float64)[:, :dim, :dim]
-        solver.u_nodes = solver.fit_nodes(d, F - np.eye(dim))  # the implicit integrator's start, the same fit
+        # the implicit integrator's start, the same fit; the moving clamps' nodes where the clamps start
+        solver.u_nodes = solver.hold(solver.fit_nodes(d, F - np.eye(dim)))
 
     def _rebuild_for_static(self) -> None:
         """Rebuild in float64 and the total form (:func:`prepare_static`) when built otherwise, keeping the state,

@@ -229,7 +229,7 @@ class ImplicitIntegrator(StaticSolver):
         v = state.v.numpy().astype(np.float64)[:, :dim]
         F = state.F.numpy().astype(np.float64)[:, :dim, :dim]
         if np.any(d != 0.0):
-            self.u_nodes = self.fit_nodes(d, F - np.eye(dim))
+            self.u_nodes = self.hold(self.fit_nodes(d, F - np.eye(dim)), self.t)
         if np.any(v != 0.0):  # with dF/dt = C F, C the state's velocity gradient
             C = state.C.numpy().astype(np.float64)[:, :dim, :dim]
             self.v_nodes = self.fit_nodes(v, np.einsum("pab,pbc->pac", C, F))
@@ -366,8 +366,15 @@ class ImplicitIntegrator(StaticSolver):
         forces of the current state and the nodes' weight, at the step's load time (inertia off)."""
         saved = self._inertia
         self._inertia = None
+        shift = self._shift  # moving clamps: at rest for the undeformed body, where they stand for the state
+        if self.model.clamp_paths:
+            self._set_clamps(0.0 * shift)
         r0 = self._reduce(self._scatter(np.zeros_like(self.u_nodes), self.field_level, self.gravity_level))
+        if self.model.clamp_paths:
+            self._set_clamps(self._clamp_displacements(self.t))
         rn = self._reduce(self._scatter(self.u_nodes, self.field_level, self.gravity_level))
+        if self.model.clamp_paths:
+            self._set_clamps(shift)
         self._inertia = saved
         weight = float(self.node_mass.max()) * float(np.linalg.norm(self.gravity)) * self.gravity_level
         inertial = float(np.abs(self.node_mass[:, None] * self.a_nodes).max()) if self.a_nodes.size else 0.0
@@ -397,7 +404,7 @@ class ImplicitIntegrator(StaticSolver):
         u0, v0, a0 = self.u_nodes, self.v_nodes, self.a_nodes
         # predictor: constant velocity (a_n's term can throw the lightest nodes at a body's edge, whose lumped masses
         # carry large accelerations, far enough to invert their particles' F)
-        guess = u0 + dt * v0
+        guess = self.hold(u0 + dt * v0, self.t + dt)  # moving clamps' nodes: where the clamps are at the step's end
         try:
             u1, ok, its, norm, message = self._step_newton(guess, scale)
             crossing = self.wall_crossing(u1) if ok else None
@@ -443,7 +450,8 @@ class ImplicitIntegrator(StaticSolver):
             contact.begin()
         r_full = self._scatter(u, fl, gl)
         if not self._valid():
-            u = self._inertia[2]  # the predictor inverted a particle: start from the last state instead
+            # the predictor inverted a particle: start from the last state instead (its moving clamps at the step's end)
+            u = self.hold(self._inertia[2], self.t + self._inertia[1])
             r_full = self._scatter(u, fl, gl)
         if contact is not None:
             contact.commit()

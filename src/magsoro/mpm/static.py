@@ -106,6 +106,8 @@ ARC_MIN = 1e-4
 LIGHT = {2: 0.0, 3: 1.0e-2}
 #: the tangent's diagonal shift (relative to its median diagonal) that regularises any null mode left
 NULL_SHIFT = 1.0e-12
+#: a level's force scale takes a moving clamp's linear response: the clamps moved this many cells (_reference_force)
+CLAMP_PROBE_CELLS = 0.1
 #: fit_nodes' least squares is shifted by this fraction of its median diagonal (regular where a node moves nothing)
 PROJECT_SHIFT = 1.0e-16
 #: and refined this many times on the fit's own residual (the normal equations square the light nodes' condition: the
@@ -181,13 +183,15 @@ def make_static_kernels(dim: int, scalar, plane: str = "strain") -> dict:
 
     @wp.kernel
     def place_particles(X: wp.array(dtype=vec), u: wp.array(dtype=vec), block: Block, clamped: wp.array(dtype=wp.int32),
-                        x: wp.array(dtype=vec), F: wp.array(dtype=mat)):
+                        clamp_shift: wp.array(dtype=vec), x: wp.array(dtype=vec), F: wp.array(dtype=mat)):
         """Positions X + sum w u_i and deformation gradients I + sum u_i (x) grad w of the node displacements
-        ``u`` (the total-Lagrangian gather with v = u and a unit step); clamped particles keep X and F = I, as
-        the engine's gather holds them."""
+        ``u`` (the total-Lagrangian gather with v = u and a unit step); clamped particles keep F = I and sit at X
+        plus their clamp's displacement ``clamp_shift[code]`` (zero for code 1, held in place), as the engine's
+        gather moves them."""
         p = wp.tid()
-        if clamped[p] != 0:
-            x[p] = X[p]
+        code = clamped[p]
+        if code != 0:
+            x[p] = X[p] + clamp_shift[code]
             F[p] = wp.identity(n=dim, dtype=scalar)
             return
         inv_dx = scalar(1.0) / block.dx
@@ -321,10 +325,10 @@ def make_static_kernels(dim: int, scalar, plane: str = "strain") -> dict:
 # -- launchers: the one place each kernel's argument order is written (as in :mod:`magsoro.mpm.p2g`); ``kernels``
 # is :func:`make_static_kernels`' table ------------------------------------------------------------------------
 
-def launch_place_particles(kernels, n, *, X, u, block, clamped, x, F, device, record=False):
+def launch_place_particles(kernels, n, *, X, u, block, clamped, clamp_shift, x, F, device, record=False):
     """``place_particles`` over ``n`` particles: positions ``x`` and ``F`` from the node displacements ``u``."""
     return wp.launch(kernels["place_particles"], dim=n, device=device, record_cmd=record,
-                     inputs=[X, u, block, clamped, x, F])
+                     inputs=[X, u, block, clamped, clamp_shift, x, F])
 
 
 def launch_material_tangent(kernels, n, *, F, bodies, h, A, device, record=False):
@@ -405,11 +409,6 @@ def check_supported(sim, who: str = "the static solver", viscous: bool = False) 
     if any(c.mode == "symmetry" for c in sim.control.colliders):
         raise SimulationError(f"{who} has no symmetry colliders (mirror planes) yet; give them mode = "
                               "'slip' if the body presses on them, or use --equilibrium (relax)")
-    if sim.model.clamp_paths:
-        raise SimulationError(f"{who} has no moving clamps (clamps[].path) yet; run the explicit engine")
-    if "initial_displacement" in sim.model.host:
-        raise SimulationError(f"{who} starts from the undeformed body: it has no bodies[].initial_displacement yet; "
-                              "run the explicit engine")
     if sim.model.viscous and not viscous:
         # the equilibrium under held loads is the relaxed one: the law with its isochoric moduli scaled by g_inf
         raise SimulationError(f"{who} has no viscoelastic (prony) materials; the equilibrium under held loads "
@@ -459,6 +458,11 @@ class StaticSolver:
         k = model.kernels
         self.k = k
         self.kk = make_static_kernels(self.dim, self.sc, model.plane)
+        # the moving clamps' displacements per clamp code (Model clamp_code: 0 free, 1 held in place, 2 + path row)
+        # at the clamps' time (_set_collider_time), which the held particles and nodes take
+        self.clamp_shift = wp.zeros(2 + len(model.clamp_paths), dtype=k["vec"], device=self.dev)
+        self.held_code = None  # per node its clamp code, read below
+        self._shift = np.zeros((2 + len(model.clamp_paths), self.dim))  # what clamp_shift holds, on the host
         state = sim.state
         model.update_stimuli(self.t)  # eigenstrains (material.stimulus) at the solve's time
         model.update_pressures(self.t)  # pressure loads at the solve's time
@@ -494,9 +498,10 @@ class StaticSolver:
         # free nodes: carrying mass, not held
         self._scatter(np.zeros((self.n_nodes, self.dim)), 0.0, 0.0)
         mass = solver.grid_m.numpy()[: self.n_nodes].astype(np.float64)
-        held = solver.held_mask.numpy()[: self.n_nodes] != 0
+        self.held_code = solver.held_mask.numpy()[: self.n_nodes].astype(np.int64)
+        held = self.held_code != 0
         self.node_mass = mass
-        self.held_nodes = held  # nodes the clamps hold (read once: the clamps do not change during a solve)
+        self.held_nodes = held  # nodes the clamps hold (read once: which nodes they hold does not change)
         self.free = np.flatnonzero((mass > 0) & ~held)
         shape = np.asarray(solver.shape, dtype=np.int64)
         self.shape = shape
@@ -522,6 +527,8 @@ class StaticSolver:
             self._scene_contact = parts[0] if sim.control.colliders else None
             # the colliders start where they are at the scene's start; the first level's load increments move them
             # along their paths to the solve's time with the loads (a plate pressed into a body: a crushing test)
+            self._set_collider_time(0.0)
+        if model.clamp_paths:  # so do the moving clamps, from where they stand at the start
             self._set_collider_time(0.0)
         self._check_held()
         if self.arc_length and self.walls:
@@ -604,7 +611,8 @@ class StaticSolver:
     def _place(self, u_nodes: np.ndarray) -> None:
         self.u.assign(u_nodes.astype(self.model.np_scalar))
         launch_place_particles(self.kk, self.model.n_particles, X=self.model.X0, u=self.u, block=self.block,
-                               clamped=self.model.clamped, x=self.x, F=self.F, device=self.dev)
+                               clamped=self.model.clamped, clamp_shift=self.clamp_shift, x=self.x, F=self.F,
+                               device=self.dev)
 
     def _scatter(self, u_nodes: np.ndarray, field_level: float, gravity_level: float) -> np.ndarray:
         """Node forces (n_nodes, dim) at the displacement ``u_nodes`` under the given load levels."""
@@ -1017,6 +1025,7 @@ class StaticSolver:
     def _newton(self, u_nodes, field_level, gravity_level, scale, slope: bool = False):
         """Newton with line search from ``u_nodes`` (``slope``: the energy line search, else the residual-norm
         one). Returns (u, converged, iterations, |R|_inf, message)."""
+        u_nodes = self.hold(u_nodes)  # the moving clamps' nodes where the clamps are now
         if self.contact is not None:
             self.contact.begin()
         r_full = self._scatter(u_nodes, field_level, gravity_level)
@@ -1224,11 +1233,64 @@ class StaticSolver:
         return None
 
     def _set_collider_time(self, tau: float) -> None:
-        """Put the colliders where their paths have them at time ``tau`` (s)."""
+        """Put the colliders and the moving clamps where their paths have them at time ``tau`` (s)."""
         self.collider_time = float(tau)
         if self.contact is not None:
             for part in self.contact.parts:
                 part.t = float(tau)
+        if self.model.clamp_paths:
+            self._set_clamps(self._clamp_displacements(tau))
+
+    def _clamp_displacements(self, tau: float) -> np.ndarray:
+        """(2 + clamp paths, dim) m: the displacement of each clamp code at time ``tau`` (codes 0 and 1: zero)."""
+        paths = self.model.clamp_paths
+        shift = np.zeros((2 + len(paths), self.dim))
+        for row in range(len(paths)):
+            shift[2 + row] = self.model.clamp_displacement(row, tau)
+        return shift
+
+    def _set_clamps(self, shift: np.ndarray) -> None:
+        """The moving clamps' displacements per clamp code (:meth:`_clamp_displacements`) for the placements and
+        :meth:`hold`."""
+        self._shift = shift
+        self.clamp_shift.assign(shift.astype(self.model.np_scalar))
+
+    def hold(self, u_nodes: np.ndarray, tau: float | None = None) -> np.ndarray:
+        """``u_nodes`` with the nodes of moving clamps at their clamp's displacement at time ``tau`` (s; default
+        where the clamps stand now): the Dirichlet values of the unknowns' solve (nodes held in place stay zero). A
+        copy when there are moving clamps, ``u_nodes`` itself otherwise."""
+        if not self.model.clamp_paths or self.held_code is None:
+            return u_nodes
+        shift = self._shift if tau is None else self._clamp_displacements(tau)
+        out = np.array(u_nodes, dtype=np.float64, copy=True)
+        moving = self.held_code >= 2
+        out[moving] = shift[self.held_code[moving]]
+        return out
+
+    def _reference_force(self, target) -> float:
+        """The force scale of a level's tolerance: the largest out-of-balance node force of the undeformed body
+        under the ``target`` loads, the colliders and clamps at the solve's time. A moving clamp's share is its
+        linear response: the clamps moved a tenth of a cell along the way to their place at the solve's time, the
+        force scaled up by the ratio (a clamp moved cells away from the undeformed body beside it would invert the
+        particles between)."""
+        tau, tf = self.collider_time, self.field_time
+        self._set_collider_time(self.t)
+        self.field_time = self.t
+        zeros = np.zeros_like(self.u_nodes)
+        try:
+            if not self.model.clamp_paths:
+                return float(np.abs(self._reduce(self._scatter(zeros, *target))).max(initial=0.0))
+            full = self._shift
+            travel = float(np.abs(full).max(initial=0.0))
+            probe = min(1.0, CLAMP_PROBE_CELLS * float(self.model.dx) / travel) if travel > 0.0 else 1.0
+            self._set_clamps(0.0 * full)
+            r0 = self._reduce(self._scatter(zeros, *target))
+            self._set_clamps(probe * full)
+            r1 = self._reduce(self._scatter(self.hold(zeros), *target))
+            return max(float(np.abs(r0).max(initial=0.0)), float(np.abs(r1 - r0).max(initial=0.0)) / probe)
+        finally:
+            self._set_collider_time(tau)
+            self.field_time = tf
 
     def _load_times(self, times0, s: float) -> None:
         """The colliders and the fields at fraction ``s`` of their way from ``times0`` (collider time, field time)
@@ -1492,14 +1554,9 @@ class StaticSolver:
         target = (float(level), float(gravity_level))
         before = (self.u_nodes.copy(), self.field_level, self.gravity_level)
         # the force scale of the tolerance: the out-of-balance force of the undeformed body under the target load,
-        # the colliders at the solve's time (a plate moved into the body loads it through the penalty)
-        tau, tf = self.collider_time, self.field_time
-        self._set_collider_time(self.t)
-        self.field_time = self.t
-        r_ref = self._reduce(self._scatter(np.zeros_like(self.u_nodes), *target))
-        self._set_collider_time(tau)
-        self.field_time = tf
-        scale = max(float(np.abs(r_ref).max()), 1e-30)
+        # the colliders and the moving clamps at the solve's time (a plate moved into the body loads it through the
+        # penalty, a clamp moved along its path through the nodes it holds)
+        scale = max(self._reference_force(target), 1e-30)
         iterations = increments = arc_steps = 0
         buckled, lam, limits = False, None, []
         if self.arc_length:  # the whole way along the path, limit points reported

@@ -542,7 +542,7 @@ class Clamp(Strict):
 
     region: AnyShape = Field(description="Region in the reference configuration (a shape, as for bodies).")
     body: str | None = Field(default=None, description="Only clamp particles of this body. Default: all bodies.")
-    path: ClampPath | None = Field(default=None, description="Optional translation of the held particles: a table [ClampPath](#clamppath) of times and displacements; they sit at reference + displacement and move at its rate. The explicit engine in the total formulation (the static solver and the implicit integrator refuse it for now). Default: held in place.")
+    path: ClampPath | None = Field(default=None, description="Optional translation of the held particles: a table [ClampPath](#clamppath) of times and displacements; they sit at reference + displacement and move at its rate. The explicit engine (total formulation), the static solver (the clamps move with each level's load increments) and the implicit integrator. Default: held in place.")
 
 
 # ---------------------------------------------------------------- colliders
