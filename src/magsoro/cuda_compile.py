@@ -290,6 +290,7 @@ def _catalogue() -> tuple:
             groups += _groups_of(label, _fresh(make_p2g, 2, sc, contact, False, "stress"), seen)
         groups += _groups_of(f"engine 2D {sname} plane stress", _fresh(_stress_kernel, 2, sc, "stress"), seen)
         groups += _groups_of(f"static 2D {sname} plane stress", _fresh(make_static_kernels, 2, sc, "stress"), seen)
+        groups += _groups_of(f"viscous 2D {sname} plane stress", _fresh(make_viscous, 2, sc, "stress"), seen)
     field_funcs = _field_device_functions()
     for dim in DIMS:
         for sname in SCALAR_NAMES:

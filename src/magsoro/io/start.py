@@ -103,6 +103,11 @@ def read_start(path, model, body_names, key: str = "--from") -> tuple[dict, list
         if H.shape[:2] != (n, terms):
             raise SceneError(f"{where}: its Prony internal stresses have {H.shape[1]} columns, the scene's materials "
                              f"{terms} (1 + the Prony terms: the materials differ)")
+        side = 3 if model.plane == "stress" else dim
+        if H.shape[2:] != (side, side):
+            raise SceneError(f"{where}: its Prony internal stresses are {tuple(H.shape[2:])} matrices, the scene's "
+                             f"({side}, {side}) (simulation.plane differs: plane stress carries the thickness "
+                             f"direction)")
     elif H is not None:
         raise SceneError(f"{where}: holds Prony internal stresses H, but the scene's materials have no Prony terms "
                          f"(the materials differ)")

@@ -328,7 +328,7 @@ class ImplicitIntegrator(StaticSolver):
             return self.no_viscous
         if self._inertia is None:
             return viscous_struct(self.model, self.H_n)
-        kv = make_viscous(self.dim, self.model.scalar)
+        kv = make_viscous(self.dim, self.model.scalar, self.model.plane)
         launch_viscous_update(kv, self.model.n_particles, F=self.F, bodies=self.bodies,
                               viscous=viscous_struct(self.model, self.H_n), H_out=self.H_trial, dt=self.sc(self._dt_a()),
                               device=self.dev)
@@ -340,7 +340,7 @@ class ImplicitIntegrator(StaticSolver):
 
         if not self.model.viscous or self._inertia is None:
             return
-        kv = make_viscous(self.dim, self.model.scalar)
+        kv = make_viscous(self.dim, self.model.scalar, self.model.plane)
         launch_overstress_tangent(kv, self.model.n_particles, F=self.F, bodies=self.bodies,
                                   viscous=viscous_struct(self.model, self.H_n), dt=self.sc(self._dt_a()), h=self.sc(F_STEP),
                                   A=A, device=self.dev)
@@ -355,7 +355,7 @@ class ImplicitIntegrator(StaticSolver):
         from magsoro.mpm.viscous import launch_viscous_update, make_viscous, viscous_struct
 
         self._place(u1)
-        kv = make_viscous(self.dim, self.model.scalar)
+        kv = make_viscous(self.dim, self.model.scalar, self.model.plane)
         launch_viscous_update(kv, self.model.n_particles, F=self.F, bodies=self.bodies,
                               viscous=viscous_struct(self.model, self.H_n), H_out=self.H_trial, dt=self.sc(dt),
                               device=self.dev)

@@ -37,18 +37,24 @@ def make_p2g(dim: int, scalar, two_fields: bool = False, differentiable: bool = 
     inv_mu0 = 1.0 / MU0
     body_elastic_stress = make_body_elastic(dim, scalar, plane).body_elastic_stress
     moment_map, rotation_stress = s.moment_map, s.rotation_stress
-    visc = make_viscous(dim, scalar)
-    Viscous, overstress = visc["Viscous"], visc["overstress"]
+    visc = make_viscous(dim, scalar, plane)
+    Viscous, overstress, plane_total = visc["Viscous"], visc["overstress"], visc["plane_total"]
+    plane_stress = plane == "stress"
+
+    @wp.func
+    def magnetic_stress(Fp: mat, b: Bodies, p: int, B: v3):
+        """The magnetic part of :func:`particle_stress`."""
+        br = b.Br[p]
+        if b.follows[p] != 0:
+            return rotation_stress(Fp, B, br)
+        return -scalar(inv_mu0) * wp.outer(inplane(B), inplane(br))
 
     @wp.func
     def particle_stress(Fp: mat, b: Bodies, p: int, B: v3):
         """First Piola stress of particle ``p``: its elastic law (with its stimulus eigenstrain, if any) plus the
         magnetic stress of a hard-magnetic elastomer: P = -(1/mu0) B (x) Br when its moment follows F (seed 000
         eq 13), dW/dF of W = -(1/mu0) B . R Br when it follows R (:func:`magsoro.mpm.stencil.make_magnetization`)."""
-        br = b.Br[p]
-        if b.follows[p] != 0:
-            return body_elastic_stress(Fp, b, p) + rotation_stress(Fp, B, br)
-        return body_elastic_stress(Fp, b, p) - scalar(inv_mu0) * wp.outer(inplane(B), inplane(br))
+        return body_elastic_stress(Fp, b, p) + magnetic_stress(Fp, b, p, B)
 
     @wp.func
     def gradient_force(Fp: mat, b: Bodies, p: int, grad_B: m3):
@@ -78,9 +84,17 @@ def make_p2g(dim: int, scalar, two_fields: bool = False, differentiable: bool = 
         """What particle ``p`` brings to its nodes: the affine matrix A (stress impulse plus m C, times dx) and its
         momentum m v (with dt times the gradient force): node i receives w_i (m v + A o_i - A fx)."""
         Fp = sp.F[p]
-        P = particle_stress(Fp, b, p, B)
-        if vs.n_rows > 0:
-            P = P + overstress(Fp, vs, p)
+        P = mat()
+        if wp.static(plane_stress):
+            # a Prony particle's law and overstress share their thickness stretch (magsoro.mpm.viscous)
+            if vs.n_rows > 0 and vs.row[p] >= 0:
+                P = plane_total(Fp, b, vs, p, scalar(0.0), 0) + magnetic_stress(Fp, b, p, B)
+            else:
+                P = particle_stress(Fp, b, p, B)
+        else:
+            P = particle_stress(Fp, b, p, B)
+            if vs.n_rows > 0:
+                P = P + overstress(Fp, b, vs, p)
         # MLS-MPM: grid force -V0 P F^T grad w, with grad w = (4/dx^2) w (x_i - x_p) for quadratic B-splines
         stress = (-dts * b.vol0[p] * scalar(4.0) * inv_dx * inv_dx) * P
         if total == 0:

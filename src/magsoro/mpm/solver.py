@@ -282,7 +282,7 @@ class Model:
     pronies: Prony tables [[g, tau], ...] (viscoelastic materials, :mod:`magsoro.mpm.viscous`), with prony (N,) int
     the row of each particle's (-1: elastic); a particle cannot have both a stimulus and a Prony row.
     plane (2D): "strain" (default, F_zz = 1) or "stress" (zero normal stress, the thickness stretch solved per
-    particle; no Prony rows), :data:`magsoro.mpm.settings.PLANES`; the kernels are built for it.
+    particle), :data:`magsoro.mpm.settings.PLANES`; the kernels are built for it.
     """
 
     MATERIAL_MODELS = {name: law.code for name, law in LAWS.items()}
@@ -385,9 +385,6 @@ class Model:
         self._init_stimuli(stimulus, stimuli)
         self._init_prony(prony, pronies)
         self._init_pressures(pressure_area, pressure_row, pressures)
-        if self.plane == "stress" and np.any(self.host["prony"] >= 0):
-            raise ValueError('simulation.plane = "stress" does not take Prony (viscoelastic) materials yet: their '
-                             'out-of-plane overstress is not tracked; use plane = "strain"')
         self._placeholder_step = self._placeholder_impulse = None
 
     @property
@@ -532,7 +529,9 @@ class Model:
         self.prony_row = wp.array(rows, dtype=wp.int32, device=dev)
         self.prony_g = wp.array(g.astype(s), dtype=v3, device=dev)
         self.prony_tau = wp.array(tau.astype(s), dtype=v3, device=dev)
-        self.empty_H = wp.zeros((0, 1), dtype=self.kernels["mat"], device=dev)
+        # the internal stresses' type: dim x dim, 3 x 3 in plane stress (magsoro.mpm.viscous)
+        self.H_type = self.kernels["m3"] if self.plane == "stress" else self.kernels["mat"]
+        self.empty_H = wp.zeros((0, 1), dtype=self.H_type, device=dev)
         if self.prony_terms == 0:
             self.prony = ()  # tables no particle uses: the kernels skip the viscous part
 
@@ -886,7 +885,7 @@ class Solver:
             v=wp.array(np.ascontiguousarray(v, dtype=s), dtype=k["vec"], device=m.device),
             C=wp.zeros(n, dtype=k["mat"], device=m.device),
             F=wp.array(np.ascontiguousarray(eye, dtype=s), dtype=k["mat"], device=m.device),
-            H=wp.zeros((n, 1 + m.prony_terms), dtype=k["mat"], device=m.device) if m.viscous else None,
+            H=wp.zeros((n, 1 + m.prony_terms), dtype=m.H_type, device=m.device) if m.viscous else None,
         )
 
     # -- grid block -----------------------------------------------------------------------------------------
@@ -1138,7 +1137,7 @@ class Solver:
         }
         if m.viscous:  # the Prony internal stresses of state_out from its new F (magsoro.mpm.viscous)
             L["viscous"] = [launch_viscous_update(
-                make_viscous(m.dim, m.scalar), m.n_particles, F=state_out.F, bodies=bodies_array(m, step=self._step_values),
+                make_viscous(m.dim, m.scalar, m.plane), m.n_particles, F=state_out.F, bodies=bodies_array(m, step=self._step_values),
                 viscous=viscous_struct(m, state_in.H), H_out=state_out.H, dt=sc(0.0), **rec)]
         if m.closed_pressures:  # the closed cavities' net pressure force, taken back in p2g
             L["pressure_net"] = launch_pressure_net(k, m.n_particles, bodies=bodies_array(m, step=self._step_values),

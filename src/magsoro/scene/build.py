@@ -454,10 +454,6 @@ def fill_bodies(scene: Scene, source: str = "scene", magnetization=None) -> Part
         if len(pts) == 0:
             raise SceneError(f"{bsrc}: {bkey}.shape: body '{b.name}' holds no particle at dx = {dx} m; refine simulation.dx or enlarge the shape")
         mat = resolve_material(b.material, base_dir, f"{bsrc}: {bkey}.material", library)
-        if mat["prony"] is not None and dim == 2 and getattr(sim, "plane", "strain") == "stress":
-            raise SceneError(f"{bsrc}: {bkey}.material.prony: plane stress (simulation.plane = 'stress') does not take "
-                             "viscoelastic materials yet (their out-of-plane overstress is not tracked); use "
-                             "plane = 'strain' or an elastic material")
         fn = magnetization.get(b.name) if isinstance(magnetization, dict) else magnetization
         key = "magnetization (Python callable)" if fn is not None else f"{bkey}.magnetization"
         if fn is None:

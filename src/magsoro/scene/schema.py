@@ -870,8 +870,8 @@ class Simulation(Strict):
         default="strain",
         description="2D only: 'strain' (plane strain, F_zz = 1: long bodies, the section of a prism) or 'stress' (plane "
         "stress, zero normal stress with the thickness stretch solved per particle: thin plates loaded in their plane, "
-        "wide strips bending like beams, with E rather than E / (1 - nu^2)); every elastic law and stimulus "
-        "eigenstrain, not Prony materials (docs/engine.md, 'Plane stress').",
+        "wide strips bending like beams, with E rather than E / (1 - nu^2)); every elastic law, Prony viscoelasticity "
+        "and stimulus eigenstrain (docs/engine.md, 'Plane stress').",
     )
     device: str = Field(default="cpu", pattern=r"^(cpu|cuda(:\d+)?)$", description="'cpu', 'cuda' or 'cuda:N'.")
     precision: Literal["float32", "float64"] = Field(default="float32", description="Floating-point precision of the kernels.")
