@@ -318,18 +318,24 @@ class Simulation:
 
     @classmethod
     def from_file(cls, path, device: str | None = None) -> "Simulation":
+        """The Simulation of the scene file ``path`` (TOML), on ``device`` ('cpu', 'cuda', 'cuda:N'; default the
+        scene's simulation.device); errors name the file and the key."""
         return cls(load_scene(path), device=device, source=str(path))
 
     # -- reading -------------------------------------------------------------------------------------------
     @property
     def time(self) -> float:
+        """The simulated time of the current state, s."""
         return self.state.time
 
     @property
     def dim(self) -> int:
+        """The scene's dimension: 2 or 3."""
         return self.model.dim
 
     def probe_columns(self) -> list[str]:
+        """The names of the probes' columns in metrics.csv and :meth:`probe_values`, in order (a position probe
+        gives NAME_x, NAME_y (, NAME_z) in m)."""
         cols = []
         for p in self.probes:
             cols.extend(p.columns(self.dim))

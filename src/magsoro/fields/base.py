@@ -107,6 +107,7 @@ class FieldSum(FieldSource):
 
     @property
     def uniform(self) -> bool:  # type: ignore[override]
+        """True when every source of the sum is uniform (the same B at every point)."""
         return all(s.uniform for s in self._sources)
 
     def sources(self):

@@ -274,6 +274,8 @@ class CuboidMagnet(MovingSource):
     orientation_path : optional :class:`~magsoro.fields.profiles.Keyframes` of quaternions (x, y, z, w) over
         time, interpolated linearly and normalised (keep consecutive keyframes in the same hemisphere).
 
+    Notes
+    -----
     ``B(points, t)`` -> (N, 3) tesla (inside the magnet the B of the magnetised material), ``grad_B`` ->
     (N, 3, 3) tesla/metre with grad_B[n, i, j] = dB_i/dx_j.
     """

@@ -297,6 +297,8 @@ class CylinderMagnet(MovingSource):
     axis_path : optional :class:`~magsoro.fields.profiles.Keyframes` of axis vectors over time, interpolated
         linearly then normalised; overrides ``axis``.
 
+    Notes
+    -----
     ``B(points, t)`` -> (N, 3) tesla, ``grad_B(points, t)`` -> (N, 3, 3) tesla/metre, grad_B[n, i, j] = dB_i/dx_j.
     """
 

@@ -98,6 +98,8 @@ class Dipole(MovingSource):
     path : optional :class:`~magsoro.fields.profiles.Keyframes` of positions over time (metres), overriding
         ``position`` when given, so a magnet can be swept past a robot.
 
+    Notes
+    -----
     B = mu0/(4 pi) (3 r (m.r)/r^5 - m/r^3), r = x - position.
     """
 

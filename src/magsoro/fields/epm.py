@@ -57,6 +57,7 @@ class EPMPose:
         return Dipole(self.moment, self.position).B(points)
 
     def as_dict(self) -> dict:
+        """``{'position': [m, m, m], 'moment': [A m^2, ...]}`` as plain lists (what ``--json`` prints)."""
         return {"position": [float(v) for v in self.position], "moment": [float(v) for v in self.moment]}
 
 
@@ -119,7 +120,10 @@ def epm_pose(
     zero_component : optional 'x' | 'y' | 'z' (or 0..2). Choose, among the valid poses, one keeping this field
         component near zero at ``zero_points`` (N, 3 metres), or flattest around ``at`` when no points are given.
 
-    Returns an :class:`EPMPose`; ``pose.field([at])`` equals ``field`` to rounding.
+    Returns
+    -------
+    EPMPose
+        Magnet position (m) and moment vector (A m^2); ``pose.field([at])`` equals ``field`` to rounding.
     """
     B = np.asarray(field, dtype=np.float64).reshape(3)
     at = np.asarray(at, dtype=np.float64).reshape(3)

@@ -118,6 +118,8 @@ class CurrentLoop(MovingSource):
     turns : float. Number of turns (the loop carries ``turns * current`` ampere-turns).
     axis_path : optional :class:`~magsoro.fields.profiles.Keyframes` of axis vectors over time (normalised).
 
+    Notes
+    -----
     Centre field mu0 N I / (2 a), tesla.
     """
 

@@ -57,6 +57,8 @@ class MagpylibSource(FieldSource):
         lattice is sampled per pose and B(t) is interpolated linearly between them (held at the ends).
         Without ``times`` the source must have a single pose.
 
+    Notes
+    -----
     Host ``B`` / ``grad_B`` raise ``ValueError`` for points outside ``bounds`` (see :meth:`contains`). The device
     form cannot raise: there positions outside ``bounds`` are clamped to the nearest point of ``bounds``,
     i.e. the field is continued as constant along the outward normal. Keep the robot inside the lattice.

@@ -66,10 +66,12 @@ class Keyframes:
         return cls(t, v)
 
     def value(self, t: float) -> np.ndarray:
+        """The interpolated value (D,) at time ``t`` (s), in the units of ``values``."""
         t = float(t)
         return np.array([np.interp(t, self.times, self.values[:, d]) for d in range(self.values.shape[1])])
 
     def rate(self, t: float) -> np.ndarray:
+        """The slope (D,) at time ``t`` (s), units of ``values`` per second; zero outside the table."""
         if len(self.times) < 2 or t < self.times[0] or t >= self.times[-1]:
             return np.zeros(self.values.shape[1])
         k = int(np.searchsorted(self.times, t, side="right")) - 1

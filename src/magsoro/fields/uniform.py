@@ -30,6 +30,7 @@ class Ramp:
         return self.B * float(np.clip((t - self.start) / self.duration, 0.0, 1.0))
 
     def peak(self):
+        """Largest |B(t)| over time, tesla."""
         return float(np.linalg.norm(self.B))
 
 
@@ -46,6 +47,7 @@ class Sine:
         return self.B * (self.offset + np.sin(2 * np.pi * self.frequency * t + self.phase))
 
     def peak(self):
+        """An upper bound of |B(t)| over time, tesla: |B| (|offset| + 1)."""
         return float(np.linalg.norm(self.B)) * (abs(self.offset) + 1.0)
 
 
@@ -80,6 +82,7 @@ class Rotating:
         return s * self.magnitude * (np.cos(a) * self.u + np.sin(a) * self.v)
 
     def peak(self):
+        """Largest |B(t)| over time, tesla."""
         return abs(self.magnitude)
 
 
@@ -101,6 +104,7 @@ class KeyframedVector:
         return self.table.value(t)
 
     def peak(self):
+        """Largest |B| of the keyframes, tesla (linear interpolation never exceeds it)."""
         return float(np.max(np.linalg.norm(self.table.values, axis=1)))
 
 

@@ -63,6 +63,7 @@ class MaterialEntry:
     derivation: dict = field(default_factory=dict)
 
     def as_dict(self) -> dict:
+        """The entry as a JSON-able dict (what ``magsoro materials show NAME --json`` prints), SI units."""
         keys = ["name", "title", "density", "shear_modulus", "youngs_modulus", "youngs_modulus_std", "remanence", "remanence_estimate",
                 "remanence_correction", "ndfeb_wt_percent", "volume_fraction", "measured", "estimated", "source", "notes", "origin", "derivation"]
         return {k: getattr(self, k) for k in keys}
@@ -176,6 +177,7 @@ def _read_toml(path: Path, what: str) -> dict:
 
 
 def builtin_library() -> dict[str, MaterialEntry]:
+    """The entries of the built-in library (magsoro/data/materials.toml) by name."""
     text = resources.files("magsoro").joinpath("data/materials.toml").read_text()
     return _entries_from(tomllib.loads(text), "built-in", {})
 
@@ -190,6 +192,8 @@ def load_library(extra_files=()) -> dict[str, MaterialEntry]:
 
 
 def get_material(name: str, library: dict[str, MaterialEntry] | None = None) -> MaterialEntry:
+    """The entry ``name`` of ``library`` (default: the built-in one); MaterialLibraryError naming close matches
+    when there is none."""
     lib = builtin_library() if library is None else library
     if name not in lib:
         import difflib

@@ -57,6 +57,7 @@ class ReproduceResult:
 
     @property
     def passed(self) -> bool:
+        """True when every acceptance check in ``rows`` passed."""
         return all(r.passed for r in self.rows)
 
 
@@ -75,6 +76,7 @@ class Robot:
 
     @property
     def scene_path(self) -> Path:
+        """The robot's scene file, ``scenes/<name>.toml`` in the repository or the installed copy."""
         return scenes_dir() / f"{self.name}.toml"
 
 

@@ -48,6 +48,7 @@ class Param:
 
     @property
     def parts(self) -> list[str]:
+        """The dotted scene path split at its dots (``fields.0.B`` -> ``['fields', '0', 'B']``)."""
         return self.key.split(".")
 
 

@@ -25,6 +25,7 @@ class SweepPlan:
 
     @property
     def base_dir(self) -> Path:
+        """The folder of the scene file, against which the scene's relative file names resolve."""
         return self.scene_path.parent
 
     def describe(self) -> dict:

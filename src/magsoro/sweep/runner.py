@@ -52,6 +52,9 @@ class Progress:
 
 @dataclass
 class SweepResult:
+    """Outcome of :func:`run_sweep`: ``out_dir`` (the sweep folder), ``records`` (one dict per run, as in
+    summary.csv: parameters, status, final probe values in SI units), ``workers`` and ``wall_time`` (s)."""
+
     out_dir: Path
     records: list[dict]
     workers: int
@@ -59,10 +62,12 @@ class SweepResult:
 
     @property
     def failed(self) -> list[dict]:
+        """The records of the runs that failed."""
         return [r for r in self.records if r["status"] == "failed"]
 
     @property
     def completed(self) -> list[dict]:
+        """The records of the runs that completed."""
         return [r for r in self.records if r["status"] == "completed"]
 
 
