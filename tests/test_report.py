@@ -80,6 +80,34 @@ def make_sweep_dir(out: Path) -> Path:
     return out
 
 
+def make_bending_run_dir(out: Path, field=None) -> Path:
+    """A 3D run folder written by hand (no simulation): a strip along x, 1 mm thin in z, magnetised along x and
+    clamped at x = 0, whose free end bends up in z over 6 frames: a bend in the x-z plane, which a view down z
+    cannot show. ``field``: the scene echo's uniform field (T), or none (the motion alone tells the plane)."""
+    from magsoro.io.vtk import write_pvd, write_vtp
+
+    g = np.linspace
+    x, y, z = np.meshgrid(g(0.0, 0.01, 21), g(-0.002, 0.002, 5), g(-0.0005, 0.0005, 3), indexing="ij")
+    x0 = np.stack([x.ravel(), y.ravel(), z.ravel()], axis=1)
+    n = len(x0)
+    (out / "frames").mkdir(parents=True)
+    entries = []
+    for k in range(6):
+        t = k * 2e-4
+        pts = x0.copy()
+        pts[:, 2] += 3.0e4 * t * x0[:, 0] ** 2  # the tip rises 3 mm by the last frame
+        name = f"frames/frame_{k:05d}.vtp"
+        write_vtp(out / name, pts, {"velocity": np.zeros((n, 3), np.float32), "body": np.zeros(n, np.int32),
+                                    "clamped": (x0[:, 0] < 1e-3).astype(np.uint8), "J": np.ones(n, np.float32),
+                                    "magnetization_direction": np.tile(np.float32([1.0, 0.0, 0.0]), (n, 1))})
+        entries.append((t, name))
+    write_pvd(out / "particles.pvd", entries)
+    scene = {"name": "bending", "simulation": {"dim": 3}, "fields": [] if field is None else [{"type": "uniform", "B": list(field)}]}
+    (out / "run.json").write_text(json.dumps({"status": "completed", "dim": 3, "n_particles": n, "time": 1e-3, "steps": 10,
+                                              "scene": scene, "bodies": [{"body": "strip"}]}))
+    return out
+
+
 def embedded(page: Path) -> dict:
     text = page.read_text()
     return json.loads(text.split('id="report-data">', 1)[1].split("</script>", 1)[0])
@@ -204,3 +232,40 @@ def test_embedded_data_cannot_close_its_script_tag():
     assert page.count("</script>") == 2 and page.count("<script") == 2  # the data block and the code, nothing else
     data = json.loads(page.split('id="report-data">', 1)[1].split("</script>", 1)[0])
     assert data["charts"][0]["series"][0]["name"] == evil and data["expected_curves"] == 1
+
+
+@pytest.mark.parametrize("field", [None, (0.0, 0.0, 0.01)])
+def test_report_view_starts_looking_at_the_bend_plane(tmp_path, field):
+    """A 3D run bending in x-z: the viewer starts looking along y (the plane's normal), with z up, not down z."""
+    from magsoro.viz import build_report
+
+    run_dir = make_bending_run_dir(tmp_path / "run", field)
+    page = build_report(run_dir, tmp_path / "r.html")
+    v = embedded(page)["viewer"]
+    assert v["dim"] == 3 and v["flat_z"] is False
+    view = v["view"]
+    assert view["plane"] == "x-z" and view["towards"] == [0.0, -1.0, 0.0], view
+    assert view["right"] == [1.0, 0.0, 0.0] and view["up"] == [0.0, 0.0, 1.0]
+    assert view["why"] == "the plane of the magnetisation and the motion"
+    assert "The view starts looking at the plane of the magnetisation and the motion." in page.read_text()
+
+
+def test_report_view_from_motion_field_and_shape():
+    from magsoro.viz.report import default_view
+
+    g = np.random.default_rng(5)
+    strip = g.uniform([0.0, -2e-3, -0.5e-3], [0.01, 2e-3, 0.5e-3], size=(400, 3))
+    sag = strip.copy()
+    sag[:, 2] -= 20.0 * strip[:, 0] ** 2  # a strip along x sagging in z under its weight
+    frames = np.stack([strip, sag])
+    # not magnetised: the plane of its length and its motion
+    v = default_view(frames, 3, None, {"simulation": {"gravity": [0.0, 0.0, -9.81]}})
+    assert v["towards"] == [0.0, -1.0, 0.0] and v["up"] == [0.0, 0.0, 1.0] and "length and the motion" in v["why"]
+    # still: the magnetisation and the scene's uniform field (m along x, B along y: a bend in x-y, seen down z)
+    v = default_view(np.stack([strip, strip]), 3, np.tile([1.0, 0, 0], (400, 1)),
+                     {"fields": [{"type": "uniform", "B": [0.0, 0.01, 0.0]}]})
+    assert v["plane"] == "x-y" and v["towards"] == [0.0, 0.0, 1.0] and "magnetisation and the field" in v["why"]
+    # still, no field, no magnetisation: the plane of the longest and thinnest extents (x and z)
+    assert default_view(strip[None], 3)["plane"] == "x-z"
+    # 2D: down z
+    assert default_view(frames, 2)["towards"] == [0.0, 0.0, 1.0]

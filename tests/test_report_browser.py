@@ -166,6 +166,8 @@ def load_page(binary: str, html_file: Path, tmp: Path, screenshot: Path) -> dict
                 var ctx = c.getContext('2d'), d = ctx.getImageData(0, 0, c.width, c.height).data, bg = 0, ink = 0;
                 for (var i = 0; i < d.length; i += 4) { if (d[i] === 251 && d[i+1] === 252 && d[i+2] === 253) bg++; else ink++; }
                 var label = document.querySelector('#viewer .controls div').textContent;
+                var camera = function () { return {view: c.getAttribute('data-view'), towards: c.getAttribute('data-towards')}; };
+                out.camera_start = camera();
                 var s = document.getElementById('frame-slider'); s.value = 0; s.dispatchEvent(new Event('input'));
                 out.viewer = {ink: ink, background: bg, ready: c.getAttribute('data-ready'), label_last: label,
                               legend: document.querySelector('#viewer .legend').textContent,
@@ -173,6 +175,12 @@ def load_page(binary: str, html_file: Path, tmp: Path, screenshot: Path) -> dict
                 c.dispatchEvent(new PointerEvent('pointerdown', {clientX: 100, clientY: 100, pointerId: 1}));
                 c.dispatchEvent(new PointerEvent('pointermove', {clientX: 160, clientY: 130, pointerId: 1}));
                 c.dispatchEvent(new PointerEvent('pointerup', {clientX: 160, clientY: 130, pointerId: 1}));
+                out.camera_dragged = camera();
+                var preset = document.getElementById('view-preset');
+                out.presets = {shown: preset.style.display !== 'none'};
+                ['x', 'y', 'z', 'bend'].forEach(function (k) {
+                  preset.value = k; preset.dispatchEvent(new Event('change')); out.presets[k] = camera().towards;
+                });
               }
               var hit = document.querySelector('.chart svg rect[fill="transparent"]');
               if (hit) {
@@ -244,8 +252,27 @@ def test_run_report_renders_in_chromium(chromium, tmp_path):
     assert viewer["ink"] > 200, "the particle canvas is blank"
     assert viewer["label_last"] != viewer["label_first"] and viewer["label_first"].startswith("t = 0 s")
     assert "tip" in res["checks"]["tooltip"] and "time (s)" in res["checks"]["tooltip"]
+    # a 2D run: seen down z, no view presets
+    assert res["checks"]["camera_start"] == {"view": "bend", "towards": "0,0,1"} and res["checks"]["presets"]["shown"] is False
     _assert_offline(res)
     assert shot.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and shot.stat().st_size > 10_000
+
+
+def test_report_of_a_bend_in_xz_starts_looking_along_y(chromium, tmp_path):
+    """A 3D strip bending in the x-z plane is invisible down z: the viewer starts looking along y (the bend plane's
+    normal), dragging turns it, and the presets look down x, y and z."""
+    from magsoro.viz import build_report
+    from test_report import make_bending_run_dir
+
+    page = build_report(make_bending_run_dir(tmp_path / "run"), tmp_path / "bend_report.html")
+    res = load_page(chromium, page, tmp_path, _artifact(tmp_path, "report_bend.png"))
+    assert res["problems"] == [], res["problems"]
+    assert res["status"] == "ok: 0 curves, viewer ready", res["status"]
+    checks = res["checks"]
+    assert checks["camera_start"] == {"view": "bend", "towards": "0,-1,0"}, checks["camera_start"]
+    assert checks["camera_dragged"]["towards"] != "0,-1,0"  # a drag orbits
+    assert checks["presets"] == {"shown": True, "x": "1,0,0", "y": "0,-1,0", "z": "0,0,1", "bend": "0,-1,0"}
+    _assert_offline(res)
 
 
 def test_sweep_report_renders_in_chromium(chromium, tmp_path):

@@ -13,8 +13,11 @@ def register(sub):
         "live", help="run a scene with a live view and field controls in the browser",
         description="Run a scene and serve a page on 127.0.0.1 with a 3D view of the particles as they move, sliders "
                     "for the uniform field's magnitude and direction and for each non-uniform source's strength, "
-                    "pause, reset and the speed of the run. Stops on Ctrl-C or when the page is closed. Nothing is "
-                    "written to disk (docs/live.md).")
+                    "pause, step, reset and the speed of the run, the colliders and the floor, colours by part, speed, "
+                    "strain or magnetisation, a live plot of a probe, and moving and turning each magnet source. With "
+                    "--out DIR the page can save its settings as a scene file and record frames into a run folder "
+                    "(magsoro render and report read it), both inside DIR; without it nothing is written to disk. "
+                    "Stops on Ctrl-C or when the page is closed (docs/live.md).")
     p.add_argument("scene", help="scene file (TOML)")
     p.add_argument("--port", type=int, default=8765, help="port on 127.0.0.1 (default 8765; 0: any free port)")
     p.add_argument("--no-browser", action="store_true", help="print the address only; do not open a browser")
@@ -25,6 +28,9 @@ def register(sub):
                    "field, at least 0.02 T); the time step allows for it")
     p.add_argument("--max-gain", type=float, default=2.0, help="top of the source-strength sliders (default 2)")
     p.add_argument("--max-points", type=int, default=20000, help="particles sent to the page, at most 20000 (default)")
+    p.add_argument("--out", metavar="DIR", help="folder the page may write into (made when missing): 'Save as scene' "
+                   "writes DIR/NAME.toml, 'Record' a run folder DIR/record_NNN; nothing else is written, and nothing "
+                   "there is replaced")
     p.add_argument("--idle-timeout", type=float, default=75.0,
                    help="stop after this many seconds without a request from the page (default 75)")
     p.set_defaults(func=run)
@@ -44,10 +50,12 @@ def run(args) -> int:
     scene = load_scene(args.scene, preview=args.preview)
     server = LiveServer(scene, args.scene, port=args.port, device=args.device, max_points=args.max_points,
                         max_field=args.max_field, max_gain=args.max_gain, idle_timeout=args.idle_timeout,
-                        paused=args.paused)
+                        paused=args.paused, out_dir=args.out)
     server.start()
     n, shown = server.session.sim.model.n_particles, len(server.session.index)
     print(f"magsoro live: {scene.name or args.scene}, {n} particles" + (f" ({shown} shown)" if shown < n else ""), flush=True)
+    if server.session.out_dir is not None:
+        print(f"magsoro live: saved scenes and recordings go into {server.session.out_dir}", flush=True)
     print(f"magsoro live: open {server.url}  (Ctrl-C stops)", flush=True)
     if not args.no_browser:
         _open_browser(server.url)

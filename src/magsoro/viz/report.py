@@ -150,8 +150,42 @@ def _pick(n: int, limit: int) -> np.ndarray:
     return np.unique(np.round(np.linspace(0, n - 1, limit)).astype(int))
 
 
-def viewer_data(run_dir, max_frames: int = MAX_FRAMES, max_particles: int = MAX_PARTICLES) -> dict | None:
-    """Particle frames for the 3D viewer: a fixed subset of particles, positions quantised to uint16 per axis."""
+def _scene_uniform_field(scene: dict) -> list[float] | None:
+    """The sum of the scene echo's constant ``uniform`` fields (T), or None when it has none."""
+    total, found = np.zeros(3), False
+    fields = scene.get("fields")
+    for f in fields if isinstance(fields, list) else []:
+        B = f.get("B") if isinstance(f, dict) and f.get("type") == "uniform" else None
+        if isinstance(B, list) and 2 <= len(B) <= 3 and all(_is_num(v) for v in B):
+            total[: len(B)] += B
+            found = True
+    return total.tolist() if found and np.any(total) else None
+
+
+def default_view(positions: np.ndarray, dim: int, magnetisation=None, scene: dict | None = None) -> dict:
+    """The viewer's first camera (:func:`magsoro.viz.camera.bend_view`): looking at the plane the bodies bend in,
+    found from how they moved over the frames (``positions``: frames x particles x 3), their magnetisation in the
+    first frame and the scene's uniform field and gravity (run.json's scene). 2D runs: down z."""
+    from magsoro.viz.camera import bend_view, motion_direction
+
+    scene = scene if isinstance(scene, dict) else {}
+    sim = scene.get("simulation") if isinstance(scene.get("simulation"), dict) else {}
+    gravity = sim.get("gravity")
+    if not (isinstance(gravity, list) and len(gravity) == 3 and all(_is_num(v) for v in gravity) and any(gravity)):
+        gravity = None
+    pts = np.asarray(positions, dtype=np.float64)
+    first = pts[0][np.isfinite(pts[0]).all(axis=1)]
+    m = None
+    if magnetisation is not None:
+        m = np.asarray(magnetisation, dtype=np.float64).reshape(-1, 3)
+        m = m if np.any(np.isfinite(m) & (m != 0)) else None
+    return bend_view(first, dim, m, _scene_uniform_field(scene), gravity, motion=motion_direction(pts))
+
+
+def viewer_data(run_dir, max_frames: int = MAX_FRAMES, max_particles: int = MAX_PARTICLES, dim: int | None = None,
+                scene: dict | None = None) -> dict | None:
+    """Particle frames for the 3D viewer: a fixed subset of particles, positions quantised to uint16 per axis, and
+    the first camera (:func:`default_view`; ``dim`` and ``scene`` from run.json)."""
     from magsoro.io.vtk import read_vtp
 
     frames = read_frames(run_dir)
@@ -187,6 +221,11 @@ def viewer_data(run_dir, max_frames: int = MAX_FRAMES, max_particles: int = MAX_
     j_lo, j_hi = 1.0 - half, 1.0 + half
     jq = np.clip(np.round((np.nan_to_num(J, nan=1.0) - j_lo) / (j_hi - j_lo) * 255), 0, 255).astype(np.uint8)
     body = np.asarray(data0.get("body", np.zeros(n_all)), dtype=np.int64)[keep]
+    flat_z = bool(span[2] <= 1e-11)
+    if dim not in (2, 3):
+        dim = 2 if flat_z else 3
+    m0 = data0.get("magnetization_direction")
+    view = default_view(pos, dim, None if m0 is None else np.asarray(m0)[keep], scene)
     return {
         "n": int(len(keep)),
         "n_total": int(n_all),
@@ -195,7 +234,9 @@ def viewer_data(run_dir, max_frames: int = MAX_FRAMES, max_particles: int = MAX_
         "times": [float(t) for t in times],
         "lo": lo.tolist(),
         "span": span.tolist(),
-        "flat_z": bool(span[2] <= 1e-11),
+        "flat_z": flat_z,
+        "dim": int(dim),
+        "view": view,
         "pos": base64.b64encode(q.tobytes()).decode("ascii"),
         "body": base64.b64encode(np.clip(body, 0, 255).astype(np.uint8).tobytes()).decode("ascii"),
         "J": base64.b64encode(jq.tobytes()).decode("ascii"),
@@ -315,7 +356,8 @@ def run_content(run_dir, max_frames: int = MAX_FRAMES, max_particles: int = MAX_
         "sweep_params": [(k, json.dumps(v)) for k, v in (sweep.get("params") or {}).items()],
         "scene_rows": _flatten(scene),
         "charts": charts,
-        "viewer": _with_stamp(_with_body_names(viewer_data(run_dir, max_frames, max_particles), info),
+        "viewer": _with_stamp(_with_body_names(viewer_data(run_dir, max_frames, max_particles, info.get("dim"), scene),
+                                               info),
                               columns[0] if columns else "time"),
     }
 
@@ -479,9 +521,11 @@ def render_html(content: dict) -> str:
     if content["viewer"] is not None:
         v = content["viewer"]
         note = f"{v['n']} of {v['n_total']} particles, {v['frames']} of {v['frames_total']} frames"
+        start = f" The view starts looking at {_esc(v['view']['why'])}." if v["dim"] == 3 else ""
         parts.append(
             '<section><h2>Particles</h2>'
-            f'<p class="hint">{_esc(note)}. Drag to rotate, wheel to zoom, double-click to reset.</p>'
+            f'<p class="hint">{_esc(note)}.{start} Drag to rotate, wheel to zoom, double-click to go back to the view '
+            'chosen.</p>'
             '<div id="viewer"></div></section>'
         )
     if content.get("table"):

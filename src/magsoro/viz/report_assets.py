@@ -1,8 +1,11 @@
 """Inline CSS and JavaScript of the HTML report (kept in Python so they install with the package).
 
 The JS is deliberately small and dependency-free: SVG line charts with hover read-out and a canvas point
-viewer with mouse rotation and a time slider. It reads the JSON in ``<script id="report-data">`` and writes
-the outcome into ``#status`` ("ok: N curves, viewer ready" or "error: ...").
+viewer with mouse rotation and a time slider. The viewer starts with the camera the report computed (looking at
+the plane the bodies bend in: :func:`magsoro.viz.report.default_view`) and offers views down x, y and z; the
+canvas carries the camera as ``data-view`` (the preset) and ``data-towards`` (the unit vector towards the viewer).
+It reads the JSON in ``<script id="report-data">`` and writes the outcome into ``#status`` ("ok: N curves, viewer
+ready" or "error: ...").
 """
 
 CSS = r"""
@@ -163,6 +166,25 @@ JS = r"""
     return drawn;
   }
 
+  // Camera presets of the viewer (rows: screen right, screen up, towards the viewer); "bend" is the report's own.
+  var VIEWS = {
+    x: {right: [0, 1, 0], up: [0, 0, 1], towards: [1, 0, 0]},
+    y: {right: [1, 0, 0], up: [0, 0, 1], towards: [0, -1, 0]},
+    z: {right: [1, 0, 0], up: [0, 1, 0], towards: [0, 0, 1]}
+  };
+  function dot3(p, q) { return p[0] * q[0] + p[1] * q[1] + p[2] * q[2]; }
+  function unit3(p) { var l = Math.sqrt(dot3(p, p)) || 1; return [p[0] / l, p[1] / l, p[2] / l]; }
+  // turn the camera M about a screen axis (0: right, 1: up), keeping its rows orthonormal against round-off
+  function turnCamera(M, axis, angle) {
+    var c = Math.cos(angle), s = Math.sin(angle), a = axis === 1 ? [0, 2] : [2, 1], r0 = M[a[0]], r1 = M[a[1]];
+    M[a[0]] = [0, 1, 2].map(function (k) { return c * r0[k] + s * r1[k]; });
+    M[a[1]] = [0, 1, 2].map(function (k) { return -s * r0[k] + c * r1[k]; });
+    M[0] = unit3(M[0]);
+    var d = dot3(M[1], M[0]);
+    M[1] = unit3(M[1].map(function (v, k) { return v - d * M[0][k]; }));
+    M[2] = [M[0][1] * M[1][2] - M[0][2] * M[1][1], M[0][2] * M[1][0] - M[0][0] * M[1][2], M[0][0] * M[1][1] - M[0][1] * M[1][0]];
+  }
+
   // Canvas point viewer: orthographic projection, drag to rotate, wheel to zoom, slider over frames.
   function pointViewer(host, V) {
     var n = V.n, nf = V.frames;
@@ -182,11 +204,20 @@ JS = r"""
     var row = html("div", "", panel);
     var play = html("button", "", row, "\u25B6 play"); play.type = "button";
     var reset = html("button", "", row, "reset view"); reset.type = "button"; reset.style.marginLeft = "6px";
+    var bend = V.view || VIEWS.z;
+    var viewPick = html("select", "", panel); viewPick.id = "view-preset";
+    [["bend", "view: bend plane (" + (bend.plane || "?") + ")"], ["x", "view: down x"], ["y", "view: down y"], ["z", "view: down z"]]
+      .forEach(function (o) { var op = html("option", "", viewPick, o[1]); op.value = o[0]; });
+    viewPick.title = "the bend plane: " + (bend.why || "");
+    if (V.dim === 2) viewPick.style.display = "none";  // a 2D run lies in the x-y plane: seen down z
     var pick = html("select", "", panel);
     [["body", "colour: body"], ["J", "colour: J = det F (volume change)"]].forEach(function (o) { var op = html("option", "", pick, o[1]); op.value = o[0]; });
     var legend = html("div", "legend", panel);
     var view = {}, frame = nf - 1, timer = null, mode = "body";
-    function home() { view.yaw = V.flat_z ? 0 : -0.6; view.pitch = V.flat_z ? 0 : 0.45; view.zoom = 1; }
+    function home() {
+      var v = viewPick.value === "bend" ? bend : VIEWS[viewPick.value];
+      view.M = [v.right.slice(), v.up.slice(), v.towards.slice()]; view.zoom = 1;
+    }
     home();
     function jColor(v) {  // 0..255 -> blue (compressed) .. white (J = 1) .. red (stretched)
       var t = v / 255 * 2 - 1, a = Math.min(1, Math.abs(t));
@@ -206,14 +237,14 @@ JS = r"""
     }
     var depth = new Float32Array(n), sx = new Float32Array(n), sy = new Float32Array(n), order = new Uint32Array(n);
     function draw() {
-      var cy = Math.cos(view.yaw), sy_ = Math.sin(view.yaw), cp = Math.cos(view.pitch), sp = Math.sin(view.pitch);
+      var R = view.M[0], U = view.M[1], T = view.M[2];
       var scale = 0.45 * Math.min(CW, CH) / radius * view.zoom * dpr, base = frame * n * 3;
       for (var i = 0; i < n; i++) {
         var k = base + 3 * i;
         var dx = q[k] / 65535 * span[0] - half[0], dy = q[k + 1] / 65535 * span[1] - half[1], dz = q[k + 2] / 65535 * span[2] - half[2];
-        var x1 = cy * dx + sy_ * dz, z1 = -sy_ * dx + cy * dz;
-        var y2 = cp * dy - sp * z1, z2 = sp * dy + cp * z1;
-        sx[i] = CW * dpr / 2 + x1 * scale; sy[i] = CH * dpr / 2 - y2 * scale; depth[i] = z2; order[i] = i;
+        sx[i] = CW * dpr / 2 + (R[0] * dx + R[1] * dy + R[2] * dz) * scale;
+        sy[i] = CH * dpr / 2 - (U[0] * dx + U[1] * dy + U[2] * dz) * scale;
+        depth[i] = T[0] * dx + T[1] * dy + T[2] * dz; order[i] = i;
       }
       order.sort(function (a, b) { return depth[a] - depth[b]; });  // far first, near drawn on top
       ctx.fillStyle = "#fbfcfd"; ctx.fillRect(0, 0, canvas.width, canvas.height);
@@ -227,15 +258,18 @@ JS = r"""
       // axis triad, bottom left
       var ox = 40 * dpr, oy = (CH - 40) * dpr, len = 26 * dpr;
       [[1, 0, 0, "x", "#d62728"], [0, 1, 0, "y", "#2ca02c"], [0, 0, 1, "z", "#1f77b4"]].forEach(function (a) {
-        var x1 = cy * a[0] + sy_ * a[2], z1 = -sy_ * a[0] + cy * a[2], y2 = cp * a[1] - sp * z1;
+        var x1 = dot3(R, a), y2 = dot3(U, a);
         ctx.strokeStyle = a[4]; ctx.lineWidth = 2 * dpr; ctx.beginPath(); ctx.moveTo(ox, oy); ctx.lineTo(ox + x1 * len, oy - y2 * len); ctx.stroke();
         ctx.fillStyle = a[4]; ctx.font = (11 * dpr) + "px sans-serif"; ctx.fillText(a[3], ox + x1 * len * 1.25 - 3 * dpr, oy - y2 * len * 1.25 + 4 * dpr);
       });
+      canvas.setAttribute("data-view", viewPick.value);
+      canvas.setAttribute("data-towards", T.map(function (c) { return String(Math.round(c * 1e6) / 1e6 + 0); }).join(","));
       label.textContent = (V.stamp === "level" ? "level " + fmt(V.times[frame]) : "t = " + fmt(V.times[frame]) + " s")
         + "  (frame " + (frame + 1) + " / " + nf + ")";
     }
     slider.addEventListener("input", function () { frame = +slider.value; draw(); });
     pick.addEventListener("change", function () { mode = pick.value; drawLegend(); draw(); });
+    viewPick.addEventListener("change", function () { home(); draw(); });
     reset.addEventListener("click", function () { home(); draw(); });
     canvas.addEventListener("dblclick", function () { home(); draw(); });
     play.addEventListener("click", function () {
@@ -251,8 +285,8 @@ JS = r"""
     canvas.addEventListener("pointerdown", function (ev) { drag = { x: ev.clientX, y: ev.clientY }; canvas.setPointerCapture(ev.pointerId); canvas.style.cursor = "grabbing"; });
     canvas.addEventListener("pointermove", function (ev) {
       if (!drag) return;
-      view.yaw += (ev.clientX - drag.x) * 0.01;
-      view.pitch = Math.max(-1.57, Math.min(1.57, view.pitch + (ev.clientY - drag.y) * 0.01));
+      turnCamera(view.M, 1, (ev.clientX - drag.x) * 0.01);
+      turnCamera(view.M, 0, (ev.clientY - drag.y) * 0.01);
       drag = { x: ev.clientX, y: ev.clientY }; draw();
     });
     canvas.addEventListener("pointerup", function () { drag = null; canvas.style.cursor = "grab"; });
