@@ -78,7 +78,7 @@ def make_viscous(dim: int, scalar, plane: str = "strain"):
     # series of 1 - exp(-x) below x = 1e-2 (relative error x^5 / 720 < 1.4e-13); constants in double
     sixth, twenty_fourth = 1.0 / 6.0, 1.0 / 24.0
     # plane stress: lambda_3 by the secant method, as materials.make_plane_stress_functions solves it
-    tol = 1.0e-13 if scalar == wp.float64 else 2.0e-6
+    tol = 1.0e-15 if scalar == wp.float64 else 2.0e-6
     iterations = PLANE_STRESS_ITERATIONS
     four_thirds = 4.0 / 3.0
 
