@@ -37,6 +37,9 @@ magnetization = [0.08, 0.03, 0.0]
 [[clamps]]
 region = { type = "rectangle", center = [0.00025, 0.0], size = [0.0005, 0.002] }
 
+[contact]
+bonded = "touching"  # the two halves are one strip
+
 [[probes]]
 type = "tip"
 name = "tip"

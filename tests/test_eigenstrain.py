@@ -196,6 +196,7 @@ def _bilayer(cells: int, lam: float, h: float, length: float, clamp: bool = Fals
             {"name": "passive", "shape": {"type": "rectangle", "center": [cx, cy - h / 4], "size": [length, h / 2]},
              "material": mat},
         ],
+        "contact": {"bonded": "touching"},  # the two layers are glued
     }
     if clamp:
         data["clamps"] = [{"region": {"type": "rectangle", "center": [cx - 0.5 * length + 0.5e-3, cy], "size": [1e-3, 2 * h]}}]

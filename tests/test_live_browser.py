@@ -778,7 +778,8 @@ def test_live_page_in_chromium(chromium, tmp_path):
         js("document.getElementById('step').click()")
         _wait_for(lambda: state()["steps"] == steps0 + 4 and state()["phase"] == "paused", 20, "4 steps")
         time.sleep(0.3)
-        assert state()["steps"] == steps0 + 4 and js("document.getElementById('status').textContent") == "paused"
+        assert state()["steps"] == steps0 + 4
+        _wait_for(lambda: js("document.getElementById('status').textContent") == "paused", 10, "the page to say paused")
         js("document.getElementById('pause').click()")
         _wait_for(lambda: state()["time"] > t_paused, 10, "resumed")
         # save as scene: a TOML in --out that loads back to the page's settings
@@ -790,7 +791,8 @@ def test_live_page_in_chromium(chromium, tmp_path):
         # record: frames into a run folder that magsoro render and report read
         js("document.getElementById('record').click()")
         _wait_for(lambda: ((state()["recording"] or {}).get("frames", 0)) >= 3, 30, "3 frames recorded")
-        assert js("document.getElementById('record').textContent") == "Stop recording"
+        # the button follows the page's next poll of the server's state, not the server at once
+        _wait_for(lambda: js("document.getElementById('record').textContent") == "Stop recording", 10, "the button to say Stop recording")
         js("document.getElementById('record').click()")
         st = _wait_for(lambda: (s := state())["record_message"] and s, 20, "the recording to close")
         _wait_for(lambda: js("document.getElementById('record-status').textContent") == st["record_message"], 10, "the page to say so")

@@ -287,6 +287,8 @@ class Simulation:
         self._wall_far &= (self.model.host["clamped"] == 0)[:, None]
         self._walls_reached: set = set()
         self._note_lattice_fill()
+        for text in self.built.notes:
+            self._note(text, scene=True)
         # simulation.integrator = 'implicit': the integrator is made at the first step (after set_sources)
         self.integrator = scene.simulation.integrator
         self.implicit = None

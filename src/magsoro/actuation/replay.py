@@ -217,6 +217,7 @@ def _scene(prb: PlanarPRB, strip: StripSpec, n_links: int, dx: float, ppc: int, 
         "bodies": bodies,
         # the rear of the stub is held; its nodes reach to the base point x = bx, where the PRB clamp sits
         "clamps": [{"region": shape(bx - 2.5 * dx, by, 3 * dx, 2 * t), "body": "stub"}],
+        "contact": {"bonded": "touching"},  # the stub and the links are one strip, glued end to end
         "output": {"particles": False},
     }
     if floor:  # a frictionless floor under the strip's lower face, with gravity

@@ -641,12 +641,16 @@ class Built:
     body_names: list[str]
     initial_velocity: np.ndarray
     fill_report: list[dict] = field(default_factory=list)
+    notes: list[str] = field(default_factory=list)  # what the build decided that run.json should say
 
 
-def contact_groups(scene: Scene, X: np.ndarray, body_id: np.ndarray) -> np.ndarray:
-    """Contact group of each body: bodies that touch or overlap in the reference configuration (particles on
-    neighbouring lattice sites) and the parts of a robot are bonded into one group, numbered from 0 in the order
-    of their first body. Returns (n_bodies,) int."""
+def contact_groups(scene: Scene, X: np.ndarray, body_id: np.ndarray, touching: list | None = None) -> np.ndarray:
+    """Contact group of each body, numbered from 0 in the order of their first body: the parts of a robot are one
+    group, and so are the bodies of a [[contact.pairs]] entry with ``bonded = true`` and, with ``[contact] bonded =
+    'touching'``, bodies that touch or overlap in the reference configuration (particles on neighbouring lattice
+    sites). Other bodies are groups of their own, in contact with each other from the first step when they touch.
+    ``touching``: a list that receives the pairs (a, b) of separate [[bodies]] (not parts of one robot) that touch at
+    the start. Returns (n_bodies,) int."""
     sim = scene.simulation
     dim = sim.dim
     h = sim.dx / sim.particles_per_cell
@@ -666,18 +670,58 @@ def contact_groups(scene: Scene, X: np.ndarray, body_id: np.ndarray) -> np.ndarr
     parts = [i for i, b in enumerate(scene.bodies) if not (b.key or "bodies[").startswith("bodies[")]
     for i in parts[1:]:
         unite(parts[0], i)
+    names = [b.name for b in scene.bodies]
+    for pair in scene.contact.pairs:
+        if pair.bonded and all(nm in names for nm in pair.bodies):  # unknown names: contact_settings says so
+            unite(names.index(pair.bodies[0]), names.index(pair.bodies[1]))
     sites = [_lattice_index(X[body_id == i], lo, h) for i in range(n)]
     code = _site_coder(sites)
     codes = [code(s) for s in sites]
     steps = np.concatenate([np.eye(dim, dtype=np.int64), -np.eye(dim, dtype=np.int64)])
     # each body's face neighbours: the sites one lattice step away from one of its particles
     halo = [np.unique(code((s[:, None, :] + steps[None]).reshape(-1, dim))) for s in sites]
+    part_set = set(parts)
+    by_touch = scene.contact.bonded == "touching"
     for a in range(n):
         for b in range(a + 1, n):
-            if root(a) != root(b) and np.isin(halo[b], codes[a]).any():
-                unite(a, b)
+            if a in part_set and b in part_set:
+                continue  # parts of one robot: one piece already
+            if (touching is not None or (by_touch and root(a) != root(b))) and np.isin(halo[b], codes[a]).any():
+                if touching is not None:
+                    touching.append((a, b))
+                if by_touch:
+                    unite(a, b)
     roots = {}
     return np.array([roots.setdefault(root(i), len(roots)) for i in range(n)], dtype=np.int32)
+
+
+#: touching pairs named in a note before it says "and N more"
+TOUCHING_NAMED = 6
+
+
+def touching_notes(scene: Scene, names: list[str], groups: np.ndarray, pairs: list, contact: ContactSettings) -> list[str]:
+    """run.json notes on the separate bodies that touch at the start (``pairs`` from :func:`contact_groups`): which
+    are bonded into one piece and why, and which are in contact (with their friction)."""
+    def listed(items):
+        shown = ", ".join(f"'{names[a]}'-'{names[b]}'" for a, b in items[:TOUCHING_NAMED])
+        return shown + (f" and {len(items) - TOUCHING_NAMED} more" if len(items) > TOUCHING_NAMED else "")
+
+    bonded = [(a, b) for a, b in pairs if groups[a] == groups[b]]
+    apart = [(a, b) for a, b in pairs if groups[a] != groups[b]]
+    notes = []
+    if bonded:
+        why = ("contact.bonded = 'touching'" if scene.contact.bonded == "touching"
+               else "their [[contact.pairs]] entries say bonded = true")
+        notes.append(f"bodies that touch at the start are bonded into one piece ({why}): {listed(bonded)}")
+    if apart:
+        laws = set()
+        for a, b in apart:
+            f = float(contact.friction[groups[a], groups[b]])
+            laws.add("sticky" if f < 0 else f"friction {f:g}")
+        notes.append(f"bodies that touch at the start are separate bodies in contact from the first step "
+                     f"({', '.join(sorted(laws))}; they slide by Coulomb's law and separate freely): {listed(apart)}; to "
+                     f"glue a pair, give its [[contact.pairs]] entry bonded = true, or set contact.bonded = 'touching'")
+    return notes
 
 
 def contact_settings(scene: Scene, groups: np.ndarray, names: list[str], source: str) -> ContactSettings:
@@ -694,14 +738,15 @@ def contact_settings(scene: Scene, groups: np.ndarray, names: list[str], source:
         for name in pair.bodies:
             if name not in names:
                 raise SceneError(f"{source}: {key}: no body named '{name}'; bodies: {', '.join(names)}")
+        if pair.bonded:
+            continue  # one group (contact_groups)
         a, b = (names.index(nm) for nm in pair.bodies)
         ga, gb = int(groups[a]), int(groups[b])
         if a != b and ga == gb:
-            raise SceneError(
-                f"{source}: {key}: bodies '{pair.bodies[0]}' and '{pair.bodies[1]}' touch in the reference "
-                f"configuration (or are parts of one robot) and move as one piece; leave a gap of one particle "
-                f"spacing between them for contact, or remove the pair"
-            )
+            why = ("contact.bonded = 'touching' bonds bodies that touch at the start; set it to 'pairs' (the default) "
+                   "for contact between them" if c.bonded == "touching" else
+                   "they are parts of one robot, or bonded by another pair, and move as one piece; remove the pair")
+            raise SceneError(f"{source}: {key}: bodies '{pair.bodies[0]}' and '{pair.bodies[1]}' move as one piece: {why}")
         table[ga, gb] = table[gb, ga] = value(pair.friction)
     return ContactSettings(table, self_contact=c.self_contact, fold_spread=c.fold_spread)
 
@@ -770,8 +815,10 @@ def build(scene: Scene, device: str | None = None, source: str = "scene", magnet
     moving = []
     clamped = held_particles(scene, p, source, moving)
     clamp_row, clamp_paths = moving
-    body_group = contact_groups(scene, X, body_id)
+    touch_pairs: list = []
+    body_group = contact_groups(scene, X, body_id, touch_pairs)
     contact = contact_settings(scene, body_group, names, source)
+    notes = touching_notes(scene, names, body_group, touch_pairs, contact)
     model = Model(
         X, p.volumes, p.density, p.shear_modulus, p.bulk_modulus, p.remanence, body_id, clamped,
         dx=dx, domain_lo=lo, domain_hi=hi, precision=sim.precision, device=device or sim.device,
@@ -835,4 +882,4 @@ def build(scene: Scene, device: str | None = None, source: str = "scene", magnet
             probes.append(ProbeSpec(p.name, "centroid", sel, masses[sel]))
         else:
             probes.append(ProbeSpec(p.name, "bbox", sel))
-    return Built(model, Control(sources, colliders), settings, probes, names, p_vel, report)
+    return Built(model, Control(sources, colliders), settings, probes, names, p_vel, report, notes)

@@ -941,22 +941,36 @@ Friction = Annotated[Union[float, Literal["sticky"]], PlainValidator(_friction, 
 
 
 class ContactPair(Strict):
-    """Friction of one pair of bodies (or, with the same name twice, of a body's self-contact)."""
+    """Friction of one pair of bodies (or, with the same name twice, of a body's self-contact), or a pair bonded
+    into one piece."""
 
     bodies: list[str] = Field(min_length=2, max_length=2, description="The two body (or robot part) names.")
-    friction: Friction = Field(description="Coulomb coefficient (>= 0) or 'sticky'.")
+    friction: Friction | None = Field(default=None, description="Coulomb coefficient (>= 0) or 'sticky'. Required unless bonded.")
+    bonded: bool = Field(default=False, description="The two bodies move as one piece (glued where they touch): one contact group, no friction. Default false: they touch by contact.friction or this pair's friction, and separate freely.")
+
+    @model_validator(mode="after")
+    def _friction_or_bonded(self):
+        if self.bonded and self.friction is not None:
+            raise ValueError("give friction or bonded = true, not both: bonded bodies do not slide on each other")
+        if not self.bonded and self.friction is None:
+            raise ValueError("friction is required (a Coulomb coefficient >= 0 or 'sticky'), or bonded = true")
+        if self.bonded and self.bodies[0] == self.bodies[1]:
+            raise ValueError("bonded = true needs two different bodies")
+        return self
 
 
 class Contact(Strict):
     """Contact between bodies and between parts of one body that fold onto each other: two velocity fields per
-    grid node, Coulomb friction, free separation (docs/engine.md, "Contact"). Bodies that touch or overlap in the
-    reference configuration, and the parts of a robot, are bonded: they move as one piece (one contact group);
-    leave a gap of at least one particle spacing between bodies that should touch."""
+    grid node, Coulomb friction, free separation (docs/engine.md, "Contact"). Separate [[bodies]] touch by contact,
+    also when they touch at the start, unless the scene bonds them (``bonded``, or a pair's ``bonded = true``); the
+    parts of a [robot] always move as one piece. run.json's notes say which bodies touch at the start and what the
+    engine does with them."""
 
     friction: Friction = Field(default=0.0, description="Coulomb coefficient for every pair of bodies (and for self-contact). Default 0: frictionless, not sticky; 'sticky' gives one velocity field for all (the behaviour before contact existed).")
     self_contact: bool = Field(default=False, description="Let layers of one body that fold onto each other touch with friction instead of merging (costs one more pass over the particles per step).")
     fold_spread: float = Field(default=1.5, gt=0, le=10, allow_inf_nan=False, description="Self-contact: a node is split into two layers when the reference positions of the body's particles there spread (largest standard deviation) more than this many cells, i.e. layers more than about twice as far apart before folding.")
     pairs: list[ContactPair] = Field(default_factory=list, description="Per-pair overrides ([[contact.pairs]] tables).")
+    bonded: Literal["pairs", "touching"] = Field(default="pairs", description="Which separate bodies move as one piece: 'pairs' (default): only the pairs given bonded = true in [[contact.pairs]]; 'touching': also every pair of bodies that touch or overlap at the start (a robot built from several [[bodies]] glued together). The parts of a [robot] are always one piece.")
 
 
 class Static(Strict):
