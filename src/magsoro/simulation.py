@@ -226,6 +226,11 @@ def check_run_length(duration: float, every: float | None = None) -> float:
     return every
 
 
+#: a static level that fails with its residual within this factor of static.tolerance is reported as stalled at the
+#: rounding floor (solve_static's message), not as a load that needs smaller increments
+STALL_NEAR_TOLERANCE = 5.0
+
+
 def graph_off_note(device: str, reason: str) -> str:
     """The note run.json gets (``notes``) when a run's check windows cannot run from drive tables, so not as CUDA
     graphs, for ``reason`` (docs/engine.md, "CUDA graph windows")."""
@@ -537,7 +542,15 @@ class Simulation:
                 kind = "time" if times is not None else "level"
                 what = f"time {times[k]:g} s" if times is not None else f"level {level:g}"
                 out.message = f"{what} did not converge ({res.message}); the state is the last converged {kind}'s"
-                if res.wall_crossing is None and not res.no_equilibrium:
+                tol = solver.tolerance
+                stalled = res.residual_relative
+                if res.wall_crossing is None and not res.no_equilibrium and math.isfinite(stalled) and stalled <= STALL_NEAR_TOLERANCE * tol:
+                    # Newton got within a few times the tolerance and no further: a small load (gravity alone on a
+                    # stiff body) next to large internal forces, whose float64 rounding is above the tolerance
+                    out.message += (f": its residual stalled at {stalled:.3g} of the force scale, {stalled / tol:.2g} times "
+                                    f"static.tolerance = {tol:g}, where float64 rounding of the body's internal forces "
+                                    f"sits for a load this small; loosen static.tolerance (to {10 * tol:g}, say)")
+                elif res.wall_crossing is None and not res.no_equilibrium:
                     out.message += f": insert intermediate {kind}s, raise static.max_iterations, or check the loads"
                 break
             row = self._metrics_row(columns)
