@@ -520,6 +520,14 @@ RobotSpec = Annotated[Union[Annotated[str, Tag("name")], Annotated[Robot, Tag("t
 
 
 # ---------------------------------------------------------------- clamps
+def _check_path_table(times, positions) -> None:
+    """A path's times and positions (clamps and colliders): one position per time, times strictly increasing."""
+    if len(times) != len(positions):
+        raise ValueError("times and positions must have the same length")
+    if any(b <= a for a, b in zip(times, times[1:])):
+        raise ValueError("times must be strictly increasing")
+
+
 class ClampPath(Strict):
     """A clamp's prescribed translation: its displacement from the reference place at times, linearly interpolated,
     held outside the table (zero at t = 0)."""
@@ -529,10 +537,7 @@ class ClampPath(Strict):
 
     @model_validator(mode="after")
     def _same_len(self):
-        if len(self.times) != len(self.positions):
-            raise ValueError("times and positions must have the same length")
-        if any(b <= a for a, b in zip(self.times, self.times[1:])):
-            raise ValueError("times must be strictly increasing")
+        _check_path_table(self.times, self.positions)
         return self
 
 
@@ -554,10 +559,7 @@ class Path(Strict):
 
     @model_validator(mode="after")
     def _same_len(self):
-        if len(self.times) != len(self.positions):
-            raise ValueError("times and positions must have the same length")
-        if any(b <= a for a, b in zip(self.times, self.times[1:])):
-            raise ValueError("times must be strictly increasing")
+        _check_path_table(self.times, self.positions)
         return self
 
 
