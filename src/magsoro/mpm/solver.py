@@ -1201,6 +1201,23 @@ class Solver:
         return x.min(axis=0).astype(np.float64), x.max(axis=0).astype(np.float64)
 
     # -- control --------------------------------------------------------------------------------------------
+    @property
+    def step_kernels(self) -> dict:
+        """The kernel table the steps launch (:func:`magsoro.mpm.kernels.make_kernels`): the contact variant, with
+        two velocity fields per node, when contact between groups (or within one) is on."""
+        return self.k
+
+    def reference_contact_grid(self):
+        """The total form's reference grid split by contact group (after :meth:`check_and_fit`): the kernels'
+        ContactGrid argument (two fields at a node where two groups that may separate meet, never resolved), and on
+        the host the node classes and each node's smallest group, over the grid block's nodes. None without contact
+        between groups or in the updated form."""
+        if not self._tcontact:
+            return None
+        n_act = self.n_active
+        ct = self._contact_grid(self._ct, n_act, 0.0)
+        return ct, self._ct["split"].numpy()[:n_act].copy(), self._ct["gmin"].numpy()[:n_act].copy()
+
     def field_evaluator(self, control: Control) -> FieldEvaluator:
         """The device evaluator of ``control``'s field sources (made again when the control or its sources change)."""
         key = id(control), tuple(id(s) for s in control.sources)

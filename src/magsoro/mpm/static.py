@@ -58,6 +58,7 @@ from magsoro.mpm.linear import (FACTOR_CHECK, DirectSolver, IterativeSolver, Ord
                                 make_linear_solver, rigid_body_modes)
 from magsoro.mpm import linear as _linear
 from magsoro.mpm.p2g import P2G_TOTAL, launch_p2g, launch_pressure_net
+from magsoro.mpm.settings import NodeClass
 from magsoro.mpm.solver import block_struct, bodies_array, contact_grid
 from magsoro.mpm.stencil import host_bspline, make_body_elastic, make_stencil
 from magsoro.mpm.viscous import viscous_struct
@@ -172,18 +173,22 @@ def _vertex(points) -> float:
 
 
 @functools.cache
-def make_static_kernels(dim: int, scalar, plane: str = "strain") -> dict:
+def make_static_kernels(dim: int, scalar, plane: str = "strain", two_fields: bool = False) -> dict:
     """The static solver's kernels for ``dim``, ``scalar`` and, in 2D, the laws' ``plane`` idealisation ("strain" or
-    "stress", :func:`magsoro.mpm.stencil.make_body_elastic`)."""
-    s = make_stencil(dim, scalar)
+    "stress", :func:`magsoro.mpm.stencil.make_body_elastic`); ``two_fields``: the reference grid is split by contact
+    group (:meth:`magsoro.mpm.solver.Solver.reference_contact_grid`), each particle gathering from and assembling
+    into its own group's slot of a node, as the contact variant of p2g scatters."""
+    s = make_stencil(dim, scalar, two_fields)
     t = s.types
     vec, mat, Block = t.vec, t.mat, t.Block
     NS = s.NS
     bspline_weights, local_coords, flat_index, stencil_node = s.bspline_weights, s.local_coords, s.flat_index, s.stencil_node
+    ContactGrid, slot_of = s.ContactGrid, s.slot_of
 
     @wp.kernel
     def place_particles(X: wp.array(dtype=vec), u: wp.array(dtype=vec), block: Block, clamped: wp.array(dtype=wp.int32),
-                        clamp_shift: wp.array(dtype=vec), x: wp.array(dtype=vec), F: wp.array(dtype=mat)):
+                        clamp_shift: wp.array(dtype=vec), ct: wp.array(dtype=ContactGrid), x: wp.array(dtype=vec),
+                        F: wp.array(dtype=mat)):
         """Positions X + sum w u_i and deformation gradients I + sum u_i (x) grad w of the node displacements
         ``u`` (the total-Lagrangian gather with v = u and a unit step); clamped particles keep F = I and sit at X
         plus their clamp's displacement ``clamp_shift[code]`` (zero for code 1, held in place), as the engine's
@@ -202,7 +207,7 @@ def make_static_kernels(dim: int, scalar, plane: str = "strain") -> dict:
         S = mat()
         for q in range(NS):
             weight, of, idx = stencil_node(q, w0, w1, w2, first, block.shape)
-            wu = weight * u[idx]
+            wu = weight * u[slot_of(ct, p, idx)]
             disp = disp + wu
             S = S + wp.outer(wu, of)
         x[p] = X[p] + disp
@@ -248,8 +253,8 @@ def make_static_kernels(dim: int, scalar, plane: str = "strain") -> dict:
 
     @wp.kernel
     def assemble_tangent(X: wp.array(dtype=vec), block: Block, bodies: wp.array(dtype=Bodies), A: wp.array(dtype=mat),
-                         fterms: FieldTerms, dof: wp.array(dtype=wp.int32), indptr: wp.array(dtype=wp.int32),
-                         slots: wp.array(dtype=wp.int32), data: wp.array(dtype=scalar)):
+                         fterms: FieldTerms, ct: wp.array(dtype=ContactGrid), dof: wp.array(dtype=wp.int32),
+                         indptr: wp.array(dtype=wp.int32), slots: wp.array(dtype=wp.int32), data: wp.array(dtype=scalar)):
         """Adds the dim x dim blocks of one particle's stencil node s (thread p 3^dim + s) against every node t of
         its stencil to the CSC values ``data`` (column pointers ``indptr``; ``slots[(p 3^dim + s) 3^dim + t]``: where
         the rows of node s start in the columns of node t, counted from each column's start, -1 where either node
@@ -263,7 +268,7 @@ def make_static_kernels(dim: int, scalar, plane: str = "strain") -> dict:
         w0, w1, w2 = bspline_weights(fx)
         first = flat_index(base, block.shape)
         ws, ofs, ids = stencil_node(s, w0, w1, w2, first, block.shape)
-        rs = dof[ids]
+        rs = dof[slot_of(ct, p, ids)]
         if rs < 0:
             return
         gs = (scalar(4.0) * inv_dx * ws) * (ofs - fx)
@@ -299,7 +304,7 @@ def make_static_kernels(dim: int, scalar, plane: str = "strain") -> dict:
             if slot < 0:
                 continue
             wt, oft, idt = stencil_node(t, w0, w1, w2, first, block.shape)
-            ct = dof[idt]
+            col = dof[slot_of(ct, p, idt)]
             gt = (scalar(4.0) * inv_dx * wt) * (oft - fx)
             # the field's block, whole: (c brs wt) G + (c ws (Br . g_t)) G^T + ws wt H
             Kf = mat()
@@ -314,7 +319,7 @@ def make_static_kernels(dim: int, scalar, plane: str = "strain") -> dict:
                 unit_b = vec()
                 unit_b[b] = scalar(1.0)
                 kb = (-V0) * (Yb * gt) + Kf * unit_b
-                lo = indptr[ct * dim + b] + slot  # the rows of node s in column (t, b); rows rs dim + a follow
+                lo = indptr[col * dim + b] + slot  # the rows of node s in column (t, b); rows rs dim + a follow
                 for a in range(dim):
                     wp.atomic_add(data, lo + a, kb[a])
 
@@ -325,10 +330,11 @@ def make_static_kernels(dim: int, scalar, plane: str = "strain") -> dict:
 # -- launchers: the one place each kernel's argument order is written (as in :mod:`magsoro.mpm.p2g`); ``kernels``
 # is :func:`make_static_kernels`' table ------------------------------------------------------------------------
 
-def launch_place_particles(kernels, n, *, X, u, block, clamped, clamp_shift, x, F, device, record=False):
-    """``place_particles`` over ``n`` particles: positions ``x`` and ``F`` from the node displacements ``u``."""
+def launch_place_particles(kernels, n, *, X, u, block, clamped, clamp_shift, contact, x, F, device, record=False):
+    """``place_particles`` over ``n`` particles: positions ``x`` and ``F`` from the node displacements ``u`` (per
+    slot of the ``contact`` grid's split)."""
     return wp.launch(kernels["place_particles"], dim=n, device=device, record_cmd=record,
-                     inputs=[X, u, block, clamped, clamp_shift, x, F])
+                     inputs=[X, u, block, clamped, clamp_shift, contact, x, F])
 
 
 def launch_material_tangent(kernels, n, *, F, bodies, h, A, device, record=False):
@@ -336,12 +342,12 @@ def launch_material_tangent(kernels, n, *, F, bodies, h, A, device, record=False
     return wp.launch(kernels["material_tangent"], dim=n, device=device, record_cmd=record, inputs=[F, bodies, h, A])
 
 
-def launch_assemble_tangent(kernels, n, *, X, block, bodies, A, field_terms, dof, indptr, slots, data, device,
+def launch_assemble_tangent(kernels, n, *, X, block, bodies, A, field_terms, contact, dof, indptr, slots, data, device,
                             record=False):
     """``assemble_tangent`` over ``n`` = particles x 3^dim: the tangent's entries into ``data`` (CSC pattern of
     ``indptr`` and ``slots``)."""
     return wp.launch(kernels["assemble_tangent"], dim=n, device=device, record_cmd=record,
-                     inputs=[X, block, bodies, A, field_terms, dof, indptr, slots, data])
+                     inputs=[X, block, bodies, A, field_terms, contact, dof, indptr, slots, data])
 
 
 @dataclass
@@ -399,9 +405,9 @@ def check_supported(sim, who: str = "the static solver", viscous: bool = False) 
     solver = sim.solver
     if solver.settings.formulation != "total":
         raise SimulationError(f"{who} works on the total-Lagrangian form (simulation.formulation = 'total' or 'auto')")
-    if solver.contact_active:
-        raise SimulationError(f"{who} has no contact between bodies yet; give the scene one body (or "
-                              "contact.friction = 'sticky')")
+    if solver.contact_active and solver.settings.contact.self_contact:
+        raise SimulationError(f"{who} has no self-contact yet (contact between bodies it has); set "
+                              "contact.self_contact = false, or run the explicit engine")
     if np.any(sim.model.host["magnetization_follows"] != 0):
         # its tangent takes the magnetic stress and the moment as Zhao's law has them (F Br); the R law's dP/dF is not in it
         raise SimulationError(f"{who} has no magnetization_follows = 'R' yet (its tangent carries the moment "
@@ -418,8 +424,8 @@ def check_supported(sim, who: str = "the static solver", viscous: bool = False) 
 
 class StaticSolver:
     """Newton solver for the equilibria of a :class:`magsoro.simulation.Simulation` built in the total-Lagrangian
-    form without contact between bodies (rigid colliders and the domain walls a body starts at: penalty, see
-    :mod:`magsoro.mpm.static_contact`). Loads: the fields at time ``t`` scaled by a level, gravity in full, the
+    form (rigid colliders and the domain walls a body starts at: penalty, see :mod:`magsoro.mpm.static_contact`;
+    contact between bodies on a reference grid split by contact group: :mod:`magsoro.mpm.body_contact`). Loads: the fields at time ``t`` scaled by a level, gravity in full, the
     colliders where their paths have them at ``t`` (reached with the first level's load increments)."""
 
     #: whether Prony materials are taken (the implicit integrator's steps; an equilibrium has none to give)
@@ -455,9 +461,8 @@ class StaticSolver:
         check_supported(sim, viscous=self.takes_prony)
         self.solver, self.model = solver, model
         self.dim, self.dev, self.sc = model.dim, model.device, model.scalar
-        k = model.kernels
+        k = solver.step_kernels  # the contact variant of p2g where the reference grid is split by contact group
         self.k = k
-        self.kk = make_static_kernels(self.dim, self.sc, model.plane)
         # the moving clamps' displacements per clamp code (Model clamp_code: 0 free, 1 held in place, 2 + path row)
         # at the clamps' time (_set_collider_time), which the held particles and nodes take
         self.clamp_shift = wp.zeros(2 + len(model.clamp_paths), dtype=k["vec"], device=self.dev)
@@ -468,7 +473,18 @@ class StaticSolver:
         model.update_pressures(self.t)  # pressure loads at the solve's time
         solver.check_and_fit(state, 0.0)  # the reference grid block, its held nodes
         self.block = block_struct(model, solver.org, solver.shape)
-        self.n_nodes = int(solver.n_active)
+        #: the grid block's nodes; the unknowns live on its slots: one per node, or two where the reference grid is
+        #: split by contact group (slot i + n_block holds the groups other than node i's smallest), so that bodies
+        #: that may separate or slide never share a node and meet only through the body contact's springs
+        self.n_block = int(solver.n_active)
+        split = solver.reference_contact_grid()
+        self.split = split is not None
+        if self.split:
+            self.ct, self.node_class, self.node_gmin = split
+        else:
+            self.ct = contact_grid(model)
+        self.kk = make_static_kernels(self.dim, self.sc, model.plane, self.split)
+        self.n_nodes = self.n_block * (2 if self.split else 1)
         n = model.n_particles
         self.x = wp.zeros(n, dtype=k["vec"], device=self.dev)
         self.F = wp.zeros(n, dtype=k["mat"], device=self.dev)
@@ -476,7 +492,6 @@ class StaticSolver:
         self.zero_C = wp.zeros(n, dtype=k["mat"], device=self.dev)
         self.u = wp.zeros(self.n_nodes, dtype=k["vec"], device=self.dev)
         self.bodies = bodies_array(model)
-        self.ct = contact_grid(model)
         self.no_viscous = viscous_struct(model, None)
         grid = k["GridArrays"]()
         grid.p, grid.m, grid.clamp = solver.grid_p, solver.grid_m, solver.grid_clamp
@@ -498,16 +513,18 @@ class StaticSolver:
         # free nodes: carrying mass, not held
         self._scatter(np.zeros((self.n_nodes, self.dim)), 0.0, 0.0)
         mass = solver.grid_m.numpy()[: self.n_nodes].astype(np.float64)
-        self.held_code = solver.held_mask.numpy()[: self.n_nodes].astype(np.int64)
+        self.held_code = np.tile(solver.held_mask.numpy()[: self.n_block].astype(np.int64), self.n_nodes // self.n_block)
         held = self.held_code != 0
         self.node_mass = mass
         self.held_nodes = held  # nodes the clamps hold (read once: which nodes they hold does not change)
         self.free = np.flatnonzero((mass > 0) & ~held)
         shape = np.asarray(solver.shape, dtype=np.int64)
         self.shape = shape
-        self.coords = np.stack(np.unravel_index(np.arange(self.n_nodes), tuple(shape)), axis=1)
+        self.coords = np.stack(np.unravel_index(np.arange(self.n_nodes) % self.n_block, tuple(shape)), axis=1)
         self.dof_of_node = np.full(self.n_nodes, -1, dtype=np.int64)
         self.dof_of_node[self.free] = np.arange(len(self.free))
+        if self.split:
+            self._check_split()
         self.E = self._slaving(mass, held)
         self.u_nodes = np.zeros((self.n_nodes, self.dim))
         self.field_level = 0.0
@@ -528,6 +545,14 @@ class StaticSolver:
             # the colliders start where they are at the scene's start; the first level's load increments move them
             # along their paths to the solve's time with the loads (a plate pressed into a body: a crushing test)
             self._set_collider_time(0.0)
+        #: contact between the bodies' contact groups, and within one (magsoro.mpm.body_contact); None without
+        self.body_contact = None
+        if solver.contact_active:
+            from magsoro.mpm.body_contact import BodyContact
+            from magsoro.mpm.static_contact import Contacts
+
+            self.body_contact = BodyContact(self, st.contact.friction, st.contact.self_contact, st.depth)
+            self.contact = Contacts(([] if self.contact is None else self.contact.parts) + [self.body_contact])
         if model.clamp_paths:  # so do the moving clamps, from where they stand at the start
             self._set_collider_time(0.0)
         self._check_held()
@@ -538,8 +563,8 @@ class StaticSolver:
 
     def _check_held(self) -> None:
         """Refuse a scene with a free, loaded part: particles joined through shared grid nodes (bodies without
-        contact between them share the grid, so they act as one) that no clamp holds and no collider or modelled
-        domain wall touches at the start, on which the loads at the solve's time (fields at level 1, gravity) leave
+        contact between them share the grid, so they act as one) or resting on each other (body contact at the
+        start), that no clamp holds and no collider or modelled domain wall touches at the start, on which the loads at the solve's time (fields at level 1, gravity) leave
         a net force or couple: it has no equilibrium where it is (a body 1 mm above its floor under gravity failed
         its load increments after minutes). A free part whose loads balance (a ring under internal pressure) is
         solved."""
@@ -553,8 +578,21 @@ class StaticSolver:
         supported = set(np.unique(label[self.held_nodes & carrying]).tolist())
         supported |= set(np.unique(label[P[np.flatnonzero(self.model.host["clamped"] != 0)].indices]).tolist())
         gaps = {}  # part label -> (smallest clearance above a collider's touching level, m; the collider's index)
+        if self.body_contact is not None:
+            # bodies resting on each other at the start are one part here: a stack on a floor is held by the floor
+            a, b = self.body_contact.touching_particles(np.zeros((self.n_nodes, self.dim)))
+            if len(a):
+                from scipy import sparse as _sparse
+
+                pa, pb = particle_label[a], particle_label[b]
+                n_lab = int(label.max()) + 1
+                links = _sparse.coo_matrix((np.ones(len(pa)), (pa, pb)), shape=(n_lab, n_lab)).tocsr()
+                _, merged = connected_components(links + _sparse.identity(n_lab, format="csr"), directed=False)
+                label, particle_label = merged[label], merged[particle_label]
         if self.contact is not None:
             for part in self.contact.parts:
+                if part is self.body_contact:
+                    continue
                 pts = part.X[part.touchable]
                 point_labels = label[part.touchable] if part.W is not P else particle_label[part.touchable]
                 for ci, (c, lvl) in enumerate(zip(part.colliders, part.level)):
@@ -611,8 +649,8 @@ class StaticSolver:
     def _place(self, u_nodes: np.ndarray) -> None:
         self.u.assign(u_nodes.astype(self.model.np_scalar))
         launch_place_particles(self.kk, self.model.n_particles, X=self.model.X0, u=self.u, block=self.block,
-                               clamped=self.model.clamped, clamp_shift=self.clamp_shift, x=self.x, F=self.F,
-                               device=self.dev)
+                               clamped=self.model.clamped, clamp_shift=self.clamp_shift, contact=self.ct, x=self.x,
+                               F=self.F, device=self.dev)
 
     def _scatter(self, u_nodes: np.ndarray, field_level: float, gravity_level: float) -> np.ndarray:
         """Node forces (n_nodes, dim) at the displacement ``u_nodes`` under the given load levels."""
@@ -836,6 +874,10 @@ class StaticSolver:
         column[unknown] = np.arange(len(unknown))
         shape = tuple(int(v) for v in self.shape)
         memo = {}
+        # the contact group each slot holds (a split block: the neighbours a light node extrapolates from are its
+        # group's slots of the nodes inward)
+        slot_group = np.zeros(self.n_nodes, dtype=np.int64)
+        slot_group[nodes.ravel()] = np.repeat(h["contact_group"], nodes.shape[1])
 
         def combination(node: int, depth: int = 0) -> dict:
             if column[node] >= 0:
@@ -848,7 +890,8 @@ class StaticSolver:
                 out = {}
                 inner = [c + d, c + 2 * d]
                 ok = [bool(np.all(q >= 0) and np.all(q < self.shape)) for q in inner]
-                ids = [int(np.ravel_multi_index(tuple(q), shape)) if k else -1 for q, k in zip(inner, ok)]
+                ids = [int(self._slot_of(slot_group[node], np.ravel_multi_index(tuple(q), shape))) if k else -1
+                       for q, k in zip(inner, ok)]
                 if not ok[0] or not d.any():
                     memo[node] = {}
                     return {}
@@ -888,6 +931,41 @@ class StaticSolver:
         F = self.F.numpy().astype(np.float64)
         return bool(np.all(np.isfinite(F)) and np.all(np.linalg.det(F) > 0.0))
 
+    def _check_split(self) -> None:
+        """Refuse a scene where three contact groups that may separate reach one grid node at the start: the split
+        grid keeps two apart per node (the node's smallest group and the rest), so the other two would be glued."""
+        nodes, _, _ = self._stencil()
+        g = np.repeat(self.model.host["contact_group"].astype(np.int64), nodes.shape[1])
+        lo = np.full(self.n_nodes, np.iinfo(np.int64).max)
+        hi = np.full(self.n_nodes, -1)
+        np.minimum.at(lo, nodes.ravel(), g)
+        np.maximum.at(hi, nodes.ravel(), g)
+        friction = self.solver.settings.contact.friction
+        mixed = np.flatnonzero(hi > lo)
+        mixed = mixed[friction[lo[mixed], hi[mixed]] >= 0.0]
+        if len(mixed) == 0:
+            return
+        node = int(mixed[0]) % self.n_block
+        body = self.model.host["body"]
+        groups = np.unique(self.model.host["contact_group"][np.any(nodes % self.n_block == node, axis=1)])
+        names = self.sim.built.body_names
+        what = ", ".join(f"'{names[int(b)]}'" for b in np.unique(body[np.isin(self.model.host["contact_group"], groups)]))
+        raise SimulationError(
+            f"bodies {what} come within about three cells of one another at one grid node at the start; the Newton "
+            f"solvers keep two bodies apart per node, so these would act as one: draw them further apart, bond the "
+            f"ones meant to stick ([contact] bonded or a [[contact.pairs]] entry with bonded = true), or run the "
+            f"explicit engine")
+
+    def _slot_of(self, group, node):
+        """The slot holding contact group ``group`` at grid-block node ``node`` (arrays, broadcast): the node's second
+        where the reference grid is split there and the group is not its smallest (:mod:`magsoro.mpm.contact`'s
+        field_of); the node itself otherwise."""
+        node = np.asarray(node)
+        if not self.split:
+            return node
+        second = (self.node_class[node] == int(NodeClass.BODIES)) & (np.asarray(group) != self.node_gmin[node])
+        return node + second * self.n_block
+
     # -- tangent --------------------------------------------------------------------------------------------
     def _stencil(self):
         """Per particle: flat node indices (N, 3^dim), weights (N, 3^dim) and reference weight gradients
@@ -902,6 +980,8 @@ class StaticSolver:
             for a in range(dim):
                 w *= w1d[offs[:, a], :, a].T
             nodes = np.ravel_multi_index(tuple((base[:, None, :] + offs[None]).transpose(2, 0, 1)), tuple(self.shape))
+            if self.split:  # each particle's own group's slot (the kernels' slot_of)
+                nodes = self._slot_of(m.host["contact_group"][:, None], nodes)
             grad = (4.0 / m.dx) * w[:, :, None] * (offs[None, :, :] - fx[:, None, :])
             self._stencil_cache = (nodes, w, grad)
         return self._stencil_cache
@@ -969,7 +1049,7 @@ class StaticSolver:
             fterms.H = wp.array(np.einsum("pbae,pb->pae", dG, m).astype(npsc), dtype=k["mat"], device=dev)
         data.zero_()
         launch_assemble_tangent(self.kk, n * 3 ** dim, X=self.model.X0, block=self.block, bodies=self.bodies, A=A,
-                                field_terms=fterms, dof=dof, indptr=d_indptr, slots=d_slots, data=data, device=dev)
+                                field_terms=fterms, contact=self.ct, dof=dof, indptr=d_indptr, slots=d_slots, data=data, device=dev)
         n_dof = len(self.free) * dim
         J = sparse.csc_matrix((data.numpy().astype(np.float64), indices, indptr), shape=(n_dof, n_dof))
         if self.contact is not None:  # the colliders' springs at u (the scatter above evaluated them)
