@@ -102,11 +102,11 @@ def _slab_track(mu: float, duration: float):
     return np.array(ts), np.array(xs) - xs[0], sim
 
 
-@pytest.mark.slow
 @pytest.mark.parametrize("mu", [0.2, 0.4])
 def test_implicit_block_started_on_the_slab_slides_by_coulomb(mu):
     """Implicit, dt <= 1 ms: the 4 x 2 mm block drawn resting on the clamped slab (no gap), gravity tilted 30 deg,
-    accelerates within 3 % of g (sin - mu cos) (measured -1.3 % at mu 0.2) and stays on the slab."""
+    accelerates within 3 % of g (sin - mu cos) (measured +0.25 % at mu 0.2, -1.6 % at mu 0.4; 56 and 50 steps) and
+    stays on the slab."""
     ts, xs, sim = _slab_track(mu, 0.05)
     late = ts > 0.005
     accel = 2.0 * float(np.polyfit(ts[late], xs[late, 0], 2)[0])
@@ -114,9 +114,9 @@ def test_implicit_block_started_on_the_slab_slides_by_coulomb(mu):
     assert abs(xs[-1, 1]) < 0.05 * sim.model.dx
 
 
-@pytest.mark.slow
 def test_implicit_block_started_on_the_slab_stays_above_the_friction_angle():
-    """mu 0.7 > tan 30: the block moves less than a quarter cell in 0.2 s."""
+    """mu 0.7 > tan 30: the block moves less than a quarter cell in 0.2 s (measured 0.06 cells, nearly all of it in
+    the first step, where friction has no normal force yet to lag)."""
     ts, xs, sim = _slab_track(0.7, 0.2)
     assert np.abs(xs[:, 0]).max() < 0.25 * sim.model.dx
     assert math.isfinite(float(xs[-1, 0]))

@@ -20,7 +20,10 @@ weighted mean normal n, weights w_q = (1 - (|x_p - x_q| / R)^2)^2 (a Shepard ave
 
 On a flat face every q lies at the same depth, so g is exact and does not jump as p slides from one q to the next;
 on a curved face c lies inside it by about the sag of the patch, (MASTER_REACH h)^2 / (8 R_curvature). Particles
-drawn touching (the builder puts them half a spacing inside each face) start at g = 0.
+drawn touching (the builder puts them half a spacing inside each face) start at g = 0. The weights also carry
+(-n_p . n_q)^FACING_POWER, so a body's corner particles, whose normals are rounded between two faces, barely tilt a
+face's plane. The plane does not reach past the body's edge: the spring fades (smoothstep) from full where p's foot
+lies within half a spacing of a master's tangential position to nothing a whole spacing from the nearest.
 
 Normal law. A contact in the active set pushes p along n and the q's back with f_n = k (-g), k the colliders'
 per-particle penalty (PENALTY (K + 4G/3) / dx h^(dim-1), 2D times the depth) halved: every face is both slave (its
@@ -32,7 +35,9 @@ law within a solve is a fixed spring and the tangent is exact, n and the weights
 
 Friction. The colliders' regularised Coulomb law on the relative motion: d = e + (x_p - x_p') - sum w_q (x_q - x_q')
 / sum w_q, with x' the positions at the last accepted increment (or time step) and e the elastic slip carried from
-it; f_t = -mu f_n t / max(|t|, slip) for t the tangential part of d, slip = SLIP_CELLS cells. After a converged
+it; f_t = -mu f_n t / max(|t|, slip) for t the tangential part of d, slip = SLIP_CELLS cells. The implicit
+integrator lags f_n (``lag_normal``: the normal force of the last accepted state, Li et al. 2020's lagged
+dissipative potential), so that within a step friction depends on the tangential motion alone. After a converged
 increment a sticking contact keeps t as its e, a sliding one e = slip t / |t| (on the cone), one that separated
 forgets it. mu is the pair's [contact] friction (the scene's table per pair of groups). With ``self_contact`` a
 group's surface also meets itself where the particles were more than SELF_REACH_CELLS cells apart in the reference
@@ -125,6 +130,11 @@ class BodyContact:
         #: contact that starts closer is held where it starts, not pushed out): a corner's rounded normal tilts the
         #: plane under a face that touches it by up to about 1 % of a cell
         self.start_gap = {}
+        #: friction takes the normal force of the last accepted state instead of the current one (the implicit
+        #: integrator: Li et al. 2020's lagged dissipative potential; its steps are short), so that within a step
+        #: friction is a potential of the tangential motion alone
+        self.lag_normal = False
+        self._fn_lag = {}
         self.elastic = {}  # contact key (slave particle * groups + master group) -> elastic slip e (dim)
         self.held = np.zeros(0, np.int64)  # the active set's keys during a Newton solve
         self._held_accepted = self.held.copy()
@@ -188,9 +198,24 @@ class BodyContact:
         W = np.bincount(row, weights=w)
         return dict(keys=keys, slave=s[a[start]], master=b, row=row, weight=w / W[row])
 
+    def _coverage(self, planes: dict, x: np.ndarray, n: np.ndarray) -> np.ndarray:
+        """Per contact, how far its slave lies over the other body's surface: 1 while its foot on the plane falls
+        within half a spacing of a master (on a master's tile), down to 0 (smoothstep) where it lies a whole
+        spacing from the nearest: a patch's plane does not reach past the body's edge."""
+        v = x[planes["slave"]][planes["row"]] - x[self.surface[planes["master"]]]
+        nr = n[planes["row"]]
+        t = np.linalg.norm(v - np.einsum("ji,ji->j", v, nr)[:, None] * nr, axis=1)
+        t = t / (2.0 * self.radius[self.surface[planes["master"]]])
+        z = np.clip((1.0 - t) / 0.5, 0.0, 1.0)  # 1 at t <= 1/2, 0 at t >= 1
+        phi = z * z * (3.0 - 2.0 * z)
+        out = np.zeros(len(planes["keys"]))
+        np.maximum.at(out, planes["row"], phi)
+        return out
+
     def _geometry(self, planes: dict, x: np.ndarray, m: np.ndarray):
         """Per contact of ``planes`` at the positions ``x``: the gap (m; less its start gap), the unit normal n,
-        the patch's centroid c and |sum w m_q| (the normal's length before normalising)."""
+        the patch's centroid c and |sum w m_q| (the normal's length before normalising); the slaves' coverage
+        (:meth:`_coverage`) is left in ``_cover``."""
         keys, row, wh, dim = planes["keys"], planes["row"], planes["weight"], self.dim
         mp = self.surface[planes["master"]]
         c = np.stack([np.bincount(row, weights=wh * x[mp, k], minlength=len(keys)) for k in range(dim)], axis=1)
@@ -201,6 +226,7 @@ class BodyContact:
         gap = np.einsum("ki,ki->k", n, x[planes["slave"]] - c) - self.radius[planes["slave"]] - rbar
         if self.start_gap:
             gap = gap - np.array([self.start_gap.get(int(kk), 0.0) for kk in keys])
+        self._cover = self._coverage(planes, x, n)
         return gap, n, c, size
 
     @staticmethod
@@ -235,7 +261,7 @@ class BodyContact:
         fresh = self._fresh_planes(x, m)
         kept = self.patches
         if fresh is not None:
-            near = self._geometry(fresh, x, m)[0] <= self.touch
+            near = (self._geometry(fresh, x, m)[0] <= self.touch) & (self._cover > 0.0)
             if keys_wanted is not None:
                 near |= np.isin(fresh["keys"], keys_wanted)
             fresh = self._select(fresh, near)
@@ -253,12 +279,13 @@ class BodyContact:
         if kept is None or len(kept["keys"]) == 0:
             return None
         gap, n, c, size = self._geometry(kept, x, m)
-        touching = gap <= self.touch
+        cover = self._cover
+        touching = (gap <= self.touch) & (cover > 0.0)
         keep = touching if keys_wanted is None else (touching | np.isin(kept["keys"], keys_wanted))
         if not keep.any():
             return None
         cs = self._select(kept, keep)
-        cs.update(gap=gap[keep], normal=n[keep], centroid=c[keep], size=size[keep], touching=touching[keep],
+        cs.update(gap=gap[keep], cover=cover[keep], normal=n[keep], centroid=c[keep], size=size[keep], touching=touching[keep],
                   x=x, F=F, m=m)
         return cs
 
@@ -313,14 +340,17 @@ class BodyContact:
         self.touching = cs["keys"][cs["touching"]]
         keys, slave, gap, n = cs["keys"], cs["slave"], cs["gap"], cs["normal"]
         m_row, m_idx, m_w, x = cs["row"], self.surface[cs["master"]], cs["weight"], cs["x"]
-        self.penetration = float(np.max(-gap, initial=0.0))
-        kc = self.k[slave]
+        self.penetration = float(np.max(-gap[cs["cover"] > 0.0], initial=0.0))
+        kc = self.k[slave] * cs["cover"]  # a slave near the other body's edge: a spring that fades off it
         fn_signed = kc * (-gap)  # > 0 pressing; < 0 on a held contact that pulls until released
         G, C = self._gap_gradient(cs)
         f_nodes = (G.T @ fn_signed).reshape(n_slots, dim)
         force = np.zeros((len(keys), dim))  # friction, on the slave (its patch takes minus it)
         blocks = np.zeros((len(keys), dim, dim))
         fn = np.maximum(fn_signed, 0.0)
+        lagged = self.lag_normal
+        if lagged:  # friction's normal force as it was at the last accepted state (Li et al. 2020)
+            fn = np.array([self._fn_lag.get(int(kk), 0.0) for kk in keys])
         mu = self.mu_table[self.group[slave], keys % self.n_groups]
         rough = mu > 0.0
         stuck = np.ones(len(keys), bool)
@@ -336,12 +366,14 @@ class BodyContact:
             dt = np.einsum("pij,pj->pi", Pt, e + rel)
             length = np.linalg.norm(dt, axis=1)
             dfn = np.where((gap < 0.0)[:, None], kc[:, None] * n, 0.0)  # -d f_n / d(relative position), n held
+            if lagged:
+                dfn = np.zeros_like(dfn)
             sticking = rough & (length <= self.slip)
             pressed = sticking & (fn > 0.0)
             force[sticking] -= (mu[sticking] * fn[sticking] / self.slip)[:, None] * dt[sticking]
             blocks[pressed] += ((mu[pressed] * fn[pressed] / self.slip)[:, None, None] * Pt[pressed]
                                 - (mu[pressed] / self.slip)[:, None, None] * np.einsum("pi,pj->pij", dt[pressed], dfn[pressed]))
-            reaching = sticking & ~(fn > 0.0) & cs["touching"]
+            reaching = sticking & ~(fn > 0.0) & cs["touching"] & (not lagged)
             blocks[reaching] += (mu[reaching] * kc[reaching])[:, None, None] * Pt[reaching]
             sliding = rough & ~sticking
             if sliding.any():
@@ -402,7 +434,7 @@ class BodyContact:
         whether any did (the state is then to be solved again)."""
         if self._last is None:
             return False
-        pulling = self._last["keys"][self._last["gap"] > RELEASE * self.dx]
+        pulling = self._last["keys"][(self._last["gap"] > RELEASE * self.dx) | (self._last["cover"] <= 0.0)]
         pulling = np.intersect1d(pulling, self.held)
         if len(pulling):
             self.held = np.setdiff1d(self.held, pulling)
@@ -414,7 +446,7 @@ class BodyContact:
         the deepest one at ``u_nodes``, if that is deeper)."""
         def depth(alpha):
             cs = self._contacts(u_nodes + alpha * step, record=False)
-            return 0.0 if cs is None else float(np.max(-cs["gap"], initial=0.0))
+            return 0.0 if cs is None else float(np.max(-cs["gap"][cs["cover"] > 0.0], initial=0.0))
 
         limit = max(STEP_DEPTH * self.dx, 1.01 * depth(0.0))
         if depth(1.0) <= limit:
@@ -437,12 +469,16 @@ class BodyContact:
         new = {}
         if self._last is not None:
             keys, dt, stuck = self._slip_state
-            for j in np.flatnonzero(self._last["gap"] <= self.touch):
+            for j in np.flatnonzero(self._last["touching"]):
                 t = dt[j]
                 if not stuck[j]:
                     t = t * (self.slip / max(float(np.linalg.norm(t)), 1e-300))
                 new[int(keys[j])] = t
         self.elastic = new
+        self._fn_lag = {}
+        if self._last is not None:
+            fn_now = np.maximum(self.k[self._last["slave"]] * self._last["cover"] * (-self._last["gap"]), 0.0)
+            self._fn_lag = dict(zip(self._last["keys"][self._last["touching"]].tolist(), fn_now[self._last["touching"]].tolist()))
         self._x_last = self.X + self.P @ u_nodes
         self._held_accepted = self.held.copy()
         # the patches stay while their contacts last and their slaves stay over them: a patch taken anew changes

@@ -187,6 +187,11 @@ class ImplicitIntegrator(StaticSolver):
         super().__init__(sim, sim.state.time, tolerance=tolerance, max_iterations=max_iterations,
                          linear_solver=linear_solver)
         self.scheme = Scheme.make(scheme, rho_inf)
+        if self.body_contact is not None:
+            # friction between bodies on each step's starting normal force: within a step a potential of the
+            # tangential motion alone (magsoro.mpm.body_contact); with the current one, Newton's iterates on a
+            # sliding block swung between the normal and tangential directions and grew
+            self.body_contact.lag_normal = True
         self._set_collider_time(self.t)
         self.field_time = self.t
         self.field_level = self.gravity_level = 1.0
