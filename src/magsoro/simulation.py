@@ -264,6 +264,7 @@ class Simulation:
         self._impulse_time = self.state.time
         self._collider_force = np.zeros((len(self.control.colliders), 3))
         self._static_forces = None
+        self._pair_forces = None  # (groups, groups, 3) N: the body contact's forces of the Newton solvers
         sim = scene.simulation
         self.fixed_dt = sim.dt
         with np.errstate(all="ignore"):  # a field that is not finite is named by check_time_step below
@@ -358,12 +359,25 @@ class Simulation:
         forces = self.collider_forces() if any(p.kind == "collider_force" for p in self.probes) else None
         out = {}
         for p in self.probes:
-            if p.kind == "collider_force":
+            if p.kind == "collider_force" and p.pair is not None:
+                value = self._pair_force(p)
+            elif p.kind == "collider_force":
                 value = forces[p.collider, : self.dim]
             else:
                 value = fields[p.name] if p.kind == "field" else p.evaluate(x)
             out.update(zip(p.columns(self.dim), value.tolist()))
         return out
+
+    def _pair_force(self, probe) -> np.ndarray:
+        """The contact force (N, dim) one body exerts on another for a collider_force probe between bodies: the
+        static solver's at the last level solved, the implicit integrator's at the last step (zero before it)."""
+        if self._pair_forces is not None:
+            return self._pair_forces[probe.pair[0], probe.pair[1], : self.dim].copy()
+        if self.scene.simulation.integrator == "implicit":
+            return np.zeros(self.dim)
+        raise SimulationError(f"probe '{probe.name}': the force between bodies is measured by the static solver "
+                              f"(magsoro run --static) and the implicit integrator (simulation.integrator = "
+                              f"'implicit'), not yet by the explicit engine; remove the probe or use one of them")
 
     def collider_forces(self) -> np.ndarray:
         """The force (N, (n_colliders, 3); 2D: z = 0, for the scene's depth) the bodies exert on each rigid collider.
@@ -536,6 +550,7 @@ class Simulation:
             out.levels.append(res)
             solver.write_state()
             self._static_forces = solver.collider_reactions()
+            self._pair_forces = None if solver.body_contact is None else solver.body_contact.pair_force.copy()
             self.field_scale = solver.field_level  # field probes read the applied field of the level solved
             if not res.converged:
                 out.converged = False
@@ -650,6 +665,7 @@ class Simulation:
         before it, still in the spare buffer, becomes current again: the state kept after a failure (written as
         last_good.npz) is always one that passed the checks."""
         self._static_forces = None
+        self._pair_forces = None  # (groups, groups, 3) N: the body contact's forces of the Newton solvers
         try:
             self.solver.step(self.state, self._spare, self.control, dt)
         except SimulationError as exc:
@@ -723,6 +739,7 @@ class Simulation:
             self.last_newton_iterations = result.iterations
             self.dt_min, self.dt_max = min(self.dt_min, dt), max(self.dt_max, dt)
             self._static_forces = integ.collider_reactions()
+            self._pair_forces = None if integ.body_contact is None else integ.body_contact.pair_force.copy()
             if not all(np.isfinite(np.asarray(integ.u_nodes)).ravel()):
                 raise SimulationError("the implicit step produced non-finite displacements", self.steps, self.state.time)
             if result.iterations <= cfg.easy_iterations and dt >= self.dt * (1 - 1e-9):

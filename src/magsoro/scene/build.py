@@ -605,6 +605,7 @@ class ProbeSpec:
     weights: np.ndarray | None = None
     position: np.ndarray | None = None  # field probe at a fixed point (m); else at the mean of ``indices``
     collider: int | None = None  # collider_force: the collider's index in [[colliders]]
+    pair: tuple[int, int] | None = None  # collider_force between bodies: contact groups (A, B), the force A exerts on B
 
     def columns(self, dim: int) -> list[str]:
         axes = "xyz"[:dim]
@@ -866,7 +867,14 @@ def build(scene: Scene, device: str | None = None, source: str = "scene", magnet
     masses = model.host["mass"]
     for i, p in enumerate(scene.probes):
         if p.type == "collider_force":  # its index is checked with the scene (load.check_scene)
-            probes.append(ProbeSpec(p.name, "collider_force", np.zeros(0, dtype=np.int64), collider=p.collider))
+            pair = None
+            if p.bodies is not None:
+                groups = [int(model.host["contact_group"][body_id == names.index(n)][0]) for n in p.bodies]
+                if groups[0] == groups[1]:
+                    raise SceneError(f"{source}: probes[{i}].bodies: '{p.bodies[0]}' and '{p.bodies[1]}' are bonded into "
+                                     f"one piece ([contact] bonded), so no contact force acts between them")
+                pair = (groups[0], groups[1])
+            probes.append(ProbeSpec(p.name, "collider_force", np.zeros(0, dtype=np.int64), collider=p.collider, pair=pair))
             continue
         if p.type == "field" and p.position is not None:
             probes.append(ProbeSpec(p.name, "field", np.zeros(0, dtype=np.int64), position=np.asarray(p.position[:dim], dtype=np.float64)))

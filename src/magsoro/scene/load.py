@@ -310,6 +310,11 @@ def check_scene(scene: Scene, source: str, base_dir: Path | None) -> None:
             raise SceneError(f"{source}: clamps[{i}].body: no body named '{c.body}'; bodies: {', '.join(names)}")
     for i, p in enumerate(scene.probes):
         if p.type == "collider_force":
+            if p.bodies is not None:
+                for name in p.bodies:
+                    if name not in names:
+                        raise SceneError(f"{source}: probes[{i}].bodies: no body named '{name}'; bodies: {', '.join(names)}")
+                continue
             if p.collider >= len(scene.colliders):
                 raise SceneError(f"{source}: probes[{i}].collider: {p.collider} is not a collider of the scene (it has "
                                  f"{len(scene.colliders)}: indices 0 to {len(scene.colliders) - 1} of [[colliders]])"

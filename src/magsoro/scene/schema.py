@@ -816,11 +816,22 @@ class ColliderForceProbe(Strict):
     """The force the bodies exert on a rigid collider (columns NAME_Fx, NAME_Fy[, NAME_Fz], N; in 2D for the
     scene's depth): in a run, the momentum the collider takes from the grid nodes it touches, per unit time, averaged
     over each output interval (at rest: the load it carries); with --static, the reaction of the contact at each
-    level's equilibrium."""
+    level's equilibrium. With ``bodies`` instead of ``collider``: the contact force one body exerts on another,
+    measured by the static solver (--static) and the implicit integrator."""
 
     type: Literal["collider_force"]
     name: Identifier = Field(description="Column prefix in metrics.csv (letters, digits, '_', '-').")
-    collider: int = Field(ge=0, description="The collider: its index in [[colliders]], from 0.")
+    collider: int | None = Field(default=None, ge=0, description="The collider: its index in [[colliders]], from 0.")
+    bodies: list[str] | None = Field(default=None, min_length=2, max_length=2, description="Instead of collider: two body names [A, B], the force A exerts on B through their contact (static solver and implicit integrator).")
+
+    @model_validator(mode="after")
+    def _one_target(self):
+        if (self.collider is None) == (self.bodies is None):
+            raise ValueError("a collider_force probe takes either collider (an index in [[colliders]]) or bodies "
+                             "(two body names), not both or neither")
+        if self.bodies is not None and self.bodies[0] == self.bodies[1]:
+            raise ValueError(f"bodies: two different bodies, not '{self.bodies[0]}' twice")
+        return self
 
 
 AnyProbe = Annotated[Union[CentroidProbe, PointProbe, BoundsProbe, FieldProbe, ColliderForceProbe], Field(discriminator="type")]
