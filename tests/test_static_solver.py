@@ -150,10 +150,10 @@ def test_quadratic_convergence():
     assert any(b < 1e3 * a * a for a, b in zip(rel, falls)), rel
 
 
-def test_cli_static_writes_levels_and_refuses_self_contact(tmp_path):
+def test_cli_static_writes_levels_and_refuses_what_it_lacks(tmp_path):
     """`magsoro run --static`: one metrics row per level after the unloaded one, run.json's static entry; a scene
-    with self-contact (not in the Newton solvers yet) is refused with one line naming the flag and the key, before
-    the output folder is touched."""
+    with what the Newton solvers do not take yet (a moment that follows R) is refused with one line naming the flag
+    and the key, before the output folder is touched."""
     scene = tmp_path / "beam.toml"
     scene.write_text(SCENE.read_text().replace("[output]", "[static]\nlevels = [0.5, 1.0]\n\n[output]"))
     out = tmp_path / "out"
@@ -169,11 +169,11 @@ def test_cli_static_writes_levels_and_refuses_self_contact(tmp_path):
     bad = tmp_path / "two.toml"
     bad.write_text(SCENE.read_text().replace("[output]", '[[bodies]]\nname = "pad"\nshape = { type = "rectangle", '
                    'center = [0.0106, -0.004], size = [0.004, 0.001] }\nmaterial = { density = 1000.0, shear_modulus '
-                   '= 1.0e5 }\n\n[contact]\nfriction = 0.3\nself_contact = true\n\n[output]'))
+                   '= 1.0e5, magnetization_follows = "R" }\n\n[contact]\nfriction = 0.3\n\n[output]'))
     run = subprocess.run([sys.executable, "-m", "magsoro", "run", str(bad), "--static", "--out", str(tmp_path / "o2")],
                          capture_output=True, text=True)
     ours = [ln for ln in run.stderr.strip().splitlines() if not ln.startswith("Warp")]  # Warp's no-driver notice
-    assert run.returncode == 2 and "--static" in ours[0] and "self-contact" in ours[0] and "contact.self_contact" in ours[0]
+    assert run.returncode == 2 and "--static" in ours[0] and "magnetization_follows" in ours[0]
     assert len(ours) == 1 and not (tmp_path / "o2").exists()
 
 

@@ -29,7 +29,7 @@ def register(sub):
                    help="instead of the motion, solve the static equilibria by Newton's method (float64, total-Lagrangian "
                         "form) under the loads at t = duration, the fields scaled by each of [static] levels; writes one "
                         "metrics row and frame per level (first column 'level'); or, with [static] times, the equilibria along the "
-                        "scene's paths at those times (first column 'time'); rigid colliders and contact between bodies (no self-contact yet)")
+                        "scene's paths at those times (first column 'time'); rigid colliders, contact between bodies and self-contact")
     p.add_argument("--from", dest="from_run", metavar="RUN_DIR",
                    help="start from the final state of an earlier run (its folder or its final.npz): positions, "
                         "velocities, deformation gradients, Prony internal stresses and its time, which this run "

@@ -41,7 +41,7 @@ dissipative potential), so that within a step friction depends on the tangential
 increment a sticking contact keeps t as its e, a sliding one e = slip t / |t| (on the cone), one that separated
 forgets it. mu is the pair's [contact] friction (the scene's table per pair of groups). With ``self_contact`` a
 group's surface also meets itself where the particles were more than SELF_REACH_CELLS cells apart in the reference
-(two layers of a folded strip, not neighbours on one face); the solvers do not pass it yet (check_supported).
+(two layers of a folded strip, not neighbours on one face).
 
 Limits: a Newton step or a load increment that carries a particle through the other body's surface patch in one go
 (more than MASTER_REACH spacings) is not seen; the static solver's step cut (STEP_DEPTH cells of penetration) keeps

@@ -405,9 +405,6 @@ def check_supported(sim, who: str = "the static solver", viscous: bool = False) 
     solver = sim.solver
     if solver.settings.formulation != "total":
         raise SimulationError(f"{who} works on the total-Lagrangian form (simulation.formulation = 'total' or 'auto')")
-    if solver.contact_active and solver.settings.contact.self_contact:
-        raise SimulationError(f"{who} has no self-contact yet (contact between bodies it has); set "
-                              "contact.self_contact = false, or run the explicit engine")
     if np.any(sim.model.host["magnetization_follows"] != 0):
         # its tangent takes the magnetic stress and the moment as Zhao's law has them (F Br); the R law's dP/dF is not in it
         raise SimulationError(f"{who} has no magnetization_follows = 'R' yet (its tangent carries the moment "
