@@ -175,3 +175,25 @@ def test_implicit_self_contact_folded_strip_stays_apart_and_unfolds():
     assert min(gaps) < 1.0
     assert min(closest) > 0.4
     assert ends[-1] > 0.9
+
+
+@pytest.mark.parametrize("tilt", [20.0, 30.0])
+def test_static_block_on_the_slab_held_by_friction_or_told_it_slides(tilt):
+    """Static, mu 0.4: at a 20 deg tilt (tan 20 = 0.36 < mu) the block drawn on the slab is held, the slab's force on
+    it exactly W (sin 20, cos 20) (measured to 1e-9); at 30 deg (tan 30 = 0.58 > mu) there is no equilibrium, and
+    the message says so with the pull and the friction limit (measured in 0.6 s)."""
+    scene = slope_scene(0.4, "slab", tilt_deg=tilt, start_sites=0, precision="float64")
+    sim = Simulation(parse_scene(scene))
+    seen = {}
+    run = sim.solve_static(levels=[1.0], watch=lambda s: seen.setdefault("solver", s))
+    host = sim.model.host
+    weight = host["mass"][host["body"] == 0].sum() * G_EARTH
+    if tilt < 25.0:
+        assert run.converged, run.message
+        force = seen["solver"].body_contact.pair_force[1, 0, :2]
+        a = math.radians(tilt)
+        assert force == pytest.approx([-weight * math.sin(a), weight * math.cos(a)], rel=1e-6)
+    else:
+        assert not run.converged
+        message = run.levels[-1].message
+        assert "pull 'block' along 'slab'" in message and "no equilibrium" in message

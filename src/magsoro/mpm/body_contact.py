@@ -498,6 +498,10 @@ class BodyContact:
         cs = self._contacts(u_nodes, self.held, record=True)
         self._patches_accepted = self.patches
 
+    def last_contacts(self) -> dict | None:
+        """The contacts of the last :meth:`forces` evaluation (keys, slave particles, gaps, normals, ...), or None."""
+        return self._last
+
     def touching_particles(self, u_nodes: np.ndarray):
         """(slave particles, master particles) of the contacts touching at ``u_nodes``: pairs of particles of
         bodies that rest on each other (the static solver's check for free bodies)."""

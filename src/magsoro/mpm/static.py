@@ -1380,6 +1380,59 @@ class StaticSolver:
         """Whether a scene collider has a path (it moves with the first level's load increments)."""
         return any(c.path is not None for c in self.sim.control.colliders)
 
+    def _sliding_on_bodies(self, load) -> str:
+        """The body-contact form of :meth:`_sliding`: a phrase when a body that no clamp holds and no collider
+        touches rests on one other body alone, and the fields and gravity at ``load`` pull it along their contact
+        harder than friction holds (|F_t| > mu F_n over the mean normal of their contacts); '' otherwise."""
+        bc = self.body_contact
+        if bc is None:
+            return ""
+        u = self.u_nodes
+        f = self._scatter(u, *load) - self.contact.forces(u)  # the contacts' part out: fields, gravity, stresses
+        cs = bc.last_contacts()
+        if cs is None:
+            return ""
+        h = self.model.host
+        group = h["contact_group"]
+        nodes, _, _ = self._stencil()
+        slot_group = np.full(self.n_nodes, -1)
+        slot_group[nodes.ravel()] = np.repeat(group, nodes.shape[1])
+        touched = set()
+        if self._scene_contact is not None:
+            P = self.interpolation()
+            for pts in self._scene_contact.touching:
+                if len(pts):
+                    touched |= set(np.unique(group[pts] if self._scene_contact.W is P else slot_group[pts]).tolist())
+        names = self.sim.built.body_names
+        slave_group = group[cs["slave"]]
+        master_group = cs["keys"] % bc.n_groups
+        for g in np.unique(np.concatenate([slave_group, master_group])):
+            mine = group == g
+            if g in touched or np.any(h["clamped"][mine] != 0):
+                continue
+            as_slave, as_master = slave_group == g, master_group == g
+            others = set(master_group[as_slave].tolist()) | set(slave_group[as_master].tolist())
+            if len(others) != 1:
+                continue
+            other = others.pop()
+            n = cs["normal"][as_slave].sum(axis=0) - cs["normal"][as_master].sum(axis=0)  # into g
+            if not np.linalg.norm(n) > 0.0:
+                continue
+            n = n / np.linalg.norm(n)
+            net = f[slot_group == g].sum(axis=0)
+            f_n = -float(net @ n)
+            f_t = float(np.linalg.norm(net + f_n * n))
+            mu = float(bc.mu_table[g, other])
+            if f_t <= mu * max(f_n, 0.0):
+                continue
+            body = lambda grp: ", ".join(f"'{names[int(b)]}'" for b in np.unique(h["body"][group == grp]))
+            return (f"at the level's load the fields and gravity pull {body(g)} along {body(other)} with {f_t:.3g} N "
+                    f"against a friction limit of {mu * max(f_n, 0.0):.3g} N (mu {mu:g} times the {f_n:.3g} N pressing "
+                    f"it on): no equilibrium lies near this state, it slides until something stops it; run the "
+                    f"dynamics to see where it comes to rest (simulation.integrator = 'implicit', or magsoro run "
+                    f"without --static)")
+        return ""
+
     def _sliding(self, load, flat_only: bool = False) -> str:
         """After a failed load increment towards ``load`` (field, gravity levels: the level's), in a scene whose bodies
         no clamp holds and which rest on one friction collider: a phrase saying so when the net applied force (fields
@@ -1387,6 +1440,9 @@ class StaticSolver:
         holds (|F_t| > mu F_n): a rigid body cannot rest there, there is no equilibrium near the state, and the
         bodies move until something stops them. '' otherwise. ``flat_only``: only for a half-space collider, whose
         one normal makes this a strict bound (the sum of the points' Coulomb cones)."""
+        on_bodies = self._sliding_on_bodies(load)
+        if on_bodies:
+            return on_bodies
         part = self._scene_contact
         if part is None or np.any(self.model.host["clamped"] != 0) or np.any(self.held_nodes):
             return ""
