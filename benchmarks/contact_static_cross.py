@@ -1,7 +1,7 @@
 """The cross's static field sweep on an elastic plate (contact between two bodies) against the same sweep on the
 rigid plate it ships with (a friction collider), timed in one run.
 
-    python benchmarks/contact_static_cross.py [--plate-modulus 6.67e5] [--plate-thickness 0.002]
+    python benchmarks/contact_static_cross.py [--plate-modulus 6.67e5] [--plate-thickness 0.002] [--max-iterations 40]
 
 scenes/cross.toml lies on a friction half-space (mu 0.5), the plate of seed 002 sec 4.1. Here the plate is also
 drawn as an elastic body under the robot (its bottom face clamped, its top where the half-space was, the same
@@ -53,7 +53,9 @@ def scene(plate: bool, modulus: float, thickness: float):
 def run(plate: bool, args) -> dict:
     from magsoro.simulation import Simulation
 
-    sim = Simulation(scene(plate, args.plate_modulus, args.plate_thickness))
+    sc = scene(plate, args.plate_modulus, args.plate_thickness)
+    sc.static.max_iterations = args.max_iterations
+    sim = Simulation(sc)
     rows = []
     t0 = time.perf_counter()
     def hold(s, r):
@@ -73,12 +75,14 @@ def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--plate-modulus", type=float, default=6.67e5, help="the elastic plate's shear modulus, Pa (default 10 x the robot's)")
     p.add_argument("--plate-thickness", type=float, default=0.002, help="the elastic plate's thickness, m")
+    p.add_argument("--max-iterations", type=int, default=40, help="static.max_iterations for both (a peeling level may need more)")
     args = p.parse_args(argv)
     collider = run(False, args)
     print(f"collider: {collider['wall_s']} s, {collider['newton_iterations']} Newton iterations", flush=True)
     body = run(True, args)
     print(f"elastic plate: {body['wall_s']} s, {body['newton_iterations']} Newton iterations", flush=True)
     result = {"benchmark": "contact_static_cross", **provenance(), "scene": "scenes/cross.toml",
+              "max_iterations": args.max_iterations,
               "plate_shear_modulus_pa": args.plate_modulus, "plate_thickness_m": args.plate_thickness,
               "ratio": round(body["wall_s"] / collider["wall_s"], 2), "collider": collider, "elastic_plate": body}
     name = f"{result['date'][:10]}-cpu-{result['commit']}-contact-static-cross.json"
