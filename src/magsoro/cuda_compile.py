@@ -301,6 +301,9 @@ def _catalogue() -> tuple:
         for sname in SCALAR_NAMES:
             groups += _groups_of(f"interaction {dim}D {sname}", _fresh(make_interaction_kernels, dim, scalars[sname]), seen)
             groups += _groups_of(f"static {dim}D {sname}", _fresh(make_static_kernels, dim, scalars[sname]), seen)
+            # the reference grid split by contact group (contact between bodies in the Newton solvers)
+            groups += _groups_of(f"static {dim}D {sname} (contact)",
+                                 _fresh(make_static_kernels, dim, scalars[sname], "strain", True), seen)
             groups += _groups_of(f"viscous {dim}D {sname}", _fresh(make_viscous, dim, scalars[sname]), seen)
     for dim in DIMS:
         groups += _groups_of(f"bench reference {dim}D", _fresh(reference_kernels, dim), seen)
