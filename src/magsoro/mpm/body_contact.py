@@ -52,7 +52,8 @@ import numpy as np
 from scipy import sparse
 from scipy.spatial import cKDTree
 
-from magsoro.mpm.static_contact import PENALTY, RELEASE, SLIP_CELLS, STEP_DEPTH, TOUCH_CELLS
+from magsoro.mpm.static_contact import (PENALTY, RELEASE, SLIP_CELLS, STEP_DEPTH, TOUCH_CELLS, regularised_coulomb,
+                                        step_fraction)
 
 #: a particle's same-group neighbours within this many of its spacings (reference) tell whether it is on a surface
 SURFACE_REACH = 1.8
@@ -364,24 +365,11 @@ class BodyContact:
             e = np.array([self.elastic.get(int(kk), np.zeros(dim)) for kk in keys]).reshape(len(keys), dim)
             Pt = np.eye(dim)[None] - np.einsum("pi,pj->pij", n, n)
             dt = np.einsum("pij,pj->pi", Pt, e + rel)
-            length = np.linalg.norm(dt, axis=1)
             dfn = np.where((gap < 0.0)[:, None], kc[:, None] * n, 0.0)  # -d f_n / d(relative position), n held
             if lagged:
                 dfn = np.zeros_like(dfn)
-            sticking = rough & (length <= self.slip)
-            pressed = sticking & (fn > 0.0)
-            force[sticking] -= (mu[sticking] * fn[sticking] / self.slip)[:, None] * dt[sticking]
-            blocks[pressed] += ((mu[pressed] * fn[pressed] / self.slip)[:, None, None] * Pt[pressed]
-                                - (mu[pressed] / self.slip)[:, None, None] * np.einsum("pi,pj->pij", dt[pressed], dfn[pressed]))
-            reaching = sticking & ~(fn > 0.0) & cs["touching"] & (not lagged)
-            blocks[reaching] += (mu[reaching] * kc[reaching])[:, None, None] * Pt[reaching]
-            sliding = rough & ~sticking
-            if sliding.any():
-                t_hat = dt[sliding] / length[sliding, None]
-                ms, fs, ls = mu[sliding], fn[sliding], length[sliding]
-                force[sliding] -= (ms * fs)[:, None] * t_hat
-                blocks[sliding] += ((ms * fs / ls)[:, None, None] * (Pt[sliding] - np.einsum("pi,pj->pij", t_hat, t_hat))
-                                    - ms[:, None, None] * np.einsum("pi,pj->pij", t_hat, dfn[sliding]))
+            _, sliding = regularised_coulomb(force, blocks, dt, Pt, fn, dfn, mu, kc, self.slip, rough,
+                                             cs["touching"] & (not lagged))
             stuck = ~sliding
         self._slip_state = (keys, dt, stuck)
         fp = np.zeros((len(self.X), dim))
@@ -448,14 +436,7 @@ class BodyContact:
             cs = self._contacts(u_nodes + alpha * step, record=False)
             return 0.0 if cs is None else float(np.max(-cs["gap"][cs["cover"] > 0.0], initial=0.0))
 
-        limit = max(STEP_DEPTH * self.dx, 1.01 * depth(0.0))
-        if depth(1.0) <= limit:
-            return 1.0
-        lo, hi = 0.0, 1.0
-        for _ in range(10):
-            mid = 0.5 * (lo + hi)
-            lo, hi = (mid, hi) if depth(mid) <= limit else (lo, mid)
-        return max(lo, 1.0 / 256)
+        return step_fraction(depth, max(STEP_DEPTH * self.dx, 1.01 * depth(0.0)), rounds=10)
 
     def signature(self) -> tuple:
         """Which contacts the last evaluation had (to tell a change of the set)."""

@@ -871,10 +871,8 @@ class StaticSolver:
         column[unknown] = np.arange(len(unknown))
         shape = tuple(int(v) for v in self.shape)
         memo = {}
-        # the contact group each slot holds (a split block: the neighbours a light node extrapolates from are its
-        # group's slots of the nodes inward)
-        slot_group = np.zeros(self.n_nodes, dtype=np.int64)
-        slot_group[nodes.ravel()] = np.repeat(h["contact_group"], nodes.shape[1])
+        # a split block: the neighbours a light node extrapolates from are its group's slots of the nodes inward
+        slot_group = self._slot_groups()
 
         def combination(node: int, depth: int = 0) -> dict:
             if column[node] >= 0:
@@ -952,6 +950,15 @@ class StaticSolver:
             f"solvers keep two bodies apart per node, so these would act as one: draw them further apart, bond the "
             f"ones meant to stick ([contact] bonded or a [[contact.pairs]] entry with bonded = true), or run the "
             f"explicit engine")
+
+    def _slot_groups(self) -> np.ndarray:
+        """The contact group each slot holds (-1 for a slot no particle reaches), computed once."""
+        if getattr(self, "_slot_group_cache", None) is None:
+            nodes, _, _ = self._stencil()
+            out = np.full(self.n_nodes, -1, dtype=np.int64)
+            out[nodes.ravel()] = np.repeat(self.model.host["contact_group"], nodes.shape[1])
+            self._slot_group_cache = out
+        return self._slot_group_cache
 
     def _slot_of(self, group, node):
         """The slot holding contact group ``group`` at grid-block node ``node`` (arrays, broadcast): the node's second
@@ -1380,23 +1387,18 @@ class StaticSolver:
         """Whether a scene collider has a path (it moves with the first level's load increments)."""
         return any(c.path is not None for c in self.sim.control.colliders)
 
-    def _sliding_on_bodies(self, load) -> str:
+    def _sliding_on_bodies(self, f: np.ndarray) -> str:
         """The body-contact form of :meth:`_sliding`: a phrase when a body that no clamp holds and no collider
-        touches rests on one other body alone, and the fields and gravity at ``load`` pull it along their contact
-        harder than friction holds (|F_t| > mu F_n over the mean normal of their contacts); '' otherwise."""
+        touches rests on one other body alone, and the applied node forces ``f`` (fields, gravity, stresses: the
+        contacts' part out, at the last converged state) pull it along their contact harder than friction holds
+        (|F_t| > mu F_n over the mean normal of their contacts); '' otherwise."""
         bc = self.body_contact
-        if bc is None:
-            return ""
-        u = self.u_nodes
-        f = self._scatter(u, *load) - self.contact.forces(u)  # the contacts' part out: fields, gravity, stresses
         cs = bc.last_contacts()
         if cs is None:
             return ""
         h = self.model.host
         group = h["contact_group"]
-        nodes, _, _ = self._stencil()
-        slot_group = np.full(self.n_nodes, -1)
-        slot_group[nodes.ravel()] = np.repeat(group, nodes.shape[1])
+        slot_group = self._slot_groups()
         touched = set()
         if self._scene_contact is not None:
             P = self.interpolation()
@@ -1440,14 +1442,16 @@ class StaticSolver:
         holds (|F_t| > mu F_n): a rigid body cannot rest there, there is no equilibrium near the state, and the
         bodies move until something stops them. '' otherwise. ``flat_only``: only for a half-space collider, whose
         one normal makes this a strict bound (the sum of the points' Coulomb cones)."""
-        on_bodies = self._sliding_on_bodies(load)
-        if on_bodies:
-            return on_bodies
         part = self._scene_contact
-        if part is None or np.any(self.model.host["clamped"] != 0) or np.any(self.held_nodes):
+        if self.body_contact is None and (part is None or np.any(self.model.host["clamped"] != 0)
+                                          or np.any(self.held_nodes)):
             return ""
         u = self.u_nodes
         f = self._scatter(u, *load) - self.contact.forces(u)  # the contacts' part out: fields, gravity, stresses
+        if self.body_contact is not None:
+            on_bodies = self._sliding_on_bodies(f)
+            if on_bodies or part is None or np.any(self.model.host["clamped"] != 0) or np.any(self.held_nodes):
+                return on_bodies
         net = f.sum(axis=0)  # the stresses' node forces sum to zero
         touched = [(ci, c) for ci, c in enumerate(part.colliders) if len(part.touching[ci])]
         if len(touched) != 1 or touched[0][1].mode != "friction":

@@ -60,6 +60,51 @@ TOUCH_CELLS = 1e-9
 RELEASE = 1e-6
 
 
+def regularised_coulomb(force, blocks, dt, Pt, fn, dfn, mu, k, slip, active, touching):
+    """The regularised Coulomb law of the colliders and of contact between bodies (module docstring), on the
+    contacts ``active`` (a mask): subtracts the friction force from ``force`` (C, dim) and adds its stiffness to
+    ``blocks`` (C, dim, dim: minus d force / d x). ``dt``: the tangential offset from the anchor, ``Pt`` the
+    tangential projections, ``fn`` the normal force (>= 0), ``dfn`` -d f_n / dx, ``mu`` the Coulomb coefficient
+    (a number or per contact), ``k`` the normal springs, ``slip`` the elastic slip (m), ``touching``: the contacts
+    at their level (a reaching one's tangent takes mu k). Returns the (sticking, sliding) masks."""
+    mu = np.broadcast_to(np.asarray(mu, dtype=np.float64), fn.shape)
+    length = np.linalg.norm(dt, axis=1)
+    sticking = active & (length <= slip)
+    # sticking: a spring of stiffness mu f_n / slip
+    pressed = sticking & (fn > 0.0)
+    force[sticking] -= (mu[sticking] * fn[sticking] / slip)[:, None] * dt[sticking]
+    blocks[pressed] += ((mu[pressed] * fn[pressed] / slip)[:, None, None] * Pt[pressed]
+                        - (mu[pressed] / slip)[:, None, None] * np.einsum("pi,pj->pij", dt[pressed], dfn[pressed]))
+    # not pressed yet (a point just reaching its level): the tangent takes mu k, so a step that will press it is
+    # not free to slide; a held point that pulls (it lifts off, and leaves at a converged state) has no friction
+    # force, and none in the tangent either: a stiffness there that its force lacks leaves Newton converging
+    # linearly where a light body lifts off along most of its contact
+    reaching = sticking & ~(fn > 0.0) & touching
+    blocks[reaching] += (mu[reaching] * k[reaching])[:, None, None] * Pt[reaching]
+    # sliding: mu f_n against the offset's direction; the cap grows with f_n, the direction turns
+    sliding = active & ~sticking
+    if sliding.any():
+        t_hat = dt[sliding] / length[sliding, None]
+        ms, fs, ls = mu[sliding], fn[sliding], length[sliding]
+        force[sliding] -= (ms * fs)[:, None] * t_hat
+        blocks[sliding] += ((ms * fs / ls)[:, None, None] * (Pt[sliding] - np.einsum("pi,pj->pij", t_hat, t_hat))
+                            - ms[:, None, None] * np.einsum("pi,pj->pij", t_hat, dfn[sliding]))
+    return sticking, sliding
+
+
+def step_fraction(depth, limit: float, rounds: int) -> float:
+    """The largest fraction (<= 1) of a Newton step after which ``depth(fraction)``, the deepest penetration (m),
+    stays within ``limit``: 1 when the whole step does, else bisection over ``rounds`` halvings, never below 1/256
+    (the colliders' and the body contact's step cut)."""
+    if depth(1.0) <= limit:
+        return 1.0
+    lo, hi = 0.0, 1.0
+    for _ in range(rounds):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if depth(mid) <= limit else (lo, mid)
+    return max(lo, 1.0 / 256)
+
+
 def node_positions_map(static):
     """Where the engine's total form puts the grid nodes of a :class:`~magsoro.mpm.static.StaticSolver`: node i at
     X_i + sum_p m_p w_ip (x_p - X_p) / m_i, the mass-weighted displacement of its particles, with clamped particles
@@ -221,34 +266,12 @@ class ColliderPenalty:
                     stuck[anchored] = True
                 else:
                     # regularised Coulomb (module docstring): f_t = -mu f_n P_t d / max(|P_t d|, slip)
-                    mu = c.friction
                     Pt = np.eye(dim)[None] - np.einsum("pi,pj->pij", n, n)
                     dt = np.einsum("pij,pj->pi", Pt, np.where(anchored[:, None], d, 0.0))
-                    length = np.linalg.norm(dt, axis=1)
-                    fn = fn_mag
                     dfn = np.where((gap > 0.0)[:, None], kc[:, None] * n, 0.0)  # -d f_n / dx
-                    sticking = anchored & (length <= self.slip)
-                    # sticking: a spring of stiffness mu f_n / slip
-                    pressed = sticking & (fn > 0.0)
-                    force[sticking] -= (mu * fn[sticking] / self.slip)[:, None] * dt[sticking]
-                    blocks[pressed] += ((mu * fn[pressed] / self.slip)[:, None, None] * Pt[pressed]
-                                        - (mu / self.slip) * np.einsum("pi,pj->pij", dt[pressed], dfn[pressed]))
-                    # not pressed yet (a point just reaching its level): the tangent takes mu k, so a step that
-                    # will press it is not free to slide; a held point that pulls (it lifts off, and leaves at a
-                    # converged state) has no friction force, and none in the tangent either: a stiffness there
-                    # that its force lacks leaves Newton converging linearly where a light body lifts off along
-                    # most of its contact
-                    reaching = sticking & ~(fn > 0.0) & inside
-                    blocks[reaching] += (mu * kc[reaching])[:, None, None] * Pt[reaching]
+                    sticking, _ = regularised_coulomb(force, blocks, dt, Pt, fn_mag, dfn, c.friction, kc, self.slip,
+                                                      anchored, inside)
                     stuck[sticking] = True
-                    # sliding: mu f_n against the offset's direction; the cap grows with f_n, the direction turns
-                    sliding = anchored & ~sticking
-                    if sliding.any():
-                        t_hat = dt[sliding] / length[sliding, None]
-                        fs, ls = fn[sliding], length[sliding]
-                        force[sliding] -= (mu * fs)[:, None] * t_hat
-                        blocks[sliding] += ((mu * fs / ls)[:, None, None] * (Pt[sliding] - np.einsum("pi,pj->pij", t_hat, t_hat))
-                                            - mu * np.einsum("pi,pj->pij", t_hat, dfn[sliding]))
                 self.sticking[ci] = {int(node): bool(s) for node, s in zip(act, stuck)}
             f[act] += force
             self.reaction[ci, : self.dim] = -force.sum(axis=0)
@@ -286,14 +309,7 @@ class ColliderPenalty:
             xt = self.positions(u_nodes + alpha * step)[self.touchable]
             return max(float(np.max(lvl - self.distance(c, xt))) for c, lvl in zip(self.colliders, self.level))
 
-        limit = STEP_DEPTH * self.dx
-        if depth(1.0) <= limit:
-            return 1.0
-        lo, hi = 0.0, 1.0
-        for _ in range(12):
-            mid = 0.5 * (lo + hi)
-            lo, hi = (mid, hi) if depth(mid) <= limit else (lo, mid)
-        return max(lo, 1.0 / 256)
+        return step_fraction(depth, STEP_DEPTH * self.dx, rounds=12)
 
     def signature(self) -> tuple:
         """Which nodes were in contact in the last :meth:`forces` evaluation (to tell a change of the set)."""
