@@ -89,9 +89,13 @@ def test_reproduce_collects_the_scene_notes_of_its_runs():
     scene_notes()
     simulation("continuum_discrete", preview=True)
     notes = scene_notes()
-    assert len(notes) == 1 and "their particles fill 13.2 % more than their shapes' volumes" in notes[0]
-    assert notes[0].startswith("bodies 'corrected_plain1', 'corrected_mag1', ") and "'theoretical_mag2'" in notes[0]
-    assert scene_notes() == []
+    fill = [n for n in notes if "shapes' volumes" in n]
+    assert len(fill) == 1 and "their particles fill 13.2 % more than their shapes' volumes" in fill[0]
+    assert fill[0].startswith("bodies 'corrected_plain1', 'corrected_mag1', ") and "'theoretical_mag2'" in fill[0]
+    # and the rods, 2.8 cells across, are one piece noted as thin
+    thin = [n for n in notes if "thinnest part" in n]
+    assert len(thin) == 1 and thin[0].startswith("the piece of 8 bonded bodies (all of them): its thinnest part is about 2.8 cells")
+    assert len(notes) == 2 and scene_notes() == []
 
 
 def test_run_quiet_keeps_warp_off_stdout(tmp_path):

@@ -22,6 +22,7 @@ COMMANDS = [
     "magsoro.commands.materials",
     "magsoro.commands.show",
     "magsoro.commands.sweep",
+    "magsoro.commands.converge",
     "magsoro.commands.report",
     "magsoro.commands.render",
     "magsoro.commands.live",

@@ -31,6 +31,9 @@ from magsoro.scene.schema import MAX_RECORDS
 WALL_REACH_CELLS = WALL_CELLS + 1.5
 #: a body whose particles fill more than this fraction more or less than its shape's volume is noted in run.json
 LATTICE_FILL_NOTE = 0.02
+#: a body with a part (plate, hinge, wall) fewer than this many grid cells thick is noted in run.json: bending there
+#: is under-resolved (docs/how-to/convergence.md)
+THIN_PART_CELLS = 3.0
 
 
 def _prepare_implicit(scene: Scene) -> list[str]:
@@ -293,6 +296,7 @@ class Simulation:
         self._wall_far &= (self.model.host["clamped"] == 0)[:, None]
         self._walls_reached: set = set()
         self._note_lattice_fill()
+        self._note_thin_parts()
         for text in self.built.notes:
             self._note(text, scene=True)
         # simulation.integrator = 'implicit': the integrator is made at the first step (after set_sources)
@@ -823,6 +827,47 @@ class Simulation:
                                         f"that are not whole numbers of spacings are rounded, and the engine simulates "
                                         f"the rounded body (make them whole numbers of spacings, or refine "
                                         f"simulation.dx)")
+
+    def _note_thin_parts(self) -> None:
+        """Note each piece (a body, or the bodies bonded into one: a robot's parts) whose thinnest part has fewer
+        than THIN_PART_CELLS grid cells through it (:func:`magsoro.geometry.thickness.thin_parts`): such a plate,
+        hinge or wall bends too stiffly or too softly depending on dx, so results that depend on it change with the
+        grid; ``magsoro converge`` measures by how much. Bodies clamped whole are left out."""
+        from magsoro.geometry.thickness import thin_parts
+
+        sim = self.scene.simulation
+        dx = float(sim.dx)
+        dim = self.model.dim
+        host = self.model.host
+        X = np.asarray(host["positions"], dtype=np.float64)[:, :dim]
+        body = np.asarray(host["body"])
+        group = np.asarray(host["contact_group"]) if "contact_group" in host else body
+        lo = np.asarray(self.model.domain_lo, dtype=np.float64)[:dim]
+        names = self.built.body_names
+        clamped = {b for b, name in enumerate(names)
+                   if any(c.name == name and getattr(c, "clamped", False) for c in self.scene.bodies)}
+        keep = ~np.isin(body, list(clamped)) if clamped else np.ones(len(body), dtype=bool)
+        for g in np.unique(group[keep]):
+            sel = keep & (group == g)
+            res = thin_parts(X[sel], dx / sim.particles_per_cell, THIN_PART_CELLS * dx, origin=lo)
+            if res is None or res.thin_particles == 0:
+                continue
+            members = [names[b] for b in np.unique(body[sel])]
+            where = [names[b] for b in np.unique(body[sel][res.thin])]
+            if len(members) == 1:
+                who = f"body '{members[0]}'"
+            else:
+                shown = ", ".join(repr(n) for n in where[:4]) + (f" and {len(where) - 4} more" if len(where) > 4 else "")
+                who = f"the piece of {len(members)} bonded bodies ({'all of them' if len(where) == len(members) else shown})"
+            cells = res.thinnest / dx
+            share = (f"all its {res.particles} particles" if res.thin_particles == res.particles else
+                     f"{res.thin_particles} of its {res.particles} particles")
+            self._note(scene=True, text=(
+                f"{who}: its thinnest part is about {cells:.2g} cell{'s' if cells >= 1.05 else ''} through "
+                f"({res.thinnest:.3g} m at simulation.dx {dx:g} m), and {share} lie in parts fewer than "
+                f"{THIN_PART_CELLS:g} cells through: bending there is under-resolved and results that depend on it "
+                f"change with dx (measure how much with magsoro converge, or refine simulation.dx to "
+                f"{res.thinnest / THIN_PART_CELLS:.3g} m)"))
 
     def note(self, text: str, scene: bool = False) -> None:
         """Add ``text`` to the run's notes (run.json, printed; ``scene``: a note about the scene as given)."""

@@ -19,6 +19,10 @@ def register(sub):
                         "results, frames, its report); a folder holding anything else is refused, naming it")
     p.add_argument("--device", choices=None, help="cpu, cuda or cuda:N (overrides simulation.device)")
     p.add_argument("--duration", type=float, help="simulated time in s (overrides simulation.duration)")
+    p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", dest="overrides",
+                   help="change one scene key for this run (repeatable): a dotted path as in magsoro sweep, e.g. "
+                        "--set simulation.dx=1e-4 or --set bodies.beam.material.shear_modulus=2e5; run.json's scene "
+                        "has the value used")
     p.add_argument("--preview", action="store_true",
                    help="use the scene's [preview] settings (coarser grid, shorter run) for a quick look")
     p.add_argument("--equilibrium", action="store_true",
@@ -65,7 +69,8 @@ def run(args) -> int:
         raise SceneError(f"--duration: must be a finite number > 0 s, got {args.duration}")
     wall0 = time.perf_counter()
     preview = getattr(args, "preview", False)
-    scene = load_scene(args.scene, preview=preview)  # every check happens before the output folder is touched
+    overrides = getattr(args, "overrides", None) or []
+    scene = load_scene(args.scene, preview=preview, overrides=overrides)  # every check before the output folder is touched
     static = getattr(args, "static", False)
     if static:
         if getattr(args, "equilibrium", False):
@@ -102,6 +107,10 @@ def run(args) -> int:
         from magsoro.scene.load import apply_preview
 
         echo = apply_preview(echo, args.scene)
+    if overrides:
+        from magsoro.scene.load import apply_overrides
+
+        echo = apply_overrides(echo, overrides)
     duration = args.duration if args.duration is not None else scene.simulation.duration
     check_run_length(duration, scene.output.every)  # before the output folder is touched
     if not static and not getattr(args, "equilibrium", False):

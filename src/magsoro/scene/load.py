@@ -215,14 +215,38 @@ def read_scene_toml(path) -> dict:
     return read_toml_file(resolve_data_path(path), SceneError, "scene file")
 
 
-def load_scene(path, preview: bool = False) -> Scene:
-    """Read a TOML scene file and validate it; ``preview=True`` applies its [preview] table first.
+def apply_overrides(data: dict, overrides, flag: str = "--set") -> dict:
+    """The scene dict with each ``KEY=VALUE`` text of ``overrides`` set (a copy): KEY a dotted scene path as in
+    ``magsoro sweep`` (list entries by name or index: ``bodies.beam.material.shear_modulus``), VALUE a JSON value
+    or a bare word. A malformed entry or a path that does not exist raises :class:`SceneError` naming ``flag``."""
+    import copy
+
+    from magsoro.sweep.params import SweepError, parse_item, set_path
+
+    out = copy.deepcopy(data)
+    for spec in overrides or ():
+        key, sep, text = spec.partition("=")
+        key = key.strip()
+        if not sep or not key or any(not p for p in key.split(".")):
+            raise SceneError(f"{flag} {spec}: expected KEY=VALUE with KEY a dotted scene path, e.g. simulation.dx=1e-4")
+        try:
+            set_path(out, key, parse_item(text, spec, flag), spec, flag)
+        except SweepError as exc:
+            raise SceneError(str(exc)) from None
+    return out
+
+
+def load_scene(path, preview: bool = False, overrides=None) -> Scene:
+    """Read a TOML scene file and validate it; ``preview=True`` applies its [preview] table first, then each
+    ``KEY=VALUE`` of ``overrides`` (:func:`apply_overrides`: ``magsoro run --set``).
     Raises :class:`SceneError` with a one-line message. A relative ``scenes/...`` or ``examples/...`` path that
     does not exist here loads the copy installed with the package (:func:`magsoro.bundled.resolve_data_path`)."""
     path = resolve_data_path(path)
     data = read_scene_toml(path)
     if preview:
         data = apply_preview(data, str(path))
+    if overrides:
+        data = apply_overrides(data, overrides)
     scene = parse_scene(data, str(path), path.parent)
     scene.source_path = path
     return scene

@@ -89,23 +89,24 @@ def split_items(text: str, spec: str) -> list[str]:
     return items
 
 
-def parse_item(item: str, spec: str):
-    """One list item: a JSON value when it parses as one, otherwise the bare word as a string."""
+def parse_item(item: str, spec: str, flag: str = "--param"):
+    """One list item: a JSON value when it parses as one, otherwise the bare word as a string (``flag``: the
+    option named in errors)."""
     s = item.strip()
     if not s:
-        raise SweepError(f"--param {spec}: empty value in the list (two commas in a row or a trailing comma?)")
+        raise SweepError(f"{flag} {spec}: empty value in the list (two commas in a row or a trailing comma?)")
     try:
         value = json.loads(s)
     except json.JSONDecodeError:
         if s[0] in "[{\"":
-            raise SweepError(f"--param {spec}: '{s}' looks like JSON but does not parse") from None
+            raise SweepError(f"{flag} {spec}: '{s}' looks like JSON but does not parse") from None
         # Python-style floats JSON refuses ('1.', '.5', '+3', 'inf') are meant as numbers, not words
         try:
             value = float(s)
         except ValueError:
             return s
     if isinstance(value, float) and not math.isfinite(value):
-        raise SweepError(f"--param {spec}: value '{s}' must be finite")
+        raise SweepError(f"{flag} {spec}: value '{s}' must be finite")
     return value
 
 
@@ -145,8 +146,8 @@ def _describe(container) -> str:
     return f"a {type(container).__name__}"
 
 
-def set_path(data: dict, key: str, value, spec: str = "") -> None:
-    """Set ``value`` at dotted ``key`` in the scene dict ``data`` (in place).
+def set_path(data: dict, key: str, value, spec: str = "", flag: str = "--param") -> None:
+    """Set ``value`` at dotted ``key`` in the scene dict ``data`` (in place); errors name ``flag`` and ``spec``.
 
     Intermediate parts must exist (a typo should fail here, not create a new table); the last part may be a
     new key of a table, so an optional scene key can be switched on by a sweep (parse_scene then refuses keys
@@ -162,15 +163,15 @@ def set_path(data: dict, key: str, value, spec: str = "") -> None:
         if isinstance(node, list):
             matches = [j for j, e in enumerate(node) if isinstance(e, dict) and e.get("name") == part]
             if len(matches) > 1:
-                raise SweepError(f"--param {spec}: '{part}' names {len(matches)} entries of {where}; use an index")
+                raise SweepError(f"{flag} {spec}: '{part}' names {len(matches)} entries of {where}; use an index")
             if matches:
                 index = matches[0]
             elif re.fullmatch(r"-?\d+", part):
                 index = int(part)
                 if not -len(node) <= index < len(node):
-                    raise SweepError(f"--param {spec}: {where} has no entry {part} ({_describe(node)})")
+                    raise SweepError(f"{flag} {spec}: {where} has no entry {part} ({_describe(node)})")
             else:
-                raise SweepError(f"--param {spec}: {where} has no entry named '{part}' ({_describe(node)})")
+                raise SweepError(f"{flag} {spec}: {where} has no entry named '{part}' ({_describe(node)})")
             if last:
                 node[index] = copy.deepcopy(value)
                 return
@@ -180,10 +181,10 @@ def set_path(data: dict, key: str, value, spec: str = "") -> None:
                 node[part] = copy.deepcopy(value)
                 return
             if part not in node:
-                raise SweepError(f"--param {spec}: {where} has no key '{part}' ({_describe(node)})")
+                raise SweepError(f"{flag} {spec}: {where} has no key '{part}' ({_describe(node)})")
             node = node[part]
         else:
-            raise SweepError(f"--param {spec}: {where} is {_describe(node)} = {node!r}, it has no '{part}' inside")
+            raise SweepError(f"{flag} {spec}: {where} is {_describe(node)} = {node!r}, it has no '{part}' inside")
         walked.append(part)
 
 
