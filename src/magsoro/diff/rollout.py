@@ -178,6 +178,9 @@ class Rollout:
         if st.contact is not None and st.contact.active(groups):
             raise ValueError("the differentiable rollout has no contact between bodies or self-contact; give the scene "
                              "contact.friction = 'sticky' (one velocity field) or a single body")
+        if getattr(m, "plane", "strain") == "axisymmetric":
+            raise ValueError("the differentiable rollout has no axisymmetric scenes yet (simulation.dim = 'axisymmetric'); "
+                             "run them with magsoro run")
         if getattr(m, "plane", "strain") == "stress":
             # the thickness stretch is solved by an inner Newton loop, which Warp's tape does not differentiate
             raise ValueError('the differentiable rollout has no plane stress yet; give the scene simulation.plane = '

@@ -34,7 +34,9 @@ def grid_settings_struct(dim: int, scalar):
         :mod:`magsoro.mpm.p2g`), and a node is in contact with a collider from signed distance
         ``collider_skin`` (m) down. With ``record_impulse`` = 1 each collider adds the momentum it takes from
         the nodes it touches, -m dv (N s; three components per collider, 2D z = 0), to ``collider_impulse``: over
-        an interval, the impulse the bodies give it (its force times the interval)."""
+        an interval, the impulse the bodies give it (its force times the interval). ``axis`` = 1: the scene is
+        axisymmetric about the node line x = ``axis_node``, and each node there and on either side takes its mirror
+        node's mass and mirrored momentum (:func:`fold`)."""
 
         dt: scalar
         damping_factor: scalar
@@ -54,6 +56,8 @@ def grid_settings_struct(dim: int, scalar):
         collider_impulse: wp.array(dtype=wp.float64)
         record_impulse: int
         clamp_velocity: wp.array(dtype=vec)  # velocity of held nodes per clamp code (Bodies.clamp_velocity)
+        axis: int  # 1: an axisymmetric scene, its axis the node line x = axis_node (global node index)
+        axis_node: int
 
     return GridSettings
 
@@ -106,7 +110,7 @@ def make_grid(dim: int, scalar, two_fields: bool = False, differentiable: bool =
         return vel
 
     @wp.func
-    def colliders(vel: vec, pos: vec, m: scalar, gs: GridSettings):
+    def colliders(vel: vec, pos: vec, m: scalar, gs: GridSettings, record: int):
         """Rigid colliders: a node with signed distance <= collider_skin is in contact (its momentum change
         recorded with ``gs.record_impulse``); symmetry planes take every node within half a cell."""
         p3 = wp.vec3d(wp.float64(pos[0]), wp.float64(pos[1]), gs.plane_z)
@@ -125,14 +129,15 @@ def make_grid(dim: int, scalar, two_fields: bool = False, differentiable: bool =
                 mu = scalar(gs.colliders[row + ROW_FRICTION])
                 before = vel
                 vel = project(vel, inplane(v3(cvel)), inplane(v3(nrm)), mode, mu)
-                if gs.record_impulse != 0:
+                if record != 0:
                     for a in range(dim):
                         wp.atomic_add(gs.collider_impulse, 3 * c + a, wp.float64(m * (before[a] - vel[a])))
         return vel
 
     @wp.func
-    def node_velocity(momentum: vec, m: scalar, pos: vec, gs: GridSettings):
-        """Velocity of one field of a node after damping, gravity, the domain walls and the rigid colliders."""
+    def node_velocity(momentum: vec, m: scalar, pos: vec, gs: GridSettings, record: int):
+        """Velocity of one field of a node after damping, gravity, the domain walls and the rigid colliders (which
+        add the momentum they take to their impulses when ``record``)."""
         # damping f = -c p (seed 000 eq 17), integrated exactly over the step so any c is stable
         dt = gs.dt
         damping_factor = gs.damping_factor
@@ -145,9 +150,43 @@ def make_grid(dim: int, scalar, two_fields: bool = False, differentiable: bool =
         # from the approaching normal velocity, which a slip wall applied first would have removed (a block on
         # such a floor slid as if frictionless)
         if gs.n_colliders > 0:
-            vel = colliders(vel, pos, m, gs)
+            vel = colliders(vel, pos, m, gs, record)
         vel = walls(vel, pos, gs)
         return vel
+
+    @wp.func
+    def fold(grid_p: wp.array(dtype=vec), grid_m: wp.array(dtype=scalar), grid_u: wp.array(dtype=vec), idx: int,
+             n: ivec, org: ivec, shape: ivec, gs: GridSettings):
+        """An axisymmetric scene's nodes near the axis: the velocity field is mirror-symmetric about r = 0 (v_r odd,
+        v_z even), so the node at r = k dx and its mirror at -k dx carry one unknown: both take the summed mass
+        and the momentum p + M p' (M flips the radial component), and the node on the axis has no radial momentum.
+        Returns (momentum, mass, mass-weighted displacement) of node ``idx`` at global node ``n``."""
+        p = grid_p[idx]
+        m = grid_m[idx]
+        u = vec()
+        if gs.node_shift != 0:
+            u = grid_u[idx]
+        k = n[0] - gs.axis_node
+        if k == 0:
+            p[0] = scalar(0.0)
+            u[0] = scalar(0.0)
+        elif k >= -2 and k <= 2:
+            mirror = n
+            mirror[0] = gs.axis_node - k
+            local = mirror - org
+            if local[0] >= 0 and local[0] < shape[0]:
+                j = int(0)
+                for a in range(dim):
+                    j = j * shape[a] + local[a]
+                q = grid_p[j]
+                q[0] = -q[0]
+                p = p + q
+                m = m + grid_m[j]
+                if gs.node_shift != 0:
+                    w = grid_u[j]
+                    w[0] = -w[0]
+                    u = u + w
+        return p, m, u
 
     @wp.kernel(enable_backward=differentiable)
     def grid_update(
@@ -167,9 +206,15 @@ def make_grid(dim: int, scalar, two_fields: bool = False, differentiable: bool =
         colliders."""
         idx = wp.tid()
         m = grid_m[idx]
+        momentum = grid_p[idx]
+        shift = vec()
+        if gs.node_shift != 0:
+            shift = grid_u[idx]
         code = grid_clamp[idx]
         held = code != 0
         if wp.static(not two_fields):
+            if gs.axis != 0:
+                momentum, m, shift = fold(grid_p, grid_m, grid_u, idx, node_of_flat(idx, shape) + org, org, shape, gs)
             if m <= scalar(0.0):
                 grid_v[idx] = vec()  # empty node: most of the grid block
                 return
@@ -182,10 +227,17 @@ def make_grid(dim: int, scalar, two_fields: bool = False, differentiable: bool =
             pos[a] = gs.domain_lo[a] + scalar(n[a]) * gs.dx
         pos0 = pos
         if gs.node_shift != 0 and m > scalar(0.0):
-            pos0 = pos + grid_u[idx] / m
+            pos0 = pos + shift / m
         vel = vec()
         if m > scalar(0.0) and not held:
-            vel = node_velocity(grid_p[idx], m, pos0, gs)
+            # an axisymmetric scene's mirror nodes (r < 0) repeat the nodes they mirror: not counted twice
+            record = gs.record_impulse
+            if gs.axis != 0 and n[0] < gs.axis_node:
+                record = 0
+            vel = node_velocity(momentum, m, pos0, gs, record)
+            if wp.static(not two_fields):
+                if gs.axis != 0 and n[0] == gs.axis_node:
+                    vel[0] = scalar(0.0)  # on the axis
         elif m > scalar(0.0):
             vel = gs.clamp_velocity[code]
         if wp.static(two_fields):
@@ -196,7 +248,7 @@ def make_grid(dim: int, scalar, two_fields: bool = False, differentiable: bool =
                 pos1 = pos
                 if gs.node_shift != 0:
                     pos1 = pos + grid_u[slot] / m1
-                vel1 = node_velocity(grid_p[slot], m1, pos1, gs)
+                vel1 = node_velocity(grid_p[slot], m1, pos1, gs, gs.record_impulse)
                 if m > scalar(0.0):
                     vel, vel1 = resolve_contact(vel, vel1, m, m1, ct[0].grad_m[idx], ct[0].grad_m[slot], ct[0].mu[idx], ct[0].gap,
                                                  int(ct[0].split[idx] == BODIES))

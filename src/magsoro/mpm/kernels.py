@@ -31,6 +31,8 @@ __all__ = ["make_kernels", "grid_settings_struct", "F_FROM_GRID", "F_FROM_REMAP"
 
 @functools.cache
 def _stress_kernel(dim: int, scalar, plane: str = "strain") -> dict:
+    if plane == "axisymmetric":  # closed-form checks of the laws: the axisymmetric model's laws are the 3D ones
+        plane = "strain"
     t = make_types(dim, scalar)
     if plane == "stress":
         elastic = make_plane_stress_functions(scalar)

@@ -35,7 +35,13 @@ def make_p2g(dim: int, scalar, two_fields: bool = False, differentiable: bool = 
     local_coords, outside_block, flat_index, stencil_node = s.local_coords, s.outside_block, s.flat_index, s.stencil_node
     # Constants are computed here in double precision: literal arithmetic inside a kernel runs in float32.
     inv_mu0 = 1.0 / MU0
-    body_elastic_stress = make_body_elastic(dim, scalar, plane).body_elastic_stress
+    body = make_body_elastic(dim, scalar, plane)
+    body_elastic_stress = body.body_elastic_stress
+    axisymmetric = plane == "axisymmetric"
+    # the axisymmetric law (3 x 3 stress at diag(F, r / R)); plane strain's stands in elsewhere so the kernels compile
+    body_elastic_stress3 = body.body_elastic_stress3 if axisymmetric else None
+    if axisymmetric:
+        body_elastic_stress = make_body_elastic(dim, scalar, "strain").body_elastic_stress
     moment_map, rotation_stress = s.moment_map, s.rotation_stress
     visc = make_viscous(dim, scalar, plane)
     Viscous, overstress, plane_total = visc["Viscous"], visc["overstress"], visc["plane_total"]
@@ -72,11 +78,12 @@ def make_p2g(dim: int, scalar, two_fields: bool = False, differentiable: bool = 
         return inplane(wp.transpose(grad_B) * m3d)
 
     @wp.func
-    def pressure_force(Fp: mat, area: vec, pressure: scalar):
+    def pressure_force(Fp: mat, area: vec, pressure: scalar, hoop: scalar):
         """Force of a gauge ``pressure`` (Pa) on a particle's faces of reference area vector ``area`` (outward into
         the cavity): -p n da with n da = J F^-T N dA (Nanson's formula), so the load follows the surface as it
-        turns and stretches."""
-        return (-pressure * wp.determinant(Fp)) * (wp.transpose(wp.inverse(Fp)) * area)
+        turns and stretches. ``hoop``: the axisymmetric hoop stretch r / R (the ring's faces stretch with it; 1
+        otherwise)."""
+        return (-pressure * wp.determinant(Fp) * hoop) * (wp.transpose(wp.inverse(Fp)) * area)
 
     @wp.func
     def affine_momentum(sp: Particles, b: Bodies, applied: Applied, p: int, dts: scalar, B: v3, dx: scalar,
@@ -85,7 +92,17 @@ def make_p2g(dim: int, scalar, two_fields: bool = False, differentiable: bool = 
         momentum m v (with dt times the gradient force): node i receives w_i (m v + A o_i - A fx)."""
         Fp = sp.F[p]
         P = mat()
-        if wp.static(plane_stress):
+        hoop = scalar(1.0)
+        hoop_force = vec()
+        if wp.static(axisymmetric):
+            # the ring's hoop stretch r / R, and the hoop stress's pull towards the axis: the r-row of
+            # -dW/dx_i = -V0 P_tt w_i / R (docs/engine.md, "Axisymmetric bodies")
+            R = b.radius0[p]
+            hoop = sp.x_now[p][0] / R
+            P3 = body_elastic_stress3(Fp, hoop, b, p)
+            P = mat(P3[0, 0], P3[0, 1], P3[1, 0], P3[1, 1]) + magnetic_stress(Fp, b, p, B)
+            hoop_force[0] = -b.vol0[p] * P3[2, 2] / R
+        elif wp.static(plane_stress):
             # a Prony particle's law and overstress share their thickness stretch (magsoro.mpm.viscous)
             if vs.n_rows > 0 and vs.row[p] >= 0:
                 P = plane_total(Fp, b, vs, p, scalar(0.0), 0) + magnetic_stress(Fp, b, p, B)
@@ -102,13 +119,29 @@ def make_p2g(dim: int, scalar, two_fields: bool = False, differentiable: bool = 
         mp = b.mass[p]
         affine = stress + mp * sp.C[p]
         mv = mp * sp.v[p]
+        if wp.static(axisymmetric):
+            mv = mv + dts * hoop_force
         if applied.has_gradient != 0:
             mv = mv + dts * gradient_force(Fp, b, p, applied.grad_B[p])
         if b.n_pressures > 0:
             row = b.pressure_row[p]
             if row >= 0:
-                f = pressure_force(Fp, b.pressure_area[p], b.pressure_value[row]) - b.pressure_share[p] * b.pressure_net[row]
+                f = pressure_force(Fp, b.pressure_area[p], b.pressure_value[row], hoop) - b.pressure_share[p] * b.pressure_net[row]
                 mv = mv + dts * f
+                if wp.static(axisymmetric):
+                    # each face's force acts at the face, half a spacing from the particle: moved there to first
+                    # order through the weights' gradient, w_i(x_p + d) ~ w_i (1 + (4/dx^2) (x_i - x_p) . d), i.e.
+                    # an affine term (4/dx^2) f (x) d (on a linear field its work is the face's; docs/engine.md)
+                    area = b.pressure_area[p]
+                    moved = mat()
+                    for a in range(dim):
+                        if area[a] != scalar(0.0):
+                            face = vec()
+                            face[a] = area[a]
+                            d = vec()
+                            d[a] = wp.sign(area[a]) * scalar(0.5) * b.spacing
+                            moved = moved + wp.outer(pressure_force(Fp, face, b.pressure_value[row], hoop), d)
+                    affine = affine + (dts * scalar(4.0) * inv_dx * inv_dx) * moved
         return affine * dx, mv
 
     @wp.func
@@ -335,7 +368,7 @@ def make_p2g(dim: int, scalar, two_fields: bool = False, differentiable: bool = 
         row = b.pressure_row[p]
         if row >= 0:
             if b.pressure_share[p] > scalar(0.0):
-                wp.atomic_add(net, row, pressure_force(F[p], b.pressure_area[p], b.pressure_value[row]))
+                wp.atomic_add(net, row, pressure_force(F[p], b.pressure_area[p], b.pressure_value[row], scalar(1.0)))
 
     return dict(p2g=p2g, p2g_scatter=p2g_scatter, pressure_net=pressure_net, node_displacement=node_displacement, contact_scan=contact_scan, contact_scatter=contact_scatter)
 

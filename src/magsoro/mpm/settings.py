@@ -26,7 +26,9 @@ VELOCITY_GRADIENTS: tuple[str, ...] = get_args(VelocityGradient)
 #: (zero normal stress, the thickness stretch solved per particle: thin plates loaded in their plane, wide strips
 #: bending like beams; :func:`magsoro.mpm.materials.make_plane_stress_functions`). A compile-time choice: the
 #: kernels that evaluate a law (p2g, the static solver's, the stress kernels) are built for one of them.
-Plane = Literal["strain", "stress"]
+#: "axisymmetric" (scene key simulation.dim = "axisymmetric"): the 2D plane is the (r, z) half-plane of a body of
+#: revolution about the y axis, F_thetatheta = r / R (docs/engine.md, "Axisymmetric bodies").
+Plane = Literal["strain", "stress", "axisymmetric"]
 PLANES: tuple[str, ...] = get_args(Plane)
 
 

@@ -157,6 +157,9 @@ def grid_settings(model: "Model", settings: "SolverSettings", gravity, colliders
     else:
         gs.record_impulse = 1
     gs.collider_impulse = impulse
+    if model.plane == "axisymmetric":  # the axis r = 0 is a node line (build.model_domain pads the grid past it)
+        gs.axis = 1
+        gs.axis_node = int(round(-model.domain_lo[0] / model.dx))
     return gs
 
 
@@ -167,6 +170,8 @@ def bodies_array(model: "Model", cut=lambda arr: arr, step: wp.array | None = No
     k = model.kernels
     b = k["Bodies"]()
     b.vol0, b.mass, b.shear, b.bulk = cut(model.vol0), cut(model.mass), cut(model.shear), cut(model.bulk)
+    b.radius0 = cut(model.radius0)
+    b.spacing = model.scalar(model.spacing)
     b.material_model, b.material_params = cut(model.material_model), cut(model.material_params)
     b.Br, b.follows, b.clamped = cut(model.Br), cut(model.follows), cut(model.clamped)
     b.clamp_velocity = model.clamp_velocity  # indexed by clamp code, not by particle: never cut
@@ -358,6 +363,11 @@ class Model:
         s, dev = self.np_scalar, self.device
         self.X0 = wp.array(X.astype(s), dtype=k["vec"], device=dev)
         self.vol0 = wp.array(h["volumes"].astype(s), dtype=self.scalar, device=dev)
+        # reference radius (x) of each particle: the axisymmetric kernels' R; an axisymmetric particle sits off the axis
+        if self.plane == "axisymmetric" and not np.all(X[:, 0] > 0.0):
+            raise ValueError("an axisymmetric model's particles must lie at r = x > 0")
+        self.radius0 = wp.array(X[:, 0].astype(s), dtype=self.scalar, device=dev)
+        self.spacing = self.dx / 2.0  # the particle lattice's spacing (m): the scene builder sets it (dx / particles_per_cell)
         self.mass = wp.array(h["mass"].astype(s), dtype=self.scalar, device=dev)
         self.shear = wp.array(h["shear_modulus"].astype(s), dtype=self.scalar, device=dev)
         self.bulk = wp.array(h["bulk_modulus"].astype(s), dtype=self.scalar, device=dev)
@@ -482,7 +492,9 @@ class Model:
         for row in range(len(self.pressures)):
             mine = rows == row
             size = np.linalg.norm(area[mine], axis=1)
-            if size.sum() > 0.0 and np.linalg.norm(area[mine].sum(axis=0)) <= CLOSED_CAVITY * size.sum():
+            # an axisymmetric cavity's ring faces do not sum to zero in r (the hoop stress carries their pull)
+            if (self.plane != "axisymmetric" and size.sum() > 0.0
+                    and np.linalg.norm(area[mine].sum(axis=0)) <= CLOSED_CAVITY * size.sum()):
                 share[mine] = size / size.sum()
                 self.closed_pressures.append(row)
         self.host["pressure_share"] = share
@@ -589,8 +601,8 @@ class Model:
         stress); the kernels are built for it."""
         if plane not in PLANES:
             raise ValueError(f"simulation.plane must be one of {list(PLANES)}, got {plane!r}")
-        if plane == "stress" and self.dim != 2:
-            raise ValueError('simulation.plane = "stress" needs simulation.dim = 2 (a 3D body has no plane idealisation)')
+        if plane in ("stress", "axisymmetric") and self.dim != 2:
+            raise ValueError(f'simulation.plane = "{plane}" needs a 2D model (a 3D body has no plane idealisation)')
         self.plane = plane
 
     def wave_speed(self, field_magnitude: float = 0.0) -> float:
@@ -1077,6 +1089,7 @@ class Solver:
             out.x, out.v, out.C, out.F = cut(state_out.x), cut(state_out.v), cut(state_out.C), cut(state_out.F)
             src = k["Particles"]()  # what p2g reads: positions where the weights are taken, v, C and F of state_in
             src.x, src.v, src.C, src.F = cut(x_grid), cut(state_in.v), cut(state_in.C), cut(state_in.F)
+            src.x_now = cut(state_in.x)  # the current positions (the axisymmetric hoop stretch)
             checks = k["Checks"]()
             checks.bounds, checks.max_speed, checks.error = self._thread_bounds[t], self._thread_speed[t], self.error
             threads.append(dict(

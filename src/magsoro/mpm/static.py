@@ -403,6 +403,9 @@ def check_supported(sim, who: str = "the static solver", viscous: bool = False) 
     """Raise SimulationError naming what the static solver cannot take in ``sim`` (form, contact, colliders, the
     bodies' own field, moments that follow R); ``who`` names the solver in the messages."""
     solver = sim.solver
+    if sim.model.plane == "axisymmetric":
+        raise SimulationError(f"{who} is not built for axisymmetric scenes yet (simulation.dim = 'axisymmetric'); use "
+                              "--equilibrium (relax) for their equilibrium")
     if solver.settings.formulation != "total":
         raise SimulationError(f"{who} works on the total-Lagrangian form (simulation.formulation = 'total' or 'auto')")
     if np.any(sim.model.host["magnetization_follows"] != 0):

@@ -78,9 +78,14 @@ def make_types(dim: int, scalar) -> SimpleNamespace:
         scatter) and ``pressure_share[p]`` the particle's part of it to take back (|dA| over the load's sum; 0 on
         open cavities), so that the load exerts no net force, as a pressure in a closed cavity does.
         ``stepped`` 1: the kernels take dt and the uniform field from ``step[0]`` (:class:`Step`) instead of their
-        ``dt`` argument and ``Applied.B_uniform`` (the solver's launches); 0: from the arguments (other callers)."""
+        ``dt`` argument and ``Applied.B_uniform`` (the solver's launches); 0: from the arguments (other callers).
+        ``radius0``: each particle's reference radius R (m, its x), read only by the axisymmetric kernels (the hoop
+        stretch r / R and the hoop force); ``spacing``: the particle lattice's spacing h (m), where their pressure
+        loads act (half of it from the particle)."""
 
         vol0: wp.array(dtype=scalar)
+        radius0: wp.array(dtype=scalar)
+        spacing: scalar
         mass: wp.array(dtype=scalar)
         shear: wp.array(dtype=scalar)
         bulk: wp.array(dtype=scalar)
@@ -124,12 +129,14 @@ def make_types(dim: int, scalar) -> SimpleNamespace:
     @wp.struct
     class Particles:
         """Particle state arrays a gather writes: positions (m), velocities (m/s), affine velocities C (1/s),
-        deformation gradients F."""
+        deformation gradients F. ``x_now``: what p2g reads as the current positions where ``x`` holds the reference
+        ones (the total form): the axisymmetric kernels' hoop stretch r / R."""
 
         x: wp.array(dtype=vec)
         v: wp.array(dtype=vec)
         C: wp.array(dtype=mat)
         F: wp.array(dtype=mat)
+        x_now: wp.array(dtype=vec)
 
     @wp.struct
     class Checks:
@@ -160,6 +167,8 @@ def make_body_elastic(dim: int, scalar, plane: str = "strain") -> SimpleNamespac
     carry no trace of the plane-stress solve."""
     t = make_types(dim, scalar)
     mat, Bodies = t.mat, t.Bodies
+    if plane == "axisymmetric":
+        return _make_body_elastic_axisymmetric(dim, scalar)
     if plane == "stress":
         if dim != 2:
             raise ValueError("plane stress is a 2D idealisation (dim = 2)")
@@ -169,7 +178,7 @@ def make_body_elastic(dim: int, scalar, plane: str = "strain") -> SimpleNamespac
         elastic = make_material_functions(dim, scalar)
         elastic_stress, elastic_energy = elastic["elastic_stress"], elastic["elastic_energy"]
     else:
-        raise ValueError(f"plane must be 'strain' or 'stress', got {plane!r}")
+        raise ValueError(f"plane must be 'strain', 'stress' or 'axisymmetric', got {plane!r}")
 
     @wp.func
     def stimulus_row(b: Bodies, p: int):
@@ -201,6 +210,41 @@ def make_body_elastic(dim: int, scalar, plane: str = "strain") -> SimpleNamespac
         return W
 
     return SimpleNamespace(body_elastic_stress=body_elastic_stress, body_elastic_energy=body_elastic_energy)
+
+
+@functools.cache
+def _make_body_elastic_axisymmetric(dim: int, scalar) -> SimpleNamespace:
+    """The axisymmetric form of :func:`make_body_elastic`: the law evaluated in 3D at F = diag(F_rz, r / R), with
+    the hoop stretch r / R of the particle's ring (current over reference radius). Stimulus eigenstrain is refused
+    by the scene check, so the particle's law alone:
+
+    - ``body_elastic_stress(F, b, p)``: not given (the in-plane block alone would leave out the hoop stress);
+    - ``body_elastic_stress3(F, hoop, b, p)``: the 3 x 3 first Piola stress, [2, 2] the hoop component P_tt;
+    - ``body_elastic_energy3(F, hoop, b, p)``: W (J/m^3 of reference volume)."""
+    if dim != 2:
+        raise ValueError("an axisymmetric body is drawn in 2D (its (r, z) section)")
+    import warp as wp
+
+    t = make_types(dim, scalar)
+    mat, m3, Bodies = t.mat, t.m3, t.Bodies
+    f3 = make_material_functions(3, scalar)
+    stress3, energy3 = f3["elastic_stress"], f3["elastic_energy"]
+
+    @wp.func
+    def ring(F: mat, hoop: scalar):
+        z = scalar(0.0)
+        return m3(F[0, 0], F[0, 1], z, F[1, 0], F[1, 1], z, z, z, hoop)
+
+    @wp.func
+    def body_elastic_stress3(F: mat, hoop: scalar, b: Bodies, p: int):
+        return stress3(ring(F, hoop), b.material_model[p], b.shear[p], b.bulk[p], b.material_params[p])
+
+    @wp.func
+    def body_elastic_energy3(F: mat, hoop: scalar, b: Bodies, p: int):
+        return energy3(ring(F, hoop), b.material_model[p], b.shear[p], b.bulk[p], b.material_params[p])
+
+    return SimpleNamespace(body_elastic_stress=None, body_elastic_energy=None,
+                           body_elastic_stress3=body_elastic_stress3, body_elastic_energy3=body_elastic_energy3)
 
 
 #: codes of a material's magnetisation kinematics (scene key material.magnetization_follows)

@@ -344,13 +344,15 @@ def initial_displacement(expressions, X: np.ndarray, step: float):
     return u, F
 
 
-def pressure_faces(pts: np.ndarray, occupied: np.ndarray, cavity, lo: np.ndarray, h: float, depth: float) -> np.ndarray:
+def pressure_faces(pts: np.ndarray, occupied: np.ndarray, cavity, lo: np.ndarray, h: float, depth: float,
+                   axisymmetric: bool = False) -> np.ndarray:
     """Reference area vectors (N, dim) of the particle faces of ``pts`` that look into ``cavity``: for each axis a
     and side s, a particle whose lattice neighbour X + s h e_a lies in the cavity and is not a particle site
     (``occupied``: (M, dim) every particle of the scene; ``lo`` the domain's lower corner, which the lattice is
     aligned to) gets s e_a h^(dim-1) (in 2D times ``depth``), the outward normal of that face times its area. On
     the lattice the faces close up, so the sum over a closed cavity is zero and a pressure on them gives each part
-    the force p times its projected area, as on the smooth wall."""
+    the force p times its projected area, as on the smooth wall. ``axisymmetric``: a face is a ring, its length h
+    times 2 pi times its radius (the particle's r, plus or minus h / 2 for the faces across r)."""
     n, dim = pts.shape
     area = np.zeros((n, dim))
     idx, occ = _lattice_index(pts, lo, h), _lattice_index(occupied, lo, h)
@@ -364,7 +366,11 @@ def pressure_faces(pts: np.ndarray, occupied: np.ndarray, cavity, lo: np.ndarray
             j = idx.copy()
             j[:, a] += side
             exposed = cavity.contains(Y) & ~np.isin(code(j), occ_codes)
-            area[exposed, a] += side * face
+            if axisymmetric:
+                r_face = pts[exposed, 0] + (0.5 * side * h if a == 0 else 0.0)
+                area[exposed, a] += side * h * 2.0 * np.pi * r_face
+            else:
+                area[exposed, a] += side * face
     return area
 
 
@@ -394,6 +400,26 @@ def _site_coder(sites: list[np.ndarray]):
 MAX_LATTICE_SITES = 1e8
 
 
+#: an axisymmetric scene's grid reaches this many cells to r < 0 (the user's domain starts at the axis, r = 0): the
+#: mirror nodes of the axis (one cell in) clear of the domain walls (two cells inside the grid's edge)
+AXIS_PAD_CELLS = 4
+
+
+def model_domain(sim) -> tuple[np.ndarray, np.ndarray]:
+    """The engine's domain (lo, hi) of the scene's [simulation]: the scene's own, except that an axisymmetric
+    scene's grid reaches AXIS_PAD_CELLS cells past the axis (the nodes that mirror those next to it). The particle
+    lattice is the same either way (the pad is a whole number of cells)."""
+    lo, hi = np.asarray(sim.domain_lo, dtype=np.float64).copy(), np.asarray(sim.domain_hi, dtype=np.float64).copy()
+    if sim.plane == "axisymmetric":
+        lo[0] = -AXIS_PAD_CELLS * sim.dx
+    return lo, hi
+
+
+def ring_volumes(pts: np.ndarray, area: float) -> np.ndarray:
+    """Volumes (m^3) of the rings an axisymmetric scene's particles stand for: 2 pi r times their area (m^2)."""
+    return 2.0 * np.pi * pts[:, 0] * area
+
+
 def fill_bodies(scene: Scene, source: str = "scene", magnetization=None) -> Particles:
     """Fill every body with particles on the grid-aligned lattice and give them material and remanence.
 
@@ -403,7 +429,8 @@ def fill_bodies(scene: Scene, source: str = "scene", magnetization=None) -> Part
     """
     sim = scene.simulation
     dim, dx, ppc = sim.dim, sim.dx, sim.particles_per_cell
-    lo, hi = np.asarray(sim.domain_lo, dtype=np.float64), np.asarray(sim.domain_hi, dtype=np.float64)
+    lo, hi = model_domain(sim)
+    axisymmetric = sim.plane == "axisymmetric"
     depth = sim.depth if dim == 2 else 1.0
     h = dx / ppc
     libs = scene.material_library_paths
@@ -433,6 +460,9 @@ def fill_bodies(scene: Scene, source: str = "scene", magnetization=None) -> Part
             blo, bhi = shape.bounds()
             blo, bhi = np.asarray(blo, dtype=np.float64)[:dim], np.asarray(bhi, dtype=np.float64)[:dim]
             margin = WALL_CELLS * dx  # walls act on the outer two cells
+            if axisymmetric and blo[0] < 0.0:
+                raise SceneError(f"{bsrc}: {bkey}.shape: body '{b.name}' reaches r = {blo[0]:g} m; in an axisymmetric scene "
+                                 f"x is the radius, r >= 0 (draw the body's (r, z) section right of the axis)")
             if np.any(blo < lo + margin) or np.any(bhi > hi - margin):
                 raise SceneError(
                     f"{bsrc}: {bkey}.shape: body '{b.name}' spans {blo.tolist()} to {bhi.tolist()} m, outside the domain "
@@ -470,9 +500,14 @@ def fill_bodies(scene: Scene, source: str = "scene", magnetization=None) -> Part
         if stim is not None:
             stim = make_stimulus(stim, f"{bsrc}: {bkey}.material.stimulus")
         per_body.append(dict(pts=pts, v_each=v_each, mat=mat, Br=Br, key=bkey, src=bsrc, stimulus=stim))
-        report.append({"body": b.name, "particles": len(pts), "filled_volume": len(pts) * v_each * (depth if dim == 2 else 1.0),
-                       "shape_volume": shape.volume() * (depth if dim == 2 else 1.0), "density": mat["density"],
-                       "mass": len(pts) * v_each * depth * mat["density"]})
+        if axisymmetric:  # rings: the section's area times 2 pi r (the shape's volume about its particles' mean radius)
+            filled = float(ring_volumes(pts, v_each).sum())
+            shape_volume = shape.volume() * 2.0 * np.pi * float(pts[:, 0].mean())
+        else:
+            filled = len(pts) * v_each * (depth if dim == 2 else 1.0)
+            shape_volume = shape.volume() * (depth if dim == 2 else 1.0)
+        report.append({"body": b.name, "particles": len(pts), "filled_volume": filled,
+                       "shape_volume": shape_volume, "density": mat["density"], "mass": filled * mat["density"]})
     _resolve_overlaps(scene, per_body, report, lo, h, source)
     n_total = sum(len(pb["pts"]) for pb in per_body)
     if n_total == 0:
@@ -501,7 +536,7 @@ def fill_bodies(scene: Scene, source: str = "scene", magnetization=None) -> Part
                 raise SceneError(f"{key}.file: {exc}") from None
             except ValueError as exc:
                 raise SceneError(f"{key}: {exc}") from None
-            area = pressure_faces(pb["pts"], X, cavity, lo[:dim], h, depth)
+            area = pressure_faces(pb["pts"], X, cavity, lo[:dim], h, depth, axisymmetric)
             if not np.any(area != 0.0):
                 raise SceneError(f"{key}: no particle face of body '{b.name}' looks into the cavity: it must border the "
                                  f"body's surface within one particle spacing ({h:g} m)")
@@ -534,7 +569,8 @@ def fill_bodies(scene: Scene, source: str = "scene", magnetization=None) -> Part
             pronies.append(pb["mat"]["prony"])
     return Particles(
         positions=X,
-        volumes=per(lambda pb: pb["v_each"] * depth),
+        volumes=(np.concatenate([ring_volumes(pb["pts"], pb["v_each"]) for pb in per_body]) if axisymmetric
+                 else per(lambda pb: pb["v_each"] * depth)),
         density=per(lambda pb: pb["mat"]["density"]),
         shear_modulus=per(lambda pb: pb["mat"]["shear_modulus"]),
         bulk_modulus=per(lambda pb: pb["mat"]["bulk_modulus"]),
@@ -802,7 +838,7 @@ def build(scene: Scene, device: str | None = None, source: str = "scene", magnet
     """
     sim = scene.simulation
     dim, dx = sim.dim, sim.dx
-    lo, hi = np.asarray(sim.domain_lo, dtype=np.float64), np.asarray(sim.domain_hi, dtype=np.float64)
+    lo, hi = model_domain(sim)
     p = fill_bodies(scene, source, magnetization)
     X, body_id = p.positions, p.body
     names = p.body_names
@@ -829,6 +865,7 @@ def build(scene: Scene, device: str | None = None, source: str = "scene", magnet
         pressures=p.pressures, clamp_row=clamp_row, clamp_paths=clamp_paths,
         initial_displacement=p.displacement, initial_deformation=p.deformation, plane=sim.plane,
     )
+    model.spacing = dx / sim.particles_per_cell
     report = p.report
     p_vel = p.velocity
     sources = []
@@ -839,6 +876,10 @@ def build(scene: Scene, device: str | None = None, source: str = "scene", magnet
             raise SceneError(f"{source}: fields[{i}]: {exc}") from None
     colliders = [make_collider(c, dim, sim.plane_z) for c in scene.colliders]
     touching = contact.active(int(body_group.max()) + 1)
+    if touching and sim.plane == "axisymmetric":
+        raise SceneError(f"{source}: contact: the bodies are separate pieces, and contact between bodies is not built yet "
+                         f"in an axisymmetric scene; glue them into one piece ([contact] bonded = 'touching', or "
+                         f"[[contact.pairs]] bonded = true) or give [contact] friction = 'sticky'")
     # 'auto': the form that settles, unless bodies (or parts of one) touch each other
     formulation = ("updated" if touching else "total") if sim.formulation == "auto" else sim.formulation
     if clamp_paths and formulation == "updated" and sim.integrator == "explicit":

@@ -388,3 +388,76 @@ def check_scene(scene: Scene, source: str, base_dir: Path | None) -> None:
                 _vec_len(pos, 3, f"fields[{i}].path.positions[{j}]", source)
     if scene.output.every is not None and scene.output.every > sim.duration:
         raise SceneError(f"{source}: output.every: {scene.output.every} s exceeds simulation.duration {sim.duration} s")
+    if sim.plane == "axisymmetric":
+        check_axisymmetric(scene, source)
+
+
+def _along_axis(v, tol: float = 1e-12) -> bool:
+    """Whether a 3-vector points along the y axis (the axis of an axisymmetric scene), or is zero."""
+    x, y, z = (float(c) for c in v)
+    return abs(x) <= tol * max(abs(y), 1e-300) and abs(z) <= tol * max(abs(y), 1e-300) or (x == 0 and z == 0)
+
+
+def _on_axis(p) -> bool:
+    return float(p[0]) == 0.0 and float(p[2]) == 0.0
+
+
+def check_axisymmetric(scene: Scene, source: str) -> None:
+    """simulation.dim = 'axisymmetric': what is not symmetric about the y axis, or not built for it yet, is refused
+    in one line naming the key (docs/engine.md, "Axisymmetric bodies")."""
+    sim = scene.simulation
+    why = "in an axisymmetric scene"
+
+    def refuse(key, text):
+        raise SceneError(f"{source}: {key}: {text} {why}")
+
+    if sim.domain_lo[0] != 0.0:
+        refuse("simulation.domain_lo[0]", f"is {sim.domain_lo[0]:g} m; it must be 0, the axis r = 0,")
+    if sim.plane_z != 0.0:
+        refuse("simulation.plane_z", "must be 0: the (r, z) half-plane is the x-y plane of the field sources, z = 0,")
+    if sim.gravity is not None and sim.gravity[0] != 0.0:
+        refuse("simulation.gravity", "must be along the axis, [0, g_z],")
+    if sim.formulation == "updated":
+        refuse("simulation.formulation", "'updated' is not built yet; use 'total' or 'auto'")
+    if sim.integrator == "implicit":
+        refuse("simulation.integrator", "'implicit' is not built yet; use 'explicit'")
+    if sim.magnetic_interaction != "none":
+        refuse("simulation.magnetic_interaction", "'dipole' (the bodies' own field) is not built yet")
+    if scene.contact.pairs or scene.contact.self_contact:
+        refuse("contact", "contact between bodies and self-contact are not built yet")
+    for i, b in enumerate(scene.bodies):
+        key = b.key or f"bodies[{i}]"
+        mag = b.magnetization
+        if isinstance(mag, list) and len(mag) == 3 and mag[2] != 0.0:
+            refuse(f"{key}.magnetization", "has a hoop (third) component; give [B_r, B_z, 0] T")
+        mat = b.material
+        if getattr(mat, "stimulus", None) is not None:
+            refuse(f"{key}.material.stimulus", "stimulus eigenstrain is not built yet")
+        if getattr(mat, "prony", None) is not None:
+            refuse(f"{key}.material.prony", "Prony viscoelasticity is not built yet")
+    for i, f in enumerate(scene.fields):
+        key = f"fields[{i}]"
+        if f.type == "uniform":
+            if not _along_axis(f.B):
+                refuse(f"{key}.B", f"{list(f.B)} is not along the axis; give [0, B_z, 0] T")
+        elif f.type == "keyframes":
+            for j, v in enumerate(f.values or []):
+                if not _along_axis(v):
+                    refuse(f"{key}.values[{j}]", f"{list(v)} is not along the axis; give [0, B_z, 0] T")
+        elif f.type in ("dipole", "cylinder_magnet", "loop", "helmholtz", "maxwell"):
+            direction = f.moment if f.type == "dipole" else f.axis
+            if not _along_axis(direction):
+                refuse(f"{key}.{'moment' if f.type == 'dipole' else 'axis'}", f"{list(direction)} is not along the axis (y)")
+            if not _on_axis(f.position):
+                refuse(f"{key}.position", f"{list(f.position)} is off the axis; give [0, z, 0]")
+            path = getattr(f, "path", None)
+            for j, pos in enumerate(path.positions if path is not None else []):
+                if not _on_axis(pos):
+                    refuse(f"{key}.path.positions[{j}]", f"{list(pos)} is off the axis; give [0, z, 0]")
+        else:
+            refuse(f"{key}.type", f"'{f.type}' is not symmetric about the axis; allowed: uniform and keyframes along "
+                                  f"the axis, and dipole, cylinder_magnet, loop, helmholtz, maxwell on it")
+    for i, c in enumerate(scene.colliders):
+        key = f"colliders[{i}]"
+        if c.type != "half_space" or abs(float(c.normal[0])) > 0.0:
+            refuse(f"{key}", "only planes across the axis (half_space with normal [0, 1] or [0, -1]) are built yet")

@@ -860,7 +860,7 @@ DampingSpec = Annotated[Union[Annotated[float, Field(ge=0), Tag("number")], Anno
 class Simulation(Strict):
     """Numerical settings."""
 
-    dim: Literal[2, 3] = Field(default=3, description="2 (the x-y plane: plane strain or plane stress, simulation.plane) or 3.")
+    dim: Literal[2, 3, "axisymmetric"] = Field(default=3, description="2 (the x-y plane: plane strain or plane stress, simulation.plane), 3, or 'axisymmetric': bodies of revolution about the y axis, drawn in the (r, z) half-plane (x the radius r >= 0, y the axis z; positions, sizes and vectors are written [r, z]; domain_lo[0] = 0, the axis), with the hoop stretch r / R in every law (docs/engine.md, 'Axisymmetric bodies'). Read as dim 2 with plane 'axisymmetric'.")
     dx: float = Field(gt=0, description="Grid spacing, m.")
     particles_per_cell: int = Field(default=2, ge=1, le=4, description="Particles per cell along each axis.")
     domain_lo: Vec = Field(description="Lower corner of the domain, m.")
@@ -879,12 +879,13 @@ class Simulation(Strict):
     wall_friction: float = Field(default=0.0, ge=0, description="Friction coefficient of the domain walls.")
     depth: float = Field(default=1e-3, gt=0, description="2D only: out-of-plane thickness giving particle volumes, m.")
     plane_z: float = Field(default=0.0, description="2D only: z coordinate of the plane for field sources, m.")
-    plane: Literal["strain", "stress"] = Field(
+    plane: Literal["strain", "stress", "axisymmetric"] = Field(
         default="strain",
         description="2D only: 'strain' (plane strain, F_zz = 1: long bodies, the section of a prism) or 'stress' (plane "
         "stress, zero normal stress with the thickness stretch solved per particle: thin plates loaded in their plane, "
         "wide strips bending like beams, with E rather than E / (1 - nu^2)); every elastic law, Prony viscoelasticity "
-        "and stimulus eigenstrain (docs/engine.md, 'Plane stress').",
+        "and stimulus eigenstrain (docs/engine.md, 'Plane stress'). 'axisymmetric' is what simulation.dim = "
+        "'axisymmetric' sets.",
     )
     device: str = Field(default="cpu", pattern=r"^(cpu|cuda(:\d+)?)$", description="'cpu', 'cuda' or 'cuda:N'.")
     precision: Literal["float32", "float64"] = Field(default="float32", description="Floating-point precision of the kernels.")
@@ -933,6 +934,17 @@ class Simulation(Strict):
         description="CPU threads a step is split over. Default: automatic, one per 4000 particles up to the usable "
         "cores (the environment variable MAGSORO_THREADS overrides it; sweep workers use 1). Ignored on CUDA.",
     )
+
+    @model_validator(mode="before")
+    @classmethod
+    def _axisymmetric_is_2d(cls, data):
+        """dim = 'axisymmetric' is read as dim 2 with plane 'axisymmetric' (the kernels' 2D idealisation)."""
+        if isinstance(data, dict) and data.get("dim") == "axisymmetric":
+            if data.get("plane", "axisymmetric") != "axisymmetric":
+                raise ValueError(f"simulation.plane = {data['plane']!r} and dim = 'axisymmetric': an axisymmetric body "
+                                 f"has no plane idealisation; leave plane out")
+            data = {**data, "dim": 2, "plane": "axisymmetric"}
+        return data
 
     @model_validator(mode="after")
     def _plane_needs_2d(self):
