@@ -87,8 +87,13 @@ def render(scene, particles, out, width=7.0, dpi=120, arrows=200, max_points=600
         ax.set_xlim((blo[0] - pad) * scale_mm, (bhi[0] + pad) * scale_mm)
         ax.set_ylim((blo[1] - pad) * scale_mm, (bhi[1] + pad) * scale_mm)
         ax.set_aspect("equal")
-        ax.set_xlabel("x (mm)")
-        ax.set_ylabel("y (mm)")
+        if scene.simulation.plane == "axisymmetric":  # the (r, z) section of a body of revolution about y
+            ax.axvline(0.0, color="0.5", lw=0.8, ls="-.", label="axis")
+            ax.set_xlabel("r (mm)")
+            ax.set_ylabel("z (mm), along the axis")
+        else:
+            ax.set_xlabel("x (mm)")
+            ax.set_ylabel("y (mm)")
     else:
         fig = plt.figure(figsize=(width, width * 0.8))
         ax = fig.add_subplot(projection="3d")

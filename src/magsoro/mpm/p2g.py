@@ -140,6 +140,8 @@ def make_p2g(dim: int, scalar, two_fields: bool = False, differentiable: bool = 
                             face[a] = area[a]
                             d = vec()
                             d[a] = wp.sign(area[a]) * scalar(0.5) * b.spacing
+                            if total == 0:  # the weights follow the particles: the face's current offset
+                                d = Fp * d
                             moved = moved + wp.outer(pressure_force(Fp, face, b.pressure_value[row], hoop), d)
                     affine = affine + (dts * scalar(4.0) * inv_dx * inv_dx) * moved
         return affine * dx, mv

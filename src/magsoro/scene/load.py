@@ -417,8 +417,9 @@ def check_axisymmetric(scene: Scene, source: str) -> None:
         refuse("simulation.plane_z", "must be 0: the (r, z) half-plane is the x-y plane of the field sources, z = 0,")
     if sim.gravity is not None and sim.gravity[0] != 0.0:
         refuse("simulation.gravity", "must be along the axis, [0, g_z],")
-    if sim.formulation == "updated":
-        refuse("simulation.formulation", "'updated' is not built yet; use 'total' or 'auto'")
+    if sim.formulation == "updated" and sim.velocity_gradient == "remap":
+        refuse("simulation.formulation", "'updated' needs simulation.velocity_gradient = 'grid' (the remap's node "
+                                         "velocities are not mirrored at the axis yet)")
     if sim.integrator == "implicit":
         refuse("simulation.integrator", "'implicit' is not built yet; use 'explicit'")
     if sim.magnetic_interaction != "none":

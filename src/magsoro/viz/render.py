@@ -92,6 +92,36 @@ class RunSeries:
         return str(self.scene.get("name") or self.directory.resolve().name)
 
 
+def is_axisymmetric(info: dict) -> bool:
+    """Whether run.json ``info`` is of an axisymmetric scene (simulation.dim = "axisymmetric")."""
+    sim = (info.get("scene") or {}).get("simulation") if isinstance(info.get("scene"), dict) else None
+    return isinstance(sim, dict) and (sim.get("dim") == "axisymmetric" or sim.get("plane") == "axisymmetric")
+
+
+#: the part of the revolution drawn (radians): three quarters, so that the cut shows the (r, z) section
+REVOLVED_ANGLE = 1.5 * math.pi
+
+
+def revolve_rings(x_mm: np.ndarray, dirs, spacing: float):
+    """The rings of an axisymmetric frame (positions in mm, x the radius, y the axis) as points of the body of
+    revolution over REVOLVED_ANGLE: each particle repeated at angles about one ``spacing`` apart along its ring
+    (at least once), at (r cos t, z, r sin t). Returns (the particle each point comes from, the points, their
+    directions turned with them, or None)."""
+    r = np.abs(x_mm[:, 0])
+    step = spacing if spacing > 0 else max(float(r.max()) / 20.0, 1e-9)
+    counts = np.maximum(1, np.ceil(REVOLVED_ANGLE * r / step).astype(int))
+    ring = np.repeat(np.arange(len(x_mm)), counts)
+    k = np.concatenate([np.arange(c) for c in counts]) if len(counts) else np.zeros(0, dtype=int)
+    t = (k + 0.5) / counts[ring] * REVOLVED_ANGLE
+    c, s_ = np.cos(t), np.sin(t)
+    pts = np.stack([x_mm[ring, 0] * c, x_mm[ring, 1], x_mm[ring, 0] * s_], axis=1)
+    turned = None
+    if dirs is not None:
+        d = dirs[ring]
+        turned = np.stack([d[:, 0] * c, d[:, 1], d[:, 0] * s_], axis=1)
+    return ring, pts, turned
+
+
 def open_run(run_dir) -> RunSeries:
     """The run in ``run_dir``; RenderError naming RUN_DIR when it is missing, not a run, or has no frames."""
     from magsoro.io.outdir import read_run_info
@@ -1005,16 +1035,23 @@ def render_run(run_dir, out, color: str = "part", view: str | None = None, frame
     if view is not None and view not in VIEWS:
         raise RenderError(f"--view: '{view}' is not a view; allowed: {', '.join(VIEWS)}")
     series = open_run(run_dir)
-    if series.dim == 2 and view not in (None, "z"):
+    axisymmetric = series.dim == 2 and is_axisymmetric(series.info)
+    if series.dim == 2 and view not in (None, "z") and not axisymmetric:
         raise RenderError(f"--view: a 2D run has only the flat view 'z' (x right, y up); got '{view}'")
     view = view or ("iso" if series.dim == 3 else "z")
+    # an axisymmetric run: its (r, z) section (the flat view), or the body of revolution (a 3D view)
+    revolve = axisymmetric and view != "z"
+    draw_dim = 3 if revolve else series.dim
     chosen, note = select_frames(frames, series.stamps, animated=suffix != ".png")
     if suffix == ".png" and len(chosen) != 1:
         raise RenderError(f"--frames: a .png holds one frame, {len(chosen)} were selected; write a .gif or .mp4 for several")
     if suffix != ".png" and len(chosen) < 2:
         note = (note + "; " if note else "") + "an animation of one frame"
-    backend_name, backend_note = choose_backend(backend, series.dim)
+    backend_name, backend_note = choose_backend(backend, draw_dim)
     notes = [n for n in (backend_note, note) if n]
+    if axisymmetric:
+        notes.append("axisymmetric run: " + ("the body revolved about its axis (y), three quarters shown" if revolve
+                                             else "its (r, z) section, x the radius and y the axis"))
     status = str(series.info.get("status", "?"))
     if status != "completed":
         notes.append(f"the run's status is '{status}': {len(series.stamps)} frames written so far")
@@ -1042,19 +1079,26 @@ def render_run(run_dir, out, color: str = "part", view: str | None = None, frame
         v = colour_values(color, data, series.dim, None if ref is None or len(ref) != n_all else ref, where)
         x = np.asarray(pts, dtype=np.float64)[keep] * 1e3
         finite = np.isfinite(x).all(axis=1)  # a failed run's last frame may hold non-finite particles
-        positions.append(x[finite])
-        values.append(v[keep][finite])
-        held.append(np.asarray(data["clamped"]).ravel()[keep][finite] != 0 if "clamped" in data else None)
-        if color == "magnetisation":
-            dirs.append(np.asarray(data[COLOR_MODES[color]], dtype=np.float64).reshape(-1, 3)[keep][finite])
-    if series.dim == 2:
-        for p in positions:
-            p[:, 2] = 0.0
-    layout = make_layout(series.dim, view, positions)
+        x, vk = x[finite], v[keep][finite]
+        hk = np.asarray(data["clamped"]).ravel()[keep][finite] != 0 if "clamped" in data else None
+        dk = (np.asarray(data[COLOR_MODES[color]], dtype=np.float64).reshape(-1, 3)[keep][finite]
+              if color == "magnetisation" else None)
+        if series.dim == 2:
+            x[:, 2] = 0.0
+        if revolve:
+            ring, x, dk = revolve_rings(x, dk, particle_spacing(x))
+            vk = vk[ring]
+            hk = None if hk is None else hk[ring]
+        positions.append(x)
+        values.append(vk)
+        held.append(hk)
+        if dk is not None:
+            dirs.append(dk)
+    layout = make_layout(draw_dim, view, positions)
     scale = colour_scale(color, values, series.dim, series.body_names)
     title = f"{series.name}: {scale.label}" if not scale.categorical else f"{series.name}: parts"
     pictures = [FramePicture(positions[i], values[i], _arrows(positions[i], dirs[i]) if dirs else None,
-                             overlays.collider_shapes(series.stamps[k]), overlays.field(series.stamps[k]),
+                             [] if revolve else overlays.collider_shapes(series.stamps[k]), overlays.field(series.stamps[k]),
                              time_label(series, series.stamps[k], k), held[i]) for i, k in enumerate(chosen)]
     if any(h is not None and h.any() for h in held):
         notes.append("dark grey: particles held by a clamp")
