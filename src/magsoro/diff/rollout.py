@@ -335,7 +335,7 @@ class Rollout:
                    contact=self._no_contact, device=dev)
         if remap:  # the engine's velocity-gradient remap (docs/engine.md), same kernels
             launch_remap_node_velocity(k, self.n_nodes, grid_r=dst.grid_q, grid_m=dst.grid_m, grid_clamp=dst.grid_clamp,
-                                       grid_w=dst.grid_w, n_nodes=self.n_nodes, device=dev)
+                                       grid_w=dst.grid_w, n_nodes=self.n_nodes, block=self._block, axis=0, device=dev)
             launch_remap_F(k, n, x=src.x, bodies=self._bodies, block=self._block, dt=dt, grid_w=dst.grid_w, F_in=src.F,
                            F_out=dst.F, error=self.error, contact=self._no_contact, device=dev)
 

@@ -32,6 +32,7 @@ def make_g2p(dim: int, scalar, two_fields: bool = False, differentiable: bool = 
     NS = s.NS
     slot_of, bspline_weights = s.slot_of, s.bspline_weights
     local_coords, outside_block, flat_index, stencil_node = s.local_coords, s.outside_block, s.flat_index, s.stencil_node
+    node_of_flat = s.node_of_flat
 
     @wp.func
     def update_F(F_in: wp.array(dtype=mat), F_out: wp.array(dtype=mat), p: int, dtC: mat):
@@ -234,17 +235,38 @@ def make_g2p(dim: int, scalar, two_fields: bool = False, differentiable: bool = 
         grid_clamp: wp.array(dtype=wp.int32),
         grid_w: wp.array(dtype=vec),
         n_nodes: int,
+        block: Block,
+        axis: int,
     ):
         """Node velocities of the remap: the scattered momenta over the first transfer's node masses (same
         particles, same positions), at rest on held nodes. Once per slot (node and field) instead of once per
-        stencil entry; slots from ``n_nodes`` on are the contact fields of the nodes."""
+        stencil entry; slots from ``n_nodes`` on are the contact fields of the nodes. ``axis`` 1: an axisymmetric
+        grid block (``block``) whose axis x = 0 is a node line; the nodes near it and their mirrors share mass and
+        mirrored momentum, as in the grid update (:func:`magsoro.mpm.grid.make_grid`'s ``fold``)."""
         idx = wp.tid()
         m = grid_m[idx]
+        r = grid_r[idx]
         node = idx
         if node >= n_nodes:
             node = idx - n_nodes
+        if axis != 0 and idx < n_nodes:
+            loc = node_of_flat(idx, block.shape)
+            k = loc[0] + int(wp.round(block.lo[0] / block.dx))
+            if k == 0:
+                r[0] = scalar(0.0)
+            elif k >= -2 and k <= 2:
+                mirror = loc
+                mirror[0] = loc[0] - 2 * k
+                if mirror[0] >= 0 and mirror[0] < block.shape[0]:
+                    j = int(0)
+                    for a in range(dim):
+                        j = j * block.shape[a] + mirror[a]
+                    q = grid_r[j]
+                    q[0] = -q[0]
+                    r = r + q
+                    m = m + grid_m[j]
         if m > scalar(0.0) and grid_clamp[node] == 0:
-            grid_w[idx] = grid_r[idx] / m
+            grid_w[idx] = r / m
         else:
             grid_w[idx] = vec()
 
@@ -339,10 +361,12 @@ def launch_remap_scatter(kernels, n, *, x, bodies, block, out, grid_r, contact, 
                      inputs=[x, bodies, block, out, grid_r, contact, spread])
 
 
-def launch_remap_node_velocity(kernels, n, *, grid_r, grid_m, grid_clamp, grid_w, n_nodes, device, record=False):
-    """``remap_node_velocity`` over ``n`` slots (velocity fields x ``n_nodes``)."""
+def launch_remap_node_velocity(kernels, n, *, grid_r, grid_m, grid_clamp, grid_w, n_nodes, block, axis, device,
+                               record=False):
+    """``remap_node_velocity`` over ``n`` slots (velocity fields x ``n_nodes``) of the grid block ``block``;
+    ``axis`` 1: an axisymmetric scene's (the nodes near the axis mirrored)."""
     return wp.launch(kernels["remap_node_velocity"], dim=n, device=device, record_cmd=record,
-                     inputs=[grid_r, grid_m, grid_clamp, grid_w, n_nodes])
+                     inputs=[grid_r, grid_m, grid_clamp, grid_w, n_nodes, block, int(axis)])
 
 
 def launch_remap_F(kernels, n, *, x, bodies, block, dt, grid_w, F_in, F_out, error, contact, device, record=False):

@@ -1170,7 +1170,7 @@ class Solver:
                 spread=spread), spread_threads) if spread else []
             L["remap_nodes"] = launch_remap_node_velocity(
                 k, self._fields_per_node * n_act, grid_r=self.grid_p, grid_m=self.grid_m, grid_clamp=self.grid_clamp,
-                grid_w=self.grid_v, n_nodes=n_act, **rec)
+                grid_w=self.grid_v, n_nodes=n_act, block=block, axis=int(m.plane == "axisymmetric"), **rec)
             L["remap_F"] = particles(launch_remap_F, lambda th, cut: dict(
                 x=cut(state_in.x), bodies=th["bodies"], block=block, dt=sc(0.0), grid_w=self.grid_v, F_in=cut(state_in.F),
                 F_out=cut(state_out.F), error=self.error, contact=ct))

@@ -417,9 +417,6 @@ def check_axisymmetric(scene: Scene, source: str) -> None:
         refuse("simulation.plane_z", "must be 0: the (r, z) half-plane is the x-y plane of the field sources, z = 0,")
     if sim.gravity is not None and sim.gravity[0] != 0.0:
         refuse("simulation.gravity", "must be along the axis, [0, g_z],")
-    if sim.formulation == "updated" and sim.velocity_gradient == "remap":
-        refuse("simulation.formulation", "'updated' needs simulation.velocity_gradient = 'grid' (the remap's node "
-                                         "velocities are not mirrored at the axis yet)")
     if sim.integrator == "implicit":
         refuse("simulation.integrator", "'implicit' is not built yet; use 'explicit'")
     if sim.magnetic_interaction != "none":
@@ -460,5 +457,10 @@ def check_axisymmetric(scene: Scene, source: str) -> None:
                                   f"the axis, and dipole, cylinder_magnet, loop, helmholtz, maxwell on it")
     for i, c in enumerate(scene.colliders):
         key = f"colliders[{i}]"
-        if c.type != "half_space" or abs(float(c.normal[0])) > 0.0:
-            refuse(f"{key}", "only planes across the axis (half_space with normal [0, 1] or [0, -1]) are built yet")
+        across = c.type == "half_space" and float(c.normal[0]) == 0.0
+        coaxial = c.type == "cylinder" and float(c.center[0]) == 0.0 and _along_axis(c.axis)
+        centred = c.type == "sphere" and float(c.center[0]) == 0.0
+        moving_off = c.path is not None and any(float(pos[0]) != 0.0 for pos in c.path.positions) and not across
+        if not (across or coaxial or centred) or moving_off:
+            refuse(f"{key}", "is not symmetric about the axis; allowed: planes across it (half_space with normal [0, 1] "
+                             "or [0, -1]), and cylinders (axis [0, 1, 0]) and spheres centred on it (center [0, z])")
