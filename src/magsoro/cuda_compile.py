@@ -292,7 +292,9 @@ def _catalogue() -> tuple:
         groups += _groups_of(f"static 2D {sname} plane stress", _fresh(make_static_kernels, 2, sc, "stress"), seen)
         groups += _groups_of(f"viscous 2D {sname} plane stress", _fresh(make_viscous, 2, sc, "stress"), seen)
         # axisymmetric bodies: p2g with the hoop stretch and hoop force (the explicit engine's one-field variant)
-        groups += _groups_of(f"engine 2D {sname} axisymmetric", _fresh(make_p2g, 2, sc, False, False, "axisymmetric"), seen)
+        for contact in (False, True):
+            label = f"engine 2D {sname} axisymmetric" + (" (contact)" if contact else "")
+            groups += _groups_of(label, _fresh(make_p2g, 2, sc, contact, False, "axisymmetric"), seen)
     field_funcs = _field_device_functions()
     for dim in DIMS:
         for sname in SCALAR_NAMES:

@@ -10,7 +10,7 @@ import functools
 import warp as wp
 
 from magsoro.mpm.colliders import COLLIDER_STRIDE, ROW_FRICTION, ROW_MODE, collider_sdf
-from magsoro.mpm.contact import BODIES, make_contact
+from magsoro.mpm.contact import BODIES, SINGLE as SINGLE_FIELD, make_contact
 from magsoro.mpm.settings import ColliderMode
 from magsoro.mpm.stencil import make_stencil, make_types
 
@@ -155,8 +155,16 @@ def make_grid(dim: int, scalar, two_fields: bool = False, differentiable: bool =
         return vel
 
     @wp.func
+    def single(ct: wp.array(dtype=ContactGrid), idx: int):
+        """Whether node ``idx`` carries one velocity field (always, without contact)."""
+        one = True
+        if wp.static(two_fields):
+            one = ct[0].split[idx] == SINGLE_FIELD
+        return one
+
+    @wp.func
     def fold(grid_p: wp.array(dtype=vec), grid_m: wp.array(dtype=scalar), grid_u: wp.array(dtype=vec), idx: int,
-             n: ivec, org: ivec, shape: ivec, gs: GridSettings):
+             n: ivec, org: ivec, shape: ivec, gs: GridSettings, ct: wp.array(dtype=ContactGrid)):
         """An axisymmetric scene's nodes near the axis: the velocity field is mirror-symmetric about r = 0 (v_r odd,
         v_z even), so the node at r = k dx and its mirror at -k dx carry one unknown: both take the summed mass
         and the momentum p + M p' (M flips the radial component), and the node on the axis has no radial momentum.
@@ -174,10 +182,13 @@ def make_grid(dim: int, scalar, two_fields: bool = False, differentiable: bool =
             mirror = n
             mirror[0] = gs.axis_node - k
             local = mirror - org
+            j = int(-1)
             if local[0] >= 0 and local[0] < shape[0]:
                 j = int(0)
                 for a in range(dim):
                     j = j * shape[a] + local[a]
+            # with contact, only nodes of one field on both sides (the scene keeps contact off the axis)
+            if j >= 0 and single(ct, idx) and single(ct, j):
                 q = grid_p[j]
                 q[0] = -q[0]
                 p = p + q
@@ -212,9 +223,9 @@ def make_grid(dim: int, scalar, two_fields: bool = False, differentiable: bool =
             shift = grid_u[idx]
         code = grid_clamp[idx]
         held = code != 0
+        if gs.axis != 0:
+            momentum, m, shift = fold(grid_p, grid_m, grid_u, idx, node_of_flat(idx, shape) + org, org, shape, gs, ct)
         if wp.static(not two_fields):
-            if gs.axis != 0:
-                momentum, m, shift = fold(grid_p, grid_m, grid_u, idx, node_of_flat(idx, shape) + org, org, shape, gs)
             if m <= scalar(0.0):
                 grid_v[idx] = vec()  # empty node: most of the grid block
                 return
@@ -235,9 +246,8 @@ def make_grid(dim: int, scalar, two_fields: bool = False, differentiable: bool =
             if gs.axis != 0 and n[0] < gs.axis_node:
                 record = 0
             vel = node_velocity(momentum, m, pos0, gs, record)
-            if wp.static(not two_fields):
-                if gs.axis != 0 and n[0] == gs.axis_node:
-                    vel[0] = scalar(0.0)  # on the axis
+            if gs.axis != 0 and n[0] == gs.axis_node:
+                vel[0] = scalar(0.0)  # on the axis
         elif m > scalar(0.0):
             vel = gs.clamp_velocity[code]
         if wp.static(two_fields):

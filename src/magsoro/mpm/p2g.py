@@ -148,18 +148,31 @@ def make_p2g(dim: int, scalar, two_fields: bool = False, differentiable: bool = 
 
     @wp.func
     def scatter_node(g: GridArrays, ct: wp.array(dtype=ContactGrid), p: int, q: int, w0: vec, w1: vec, w2: vec,
-                     first: int, shape: ivec, fx: vec, mp: scalar, A: mat, Afx: vec, mv: vec, is_clamped: int):
+                     first: int, shape: ivec, fx: vec, mp: scalar, A: mat, Afx: vec, mv: vec, is_clamped: int,
+                     inv_r: scalar):
         """Particle ``p``'s share of node q of its stencil: mass and mv + A (o - fx). mv is added per node, not
         folded into the constant part: the small momentum of a settling body would lose its low bits to the
-        large stress term once for all 27 nodes alike, a bias that makes float32 bodies creep."""
+        large stress term once for all 27 nodes alike, a bias that makes float32 bodies creep. ``inv_r``: dx / r
+        of an axisymmetric scene's particle (:func:`contact_weight`), 0 otherwise."""
         weight, o, idx = stencil_node(q, w0, w1, w2, first, shape)
         slot = slot_of(ct, p, idx)
         wp.atomic_add(g.p, slot, weight * (mv + (A * o - Afx)))
         wp.atomic_add(g.m, slot, weight * mp)
         if wp.static(two_fields):
-            wp.atomic_add(ct[0].grad_m, slot, (weight * mp) * (o - fx))
+            wp.atomic_add(ct[0].grad_m, slot, (weight * mp * (scalar(1.0) + (o[0] - fx[0]) * inv_r)) * (o - fx))
         if is_clamped != 0:
             g.clamp[idx] = 1
+
+    @wp.func
+    def contact_weight(x: vec, dx: scalar):
+        """dx / r of a particle at ``x`` in an axisymmetric scene (0 otherwise): its share of node i's mass gradient,
+        which gives the contact normals, is weighted by r_i / r = 1 + (x_i - x)_r / r, so that the gradient is the
+        section's own density's (a ring's mass grows with r, which would tilt every normal towards the axis by
+        about dx / r) at the mass's own magnitude (the fields' centroids stay where they are)."""
+        inv_r = scalar(0.0)
+        if wp.static(axisymmetric):
+            inv_r = dx / x[0]
+        return inv_r
 
     @wp.func
     def step_values(b: Bodies, applied: Applied, dt: scalar):
@@ -223,8 +236,9 @@ def make_p2g(dim: int, scalar, two_fields: bool = False, differentiable: bool = 
         Afx = A * fx
         first = flat_index(base, block.shape)
         g = grid[0]
+        inv_r = contact_weight(sp.x[p], dx)
         for q in range(NS):
-            scatter_node(g, ct, p, q, w0, w1, w2, first, block.shape, fx, mp, A, Afx, mv, is_clamped)
+            scatter_node(g, ct, p, q, w0, w1, w2, first, block.shape, fx, mp, A, Afx, mv, is_clamped, inv_r)
 
     @wp.kernel(enable_backward=False)
     def p2g_scatter(
@@ -262,11 +276,12 @@ def make_p2g(dim: int, scalar, two_fields: bool = False, differentiable: bool = 
         Afx = A * fx
         first = flat_index(base, block.shape)
         g = grid[0]
+        inv_r = contact_weight(x[p], block.dx)
         if spread != 0:
-            scatter_node(g, ct, p, tid - p * NS, w0, w1, w2, first, block.shape, fx, mp, A, Afx, mv, is_clamped)
+            scatter_node(g, ct, p, tid - p * NS, w0, w1, w2, first, block.shape, fx, mp, A, Afx, mv, is_clamped, inv_r)
         else:
             for q in range(NS):
-                scatter_node(g, ct, p, q, w0, w1, w2, first, block.shape, fx, mp, A, Afx, mv, is_clamped)
+                scatter_node(g, ct, p, q, w0, w1, w2, first, block.shape, fx, mp, A, Afx, mv, is_clamped, inv_r)
 
     @wp.kernel(enable_backward=False)
     def node_displacement(

@@ -681,6 +681,31 @@ class Built:
     notes: list[str] = field(default_factory=list)  # what the build decided that run.json should say
 
 
+#: an axisymmetric scene's contact stays this many cells off the axis: the nodes there are mirrored one field each
+AXIS_CONTACT_CELLS = 3.0
+
+
+def check_axisymmetric_contact(scene: Scene, X: np.ndarray, group: np.ndarray, names: list, body_id: np.ndarray,
+                               source: str) -> None:
+    """Contact between bodies in an axisymmetric scene: the updated formulation, and no contact near the axis, where
+    the mirrored nodes carry one velocity field (AXIS_CONTACT_CELLS cells): at most one piece reaches there.
+    Self-contact is not built yet. Refused in one line naming the key."""
+    sim = scene.simulation
+    if sim.formulation == "total":
+        raise SceneError(f"{source}: simulation.formulation: 'total' with contact is not built for an axisymmetric "
+                         f"scene; use 'updated' or 'auto'")
+    near = X[:, 0] < AXIS_CONTACT_CELLS * sim.dx
+    pieces = np.unique(group[near])
+    if len(pieces) > 1:
+        who = sorted({names[b] for b in np.unique(body_id[near])})
+        raise SceneError(f"{source}: bodies: {', '.join(repr(n) for n in who)} reach within {AXIS_CONTACT_CELLS:g} cells "
+                         f"of the axis as separate pieces; contact that close to the axis is not built in an axisymmetric "
+                         f"scene (keep all but one piece {AXIS_CONTACT_CELLS * sim.dx:g} m off it, or glue them)")
+    if scene.contact.self_contact:
+        raise SceneError(f"{source}: contact.self_contact: self-contact is not built yet in an axisymmetric scene "
+                         f"(contact between bodies is)")
+
+
 def contact_groups(scene: Scene, X: np.ndarray, body_id: np.ndarray, touching: list | None = None) -> np.ndarray:
     """Contact group of each body, numbered from 0 in the order of their first body: the parts of a robot are one
     group, and so are the bodies of a [[contact.pairs]] entry with ``bonded = true`` and, with ``[contact] bonded =
@@ -877,9 +902,7 @@ def build(scene: Scene, device: str | None = None, source: str = "scene", magnet
     colliders = [make_collider(c, dim, sim.plane_z) for c in scene.colliders]
     touching = contact.active(int(body_group.max()) + 1)
     if touching and sim.plane == "axisymmetric":
-        raise SceneError(f"{source}: contact: the bodies are separate pieces, and contact between bodies is not built yet "
-                         f"in an axisymmetric scene; glue them into one piece ([contact] bonded = 'touching', or "
-                         f"[[contact.pairs]] bonded = true) or give [contact] friction = 'sticky'")
+        check_axisymmetric_contact(scene, X, body_group[body_id], names, body_id, source)
     # 'auto': the form that settles, unless bodies (or parts of one) touch each other
     formulation = ("updated" if touching else "total") if sim.formulation == "auto" else sim.formulation
     if clamp_paths and formulation == "updated" and sim.integrator == "explicit":

@@ -421,8 +421,6 @@ def check_axisymmetric(scene: Scene, source: str) -> None:
         refuse("simulation.integrator", "'implicit' is not built yet; use 'explicit'")
     if sim.magnetic_interaction != "none":
         refuse("simulation.magnetic_interaction", "'dipole' (the bodies' own field) is not built yet")
-    if scene.contact.pairs or scene.contact.self_contact:
-        refuse("contact", "contact between bodies and self-contact are not built yet")
     for i, b in enumerate(scene.bodies):
         key = b.key or f"bodies[{i}]"
         mag = b.magnetization
