@@ -225,9 +225,9 @@ def study(args) -> int:
     atomic_write_json(out / "converge.json", summary)
     _print_table(rows, estimates, args.quiet)
     if failed:
-        print(f"magsoro converge: {len(failed)} of {len(rows)} runs did not complete "
-              f"({', '.join(f'dx {r.dx:g}: {r.status}' for r in failed)}); the estimates use the others; "
-              f"see {out}/dx_*/run.json", file=sys.stderr)
+        why = "; ".join(f"dx {r.dx:g}: {r.status}" + (f" ({r.message})" if r.message else "") for r in failed)
+        print(f"magsoro converge: {len(failed)} of {len(rows)} runs did not complete: {why}; the estimates use the "
+              f"others ({out / 'converge.json'})", file=sys.stderr)
         return 1
     return 0
 
