@@ -141,16 +141,17 @@ def prepare_study_dir(out: Path, resume: bool) -> None:
     out.mkdir(parents=True, exist_ok=True)
 
 
-def reusable(folder: Path, dx: float, static: bool) -> bool:
-    """Whether ``folder`` holds a completed run of this spacing and mode (for --resume)."""
+def reusable(folder: Path, dx: float, static: bool) -> dict | None:
+    """run.json of ``folder`` when it holds a completed run of this spacing and mode (for --resume), else None."""
     from magsoro.io.outdir import read_run_info
 
     info = read_run_info(folder)
     if not info or info.get("status") != "completed":
-        return False
+        return None
     got = ((info.get("scene") or {}).get("simulation") or {}).get("dx")
-    return (isinstance(got, (int, float)) and math.isclose(float(got), dx, rel_tol=1e-12)
+    same = (isinstance(got, (int, float)) and math.isclose(float(got), dx, rel_tol=1e-12)
             and bool(info.get("static")) == static)
+    return info if same else None
 
 
 def study(args) -> int:
@@ -174,10 +175,8 @@ def study(args) -> int:
     columns: list[str] | None = None
     for i, dx in enumerate(dxs, start=1):
         folder = out / f"dx_{i}"
-        if args.resume and reusable(folder, dx, mode == "static"):
-            from magsoro.io.outdir import read_run_info
-
-            info = read_run_info(folder) or {}
+        info = reusable(folder, dx, mode == "static") if args.resume else None
+        if info is not None:
             row = RunRow(dx, folder.name, "completed", info.get("wall_time_total"), "reused (--resume)")
         else:
             say(f"[{i}/{len(dxs)}] dx = {dx:g} m ...")
@@ -223,7 +222,7 @@ def study(args) -> int:
                   "when they oscillate",
     }
     atomic_write_json(out / "converge.json", summary)
-    _print_table(rows, estimates, args.quiet)
+    _print_table(rows, estimates)
     if failed:
         why = "; ".join(f"dx {r.dx:g}: {r.status}" + (f" ({r.message})" if r.message else "") for r in failed)
         print(f"magsoro converge: {len(failed)} of {len(rows)} runs did not complete: {why}; the estimates use the "
@@ -243,7 +242,8 @@ def _write_csv(path: Path, rows: list[RunRow], columns: list[str]) -> None:
     atomic_write_text(path, "\n".join(lines) + "\n")
 
 
-def _print_table(rows: list[RunRow], estimates: dict, quiet: bool) -> None:
+def _print_table(rows: list[RunRow], estimates: dict) -> None:
+    """The table of values per spacing and each column's estimate, on stdout (also with --quiet)."""
     cols = list(estimates)
     if not cols:
         print("no probe values to compare (the scene's [[probes]], or --probe)")

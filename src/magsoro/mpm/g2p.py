@@ -32,7 +32,7 @@ def make_g2p(dim: int, scalar, two_fields: bool = False, differentiable: bool = 
     NS = s.NS
     slot_of, bspline_weights = s.slot_of, s.bspline_weights
     local_coords, outside_block, flat_index, stencil_node = s.local_coords, s.outside_block, s.flat_index, s.stencil_node
-    node_of_flat = s.node_of_flat
+    node_of_flat, axis_mirror = s.node_of_flat, s.axis_mirror
 
     @wp.func
     def update_F(F_in: wp.array(dtype=mat), F_out: wp.array(dtype=mat), p: int, dtC: mat):
@@ -255,12 +255,8 @@ def make_g2p(dim: int, scalar, two_fields: bool = False, differentiable: bool = 
             if k == 0:
                 r[0] = scalar(0.0)
             elif k >= -2 and k <= 2:
-                mirror = loc
-                mirror[0] = loc[0] - 2 * k
-                if mirror[0] >= 0 and mirror[0] < block.shape[0]:
-                    j = int(0)
-                    for a in range(dim):
-                        j = j * block.shape[a] + mirror[a]
+                j = axis_mirror(loc, k, block.shape)
+                if j >= 0:
                     q = grid_r[j]
                     q[0] = -q[0]
                     r = r + q

@@ -71,7 +71,7 @@ def make_grid(dim: int, scalar, two_fields: bool = False, differentiable: bool =
     t = s.types
     vec, ivec, v3 = t.vec, t.ivec, t.v3
     ContactGrid = s.ContactGrid
-    inplane, node_of_flat = s.inplane, s.node_of_flat
+    inplane, node_of_flat, axis_mirror = s.inplane, s.node_of_flat, s.axis_mirror
     resolve_contact = make_contact(dim, scalar)["resolve"]
     GridSettings = grid_settings_struct(dim, scalar)
 
@@ -179,14 +179,7 @@ def make_grid(dim: int, scalar, two_fields: bool = False, differentiable: bool =
             p[0] = scalar(0.0)
             u[0] = scalar(0.0)
         elif k >= -2 and k <= 2:
-            mirror = n
-            mirror[0] = gs.axis_node - k
-            local = mirror - org
-            j = int(-1)
-            if local[0] >= 0 and local[0] < shape[0]:
-                j = int(0)
-                for a in range(dim):
-                    j = j * shape[a] + local[a]
+            j = axis_mirror(n - org, k, shape)
             # with contact, only nodes of one field on both sides (the scene keeps contact off the axis)
             if j >= 0 and single(ct, idx) and single(ct, j):
                 q = grid_p[j]

@@ -424,6 +424,17 @@ def make_stencil(dim: int, scalar, two_fields: bool = False) -> SimpleNamespace:
             return (n[0] * shape[1] + n[1]) * shape[2] + n[2]
 
     @wp.func
+    def axis_mirror(loc: ivec, k: int, shape: ivec):
+        """Flat index of the node mirrored across an axisymmetric scene's axis (the node line x = 0) from the node
+        at block coordinates ``loc``, ``k`` nodes from the axis along x; -1 when the mirror lies outside the block."""
+        mirror = loc
+        mirror[0] = loc[0] - 2 * k
+        j = int(-1)
+        if mirror[0] >= 0 and mirror[0] < shape[0]:
+            j = flat_index(mirror, shape)
+        return j
+
+    @wp.func
     def node_of_flat(idx: int, shape: ivec):
         n = ivec()
         if wp.static(dim == 2):
@@ -469,5 +480,6 @@ def make_stencil(dim: int, scalar, two_fields: bool = False) -> SimpleNamespace:
     mag = make_magnetization(dim, scalar)
     return SimpleNamespace(moment_map=mag.moment_map, rotation_stress=mag.rotation_stress, types=t, NS=3**dim, ContactGrid=ContactGrid, slot_of=slot_of, inplane=inplane,
                            bspline_weights=bspline_weights, stencil_offset=stencil_offset, flat_index=flat_index,
-                           node_of_flat=node_of_flat, local_coords=local_coords, outside_block=outside_block,
+                           node_of_flat=node_of_flat, axis_mirror=axis_mirror, local_coords=local_coords,
+                           outside_block=outside_block,
                            stencil_node=stencil_node)

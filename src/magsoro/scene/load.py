@@ -394,8 +394,8 @@ def check_scene(scene: Scene, source: str, base_dir: Path | None) -> None:
 
 def _along_axis(v, tol: float = 1e-12) -> bool:
     """Whether a 3-vector points along the y axis (the axis of an axisymmetric scene), or is zero."""
-    x, y, z = (float(c) for c in v)
-    return abs(x) <= tol * max(abs(y), 1e-300) and abs(z) <= tol * max(abs(y), 1e-300) or (x == 0 and z == 0)
+    x, y, z = (abs(float(c)) for c in v)
+    return x <= tol * y and z <= tol * y
 
 
 def _on_axis(p) -> bool:
