@@ -429,6 +429,12 @@ class BodyContact:
             return True
         return False
 
+    def revise(self, u_nodes: np.ndarray, step: np.ndarray, free: np.ndarray):
+        """The linearised active-set round of :meth:`ColliderPenalty.revise
+        <magsoro.mpm.static_contact.ColliderPenalty.revise>`: not taken between bodies (their contact planes move
+        with both bodies); always None, the set changing at accepted iterates only."""
+        return None
+
     def step_limit(self, u_nodes: np.ndarray, step: np.ndarray) -> float:
         """The largest fraction (<= 1) of ``step`` after which no contact is deeper than STEP_DEPTH cells (or than
         the deepest one at ``u_nodes``, if that is deeper)."""

@@ -92,6 +92,9 @@ STALL_FACTOR = 0.5
 #: once a converged state has released points that pull (a body lifting off a collider), points that pull leave the
 #: active set after every accepted Newton iterate of that solve, not only at converged states
 PEEL = True
+#: the contacts' active set is settled on each Newton iteration's linearised problem in at most this many rounds
+#: (StaticSolver._settle_contacts; 0: the set changes at accepted iterates only)
+ACTIVE_SET_ROUNDS = 30
 #: arc-length continuation (StaticSolver._arc_length), taken where load increments fail (a limit point): at most
 #: ARC_STEPS steps along the equilibrium path; the first step's load change is ARC_FIRST of the way left; a step
 #: grows by ARC_GROW (up to ARC_LONGEST times the first) after a corrector that converged within 4 iterations
@@ -1158,6 +1161,8 @@ class StaticSolver:
             else:
                 du = self._solve_linear(lin, u_nodes, r, field_level, gravity_level)
             self._count_linear(lin, before)
+            if self.contact is not None and ACTIVE_SET_ROUNDS and self.solver.interaction is None:
+                du, r, lin = self._settle_contacts(u_nodes, J, r, du, lin, rtol)
             step = self._expand(du)
             # Non-monotone line search: the full step may raise |R| for an iteration (the nodes at the bodies'
             # edges carry little stiffness, and their forces answer the first step nonlinearly), after which
@@ -1205,6 +1210,29 @@ class StaticSolver:
             else:
                 return u_nodes, False, it + 1, norm, "the line search found no step that lowers the residual"
         return u_nodes, False, self.max_iterations, norm, f"no convergence in {self.max_iterations} Newton iterations"
+
+    def _settle_contacts(self, u_nodes, J, r, du, lin, rtol):
+        """The contacts' active set settled on the linearised problem before a Newton step is taken (rounds of
+        :meth:`Contacts.revise <magsoro.mpm.static_contact.Contacts.revise>`, at most ACTIVE_SET_ROUNDS): points
+        the step ``du`` would lift leave, points it would push into a collider join, and the step is solved again
+        with the tangent ``J`` and residual ``r`` changed by their springs, until the set stays. Returns the
+        step, the residual and the linear solver of the last round."""
+        for _ in range(ACTIVE_SET_ROUNDS):
+            change = self.contact.revise(u_nodes, self._expand(du), self.free)
+            if change is None:
+                break
+            df, dJ = change
+            r = r + self._reduce(df)
+            J = (J + self.E.T @ dJ @ self.E).tocsc()
+            self._last_tangent = J
+            try:
+                lin = self._linear_solver(J, u_nodes)
+            except RuntimeError:  # singular with the new set: keep the last round's step
+                break
+            before = (lin.total_iterations, lin.solves, lin.fallbacks)
+            du = lin.solve(-r, rtol=rtol, x0=du)
+            self._count_linear(lin, before)
+        return du, r, lin
 
     def _linear_solver(self, J, u_nodes=None, reuse: bool = True):
         """The LinearSolver (magsoro.mpm.linear) of the tangent ``J`` at ``u_nodes`` (node displacements; default

@@ -172,6 +172,7 @@ class ColliderPenalty:
         self.penetration = 0.0
         self._last_x = self.X.copy()  # the nodes' contact positions at the last accepted increment
         self.reaction = np.zeros((len(self.colliders), 3))  # of the last forces() evaluation
+        self._revision = None  # revise(): per collider, point -> (force, block) of the linearised set
 
     # -- geometry ---------------------------------------------------------------------------------------------
     def positions(self, u_nodes: np.ndarray) -> np.ndarray:
@@ -275,7 +276,8 @@ class ColliderPenalty:
                 self.sticking[ci] = {int(node): bool(s) for node, s in zip(act, stuck)}
             f[act] += force
             self.reaction[ci, : self.dim] = -force.sum(axis=0)
-            self._active.append((act, blocks))
+            self._active.append((act, blocks, force))
+        self._revision = None  # a new state: revise() starts from this evaluation's contacts
         return self.W.T @ f
 
     def begin(self) -> None:
@@ -318,13 +320,75 @@ class ColliderPenalty:
     def tangent(self, free: np.ndarray) -> sparse.csc_matrix:
         """d(W^T f)/du on the free DOFs (n_free dim square), from the last :meth:`forces` evaluation:
         -W^T K_c W with K_c the contact springs' block-diagonal stiffness."""
+        return self._springs([e[:2] for e in self._active if e is not None], free)
+
+    def revise(self, u_nodes: np.ndarray, step: np.ndarray, free: np.ndarray):
+        """One round of the active set on the linearised problem (a primal-dual active set step within a Newton
+        iteration): ``step`` (n_nodes, dim) solves the Newton system with the contact springs of the last round
+        (at first those of the last :meth:`forces` evaluation, at ``u_nodes``). Points of the set that the step
+        would lift by more than RELEASE cells off their level leave it; points outside it that the step would
+        take past their level join it, with their normal spring linearised at ``u_nodes`` (force k gap n, pulling
+        while they are above the level; a friction collider adds the reaching point's mu k tangential stiffness).
+        Sticky colliders keep their set. The held set follows, so the next :meth:`forces` evaluation uses it.
+
+        Returns None when no point changes, else (the change of the node forces W^T f (n_nodes, dim), the change of
+        the tangent on the free DOFs, as :meth:`tangent`). Without it a body lifting off a collider loses one
+        ring of contacts per Newton iteration, and the points released step back into the collider at the next
+        iterate (measured on the pentahedron's first field level: 37 iterations, the held count swinging by 100
+        to 300 points at each)."""
+        if self._revision is None:
+            self._revision = [None if e is None else {int(p): (fr, b) for p, b, fr in zip(*e)} for e in self._active]
+        x_now = self.positions(u_nodes)
+        x_new = x_now + self.W @ step
+        df = np.zeros_like(x_now)
+        changes = []
+        for ci, c in enumerate(self.colliders):
+            mode = c.mode_code
+            if mode == ColliderMode.STICKY:
+                continue
+            current = self._revision[ci] if self._revision[ci] is not None else {}
+            nodes = self.touchable
+            predicted = self.level[ci] - self.distance(c, x_new[nodes])  # > 0: past the level after the step
+            leaving = np.array([p for p in current if predicted[np.searchsorted(nodes, p)] < -RELEASE * self.dx],
+                               dtype=np.int64)
+            joining = nodes[predicted > self.touch]
+            joining = joining[~np.isin(joining, np.fromiter(current, np.int64, len(current)))]
+            if len(leaving) == 0 and len(joining) == 0:
+                continue
+            points, blocks = [], []
+            for p in leaving.tolist():
+                fr, b = current.pop(p)
+                df[p] -= fr
+                points.append(p)
+                blocks.append(-b)
+            if len(joining):
+                sel = np.searchsorted(nodes, joining)
+                ph, n = self.signed_distance(c, x_now[joining])
+                kc = self.k[joining]
+                force = (kc * (self.level[ci][sel] - ph))[:, None] * n
+                block = kc[:, None, None] * np.einsum("pi,pj->pij", n, n)
+                if mode == ColliderMode.FRICTION:
+                    Pt = np.eye(self.dim)[None] - np.einsum("pi,pj->pij", n, n)
+                    mu = np.broadcast_to(np.asarray(c.friction, dtype=np.float64), kc.shape)
+                    block = block + (mu * kc)[:, None, None] * Pt
+                for p, fr, b in zip(joining.tolist(), force, block):
+                    current[p] = (fr, b)
+                df[joining] += force
+                points.extend(joining.tolist())
+                blocks.extend(block)
+            self._revision[ci] = current
+            self.held[ci] = np.union1d(np.setdiff1d(self.held[ci], leaving), joining)
+            changes.append((np.asarray(points, dtype=np.int64), np.asarray(blocks)))
+        if not changes:
+            return None
+        return self.W.T @ df, self._springs(changes, free)
+
+    def _springs(self, entries, free: np.ndarray) -> sparse.csc_matrix:
+        """-W^T K W on the free DOFs of the springs ``entries``: (points, blocks (P, dim, dim)) pairs."""
         dim = self.dim
         n_nodes = self.W.shape[0]
         rows, cols, vals = [], [], []
-        for entry in self._active:
-            if entry is None:
-                continue
-            act, blocks = entry
+        for act, blocks in entries:
             for a in range(dim):
                 for b in range(dim):
                     rows.append(act * dim + a)
@@ -408,6 +472,13 @@ class Contacts:
 
     def step_limit(self, u_nodes, step) -> float:
         return min(p.step_limit(u_nodes, step) for p in self.parts)
+
+    def revise(self, u_nodes, step, free):
+        """The parts' :meth:`ColliderPenalty.revise` rounds added up (None when none changes)."""
+        changes = [c for c in (p.revise(u_nodes, step, free) for p in self.parts) if c is not None]
+        if not changes:
+            return None
+        return sum(c[0] for c in changes), sum(c[1] for c in changes)
 
     def signature(self) -> tuple:
         return tuple(s for p in self.parts for s in p.signature())
