@@ -622,12 +622,13 @@ class IterativeSolver(LinearSolver):
         expected = self.first_rate * self.last_digits
         return self.iterations > max(REBUILD_GROWTH * expected, expected + REBUILD_MIN)
 
-    def solve(self, b, rtol=None, x0=None):
+    def solve(self, b, rtol=None, x0=None, fallback: bool = True):
         """x with |J x - b| <= rtol |b| (default the solver's rtol): preconditioned CG where J is symmetric, GMRES
         where it is not or where CG meets negative curvature (an indefinite tangent: Newton's iterates far from
         the equilibrium, a compressed beam; measured on the 3D cantilever's third iterate, three negative
         eigenvalues), and the direct solver where the Krylov method misses the tolerance within MAX_KRYLOV
-        iterations (counted in ``fallbacks``, the reason in ``message``)."""
+        iterations (counted in ``fallbacks``, the reason in ``message``); without ``fallback`` the Krylov method's
+        answer is returned as it is, ``failed`` set."""
         t0 = time.perf_counter()
         rtol = self.rtol if rtol is None else max(float(rtol), RTOL_FLOOR)
         b = np.asarray(b, dtype=np.float64).ravel()
@@ -655,7 +656,7 @@ class IterativeSolver(LinearSolver):
             self.first_rate = self.iterations / self.last_digits
         achieved = float(np.linalg.norm(rhs - self.A @ x)) / size if np.all(np.isfinite(x)) else float("inf")
         self.failed = not achieved <= 1.01 * rtol
-        if self.failed:
+        if self.failed and fallback:
             self.message = (f"{method} with the multigrid preconditioner reached a relative residual of {achieved:.2e} "
                             f"in {self.iterations} iterations against {rtol:.1e}; solved directly instead")
             self.fallbacks += 1

@@ -95,6 +95,9 @@ PEEL = True
 #: the contacts' active set is settled on each Newton iteration's linearised problem in at most this many rounds
 #: (StaticSolver._settle_contacts; 0: the set changes at accepted iterates only)
 ACTIVE_SET_ROUNDS = 30
+#: an iterative linear solver's relative tolerance in those rounds (they decide the set; the step that is taken is
+#: solved to the Newton iteration's own tolerance)
+ROUND_RTOL = 1.0e-2
 #: arc-length continuation (StaticSolver._arc_length), taken where load increments fail (a limit point): at most
 #: ARC_STEPS steps along the equilibrium path; the first step's load change is ARC_FIRST of the way left; a step
 #: grows by ARC_GROW (up to ARC_LONGEST times the first) after a corrector that converged within 4 iterations
@@ -1215,12 +1218,16 @@ class StaticSolver:
         """The contacts' active set settled on the linearised problem before a Newton step is taken (rounds of
         :meth:`Contacts.revise <magsoro.mpm.static_contact.Contacts.revise>`, at most ACTIVE_SET_ROUNDS): points
         the step ``du`` would lift leave, points it would push into a collider join, and the step is solved again
-        with the tangent ``J`` and residual ``r`` changed by their springs, until the set stays. Returns the
-        step, the residual and the linear solver of the last round."""
+        with the tangent ``J`` and residual ``r`` changed by their springs, until the set stays. An iterative
+        solver solves the rounds to ROUND_RTOL (they only decide the set), on a new hierarchy where the last one
+        no longer serves (never the direct fallback); the last step is then solved to ``rtol``. Returns the step, the residual and the
+        linear solver of the last round."""
+        changed = False
         for _ in range(ACTIVE_SET_ROUNDS):
             change = self.contact.revise(u_nodes, self._expand(du), self.free)
             if change is None:
                 break
+            changed = True
             df, dJ = change
             r = r + self._reduce(df)
             J = (J + self.E.T @ dJ @ self.E).tocsc()
@@ -1229,6 +1236,19 @@ class StaticSolver:
                 lin = self._linear_solver(J, u_nodes)
             except RuntimeError:  # singular with the new set: keep the last round's step
                 break
+            before = (lin.total_iterations, lin.solves, lin.fallbacks)
+            if isinstance(lin, IterativeSolver):
+                trial = lin.solve(-r, rtol=max(rtol, ROUND_RTOL), x0=du, fallback=False)
+                if lin.failed:  # the set changed the tangent too much for the hierarchy: a new one, not the LU
+                    self._count_linear(lin, before)
+                    lin = self._linear_solver(J, u_nodes, reuse=False)
+                    before = (lin.total_iterations, lin.solves, lin.fallbacks)
+                    trial = lin.solve(-r, rtol=max(rtol, ROUND_RTOL), x0=du)
+                du = trial
+            else:
+                du = lin.solve(-r)
+            self._count_linear(lin, before)
+        if changed and isinstance(lin, IterativeSolver) and rtol < ROUND_RTOL:
             before = (lin.total_iterations, lin.solves, lin.fallbacks)
             du = lin.solve(-r, rtol=rtol, x0=du)
             self._count_linear(lin, before)

@@ -329,7 +329,8 @@ class ColliderPenalty:
         would lift by more than RELEASE cells off their level leave it; points outside it that the step would
         take past their level join it, with their normal spring linearised at ``u_nodes`` (force k gap n, pulling
         while they are above the level; a friction collider adds the reaching point's mu k tangential stiffness).
-        Sticky colliders keep their set. The held set follows, so the next :meth:`forces` evaluation uses it.
+        Sticky colliders keep their set. The points that leave leave the held set too; the ones that join do not
+        join it (they join where they touch after the step: held far off the collider, a point would pull on it).
 
         Returns None when no point changes, else (the change of the node forces W^T f (n_nodes, dim), the change of
         the tangent on the free DOFs, as :meth:`tangent`). Without it a body lifting off a collider loses one
@@ -377,7 +378,7 @@ class ColliderPenalty:
                 points.extend(joining.tolist())
                 blocks.extend(block)
             self._revision[ci] = current
-            self.held[ci] = np.union1d(np.setdiff1d(self.held[ci], leaving), joining)
+            self.held[ci] = np.setdiff1d(self.held[ci], leaving)
             changes.append((np.asarray(points, dtype=np.int64), np.asarray(blocks)))
         if not changes:
             return None
