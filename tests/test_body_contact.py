@@ -222,3 +222,53 @@ def test_stacked_blocks_in_3d():
     probes = sim.probe_values()
     assert probes["f01_Fz"] == pytest.approx(weights[1], rel=1e-9)
     assert probes["floor_Fz"] == pytest.approx(-sum(weights), rel=1e-9)
+
+
+def _peel_on_slab_scene(dx: float) -> dict:
+    """The peeling strip of tests/test_static_contact.py (20 x 1 mm, Br = 0.1 T along it, B = 0.5 mT up, clamped at
+    its left end) lying on an elastic slab 100 times stiffer (bottom half clamped) instead of a collider; the slab
+    starts 3 mm along, so the clamp does not touch it."""
+    return {"simulation": {"dim": 2, "dx": dx, "domain_lo": [-0.004, -0.004], "domain_hi": [0.026, 0.012],
+                           "duration": 0.01, "gravity": [0.0, -G_EARTH], "precision": "float64", "formulation": "total",
+                           "depth": 1e-3},
+            "bodies": [{"name": "strip", "shape": {"type": "rectangle", "center": [0.01, 0.0005], "size": [0.02, 0.001]},
+                        "material": {"density": 1000.0, "shear_modulus": 3e4}, "magnetization": [0.1, 0.0, 0.0]},
+                       {"name": "slab", "shape": {"type": "rectangle", "center": [0.0135, -0.001], "size": [0.021, 0.002]},
+                        "material": {"density": 1000.0, "shear_modulus": 3e6}}],
+            "contact": {"friction": 0.5},
+            "clamps": [{"region": {"type": "rectangle", "center": [0.0, 0.0005], "size": [0.002, 0.002]}, "body": "strip"},
+                       {"region": {"type": "rectangle", "center": [0.0135, -0.0015], "size": [0.03, 0.001]}, "body": "slab"}],
+            "fields": [{"type": "uniform", "B": [0.0, 5e-4, 0.0]}],
+            "output": {"particles": False}}
+
+
+@pytest.mark.parametrize("dx", [5e-4, 2.5e-4])
+def test_strip_peels_off_a_stiff_body_as_off_a_collider(dx, monkeypatch):
+    """Free separation between bodies: the strip lifts off the stiff slab as it does off a rigid floor. Its end
+    rises (2/3) c^4 / (q^3 EI) by beam theory (tests/test_static_contact.py); measured +5.3 % at 2 cells through the
+    strip and +0.67 % at 4, the collider's figures to 1e-4. Before the contact's modulus was the softer body's, the
+    slab's stiff penalty held the strip down (a rise of 0.2 um against 0.19 mm). Each Newton iteration settles the
+    contact set on its linearised problem: 5 and 7 iterations; without that, 87 iterations in 2 load increments at
+    2 cells, and no convergence at 4."""
+    import magsoro.mpm.static as static
+
+    sim = Simulation(parse_scene(_peel_on_slab_scene(dx)))
+    res = sim.solve_static(levels=[1.0])
+    assert res.converged, res.message
+    assert res.levels[0].iterations <= 12
+    X0, body = sim.model.host["positions"], sim.model.host["body"]
+    end = (body == 0) & (X0[:, 0] > X0[body == 0, 0].max() - 1e-9)
+    rise = float((sim.state.x.numpy()[end, 1] - X0[end, 1]).mean())
+    B, Br, t, G = 5e-4, 0.1, 1e-3, 3e4
+    K = 20.0 * G
+    nu = (3 * K - 2 * G) / (2 * (3 * K + G))
+    EI = 2 * G * (1 + nu) / (1 - nu**2) * t**3 / 12
+    c, q = Br * B * t / (4e-7 * math.pi), 1000.0 * G_EARTH * t
+    closed = 2.0 / 3.0 * c**4 / (q**3 * EI)
+    assert rise == pytest.approx(closed, rel=0.02 if dx < 4e-4 else 0.07)
+    if dx > 4e-4:  # the rounds' saving, at the resolution where the solver also converges without them
+        monkeypatch.setattr(static, "ACTIVE_SET_ROUNDS", 0)
+        plain = Simulation(parse_scene(_peel_on_slab_scene(dx)))
+        res0 = plain.solve_static(levels=[1.0])
+        assert res0.converged, res0.message
+        assert 4 * res.levels[0].iterations < res0.levels[0].iterations

@@ -28,10 +28,14 @@ lies within half a spacing of a master's tangential position to nothing a whole 
 Normal law. A contact in the active set pushes p along n and the q's back with f_n = k (-g), k the colliders'
 per-particle penalty (PENALTY (K + 4G/3) / dx h^(dim-1), 2D times the depth) halved: every face is both slave (its
 particles pressed on the other's plane) and master (its plane pressed on by the other's particles), so a flat
-contact carries the colliders' stiffness per unit area. The penetration at equilibrium is p / (PENALTY (K + 4G/3))
-cells for a contact pressure p, as for the colliders. The active set is theirs: a contact joins when it touches,
-stays through a Newton solve even if it pulls, and leaves at a converged state where it pulls (RELEASE); so the
-law within a solve is a fixed spring and the tangent is exact, n and the weights held (Gauss-Newton).
+contact carries the colliders' stiffness per unit area. K + 4G/3 is the softer group's of the two in contact (its
+smallest over its particles): with the stiffest material's, a soft strip lying on a body 100 times stiffer could
+not lift off (a held contact leaves once it pulls by RELEASE cells, and that gap cost the stiff spring a hundred
+times the strip's weight). The penetration at equilibrium is p / (PENALTY (K + 4G/3)) cells of the softer body for
+a contact pressure p. The active set is the colliders': a contact joins when it touches, stays through a Newton
+solve even if it pulls, and leaves at a converged state where it pulls (RELEASE); so the law within a solve is a
+fixed spring and the tangent is exact, n and the weights held (Gauss-Newton). Each Newton iteration of the static
+solver first settles the set on its linearised problem (:meth:`BodyContact.revise`).
 
 Friction. The colliders' regularised Coulomb law on the relative motion: d = e + (x_p - x_p') - sum w_q (x_q - x_q')
 / sum w_q, with x' the positions at the last accepted increment (or time step) and e the elastic slip carried from
@@ -121,8 +125,11 @@ class BodyContact:
         self.surface, self.N = surf[keep], normals[keep]
         self.radius = 0.5 * spacing
         self.reach = MASTER_REACH * float(np.max(spacing))
-        p_wave = float(np.max(h["bulk_modulus"] + 4.0 / 3.0 * h["shear_modulus"]))
-        self.k = 0.5 * PENALTY * p_wave / self.dx * spacing ** (self.dim - 1) * thickness
+        # the penalty per unit P-wave modulus; a contact's modulus is the softer of its two groups' (pair_wave)
+        self.k = 0.5 * PENALTY / self.dx * spacing ** (self.dim - 1) * thickness
+        wave = np.asarray(h["bulk_modulus"], dtype=np.float64) + 4.0 / 3.0 * np.asarray(h["shear_modulus"], dtype=np.float64)
+        softest = np.array([wave[self.group == g].min() for g in range(self.n_groups)])
+        self.pair_wave = np.minimum(softest[:, None], softest[None, :])
         self.slip = SLIP_CELLS * self.dx
         self.touch = TOUCH_CELLS * self.dx
         self.P = static.interpolation()
@@ -138,6 +145,7 @@ class BodyContact:
         self._fn_lag = {}
         self.elastic = {}  # contact key (slave particle * groups + master group) -> elastic slip e (dim)
         self.held = np.zeros(0, np.int64)  # the active set's keys during a Newton solve
+        self._revision = None  # revise(): the linearised contacts of this Newton iteration
         self._held_accepted = self.held.copy()
         self.touching = np.zeros(0, np.int64)
         self._last = None  # the last evaluation's contacts (a dict of arrays)
@@ -290,6 +298,12 @@ class BodyContact:
                   x=x, F=F, m=m)
         return cs
 
+    def _stiffness(self, cs: dict) -> np.ndarray:
+        """Each contact's normal spring (N/m): the penalty per unit modulus of its slave, times the P-wave modulus
+        of the softer of the two groups it joins, times its coverage."""
+        slave = cs["slave"]
+        return self.k[slave] * self.pair_wave[self.group[slave], cs["keys"] % self.n_groups] * cs["cover"]
+
     def _gap_gradient(self, cs: dict) -> sparse.csr_matrix:
         """d gap / du for each contact of ``cs`` (n_contacts x n_nodes dim, sparse): the slave's and the patch's
         motion along n, and the turn of n with the masters' F (n = S / |S|, S = sum w F_q^-T N_q:
@@ -332,6 +346,7 @@ class BodyContact:
         dim = self.dim
         n_slots = self.P.shape[1]
         cs = self._contacts(u_nodes, self.held)
+        self._revision = None  # a new state: revise() starts from this evaluation's contacts
         self.pair_force = np.zeros((self.n_groups, self.n_groups, 3))
         self._last = cs
         self.penetration = 0.0
@@ -342,7 +357,7 @@ class BodyContact:
         keys, slave, gap, n = cs["keys"], cs["slave"], cs["gap"], cs["normal"]
         m_row, m_idx, m_w, x = cs["row"], self.surface[cs["master"]], cs["weight"], cs["x"]
         self.penetration = float(np.max(-gap[cs["cover"] > 0.0], initial=0.0))
-        kc = self.k[slave] * cs["cover"]  # a slave near the other body's edge: a spring that fades off it
+        kc = self._stiffness(cs)  # a slave near the other body's edge: a spring that fades off it
         fn_signed = kc * (-gap)  # > 0 pressing; < 0 on a held contact that pulls until released
         G, C = self._gap_gradient(cs)
         f_nodes = (G.T @ fn_signed).reshape(n_slots, dim)
@@ -384,6 +399,7 @@ class BodyContact:
             np.add.at(self.pair_force[:, :, k], (gm, gs), total[:, k])
             np.add.at(self.pair_force[:, :, k], (gs, gm), -total[:, k])
         self._tangent_parts = (G, kc, (C @ self.P).tocsr(), blocks)
+        self._friction_force = force
         return f_nodes + self.P.T @ fp
 
     def tangent(self, free: np.ndarray) -> sparse.csc_matrix:
@@ -430,10 +446,61 @@ class BodyContact:
         return False
 
     def revise(self, u_nodes: np.ndarray, step: np.ndarray, free: np.ndarray):
-        """The linearised active-set round of :meth:`ColliderPenalty.revise
-        <magsoro.mpm.static_contact.ColliderPenalty.revise>`: not taken between bodies (their contact planes move
-        with both bodies); always None, the set changing at accepted iterates only."""
-        return None
+        """One round of the active set on the linearised problem, as :meth:`ColliderPenalty.revise
+        <magsoro.mpm.static_contact.ColliderPenalty.revise>` does for the colliders: with the gaps linear in the
+        step, g + G step (:meth:`_gap_gradient` at ``u_nodes``, the last :meth:`forces` evaluation), contacts of the
+        set that ``step`` (n_slots, dim) would open by more than RELEASE cells leave it, and contacts of this
+        solve's patches that it would close join it (their spring linearised at ``u_nodes``, friction's tangent
+        that of a contact reaching its level). Contacts whose patch is not yet known (a particle that has never
+        come near the other body in this solve) join at accepted iterates, as before.
+
+        Returns None when no contact changes, else (the change of the slots' forces (n_slots, dim), the change
+        of the tangent on the free slots' DOFs)."""
+        if self._revision is None:
+            if self.patches is None or len(self.patches["keys"]) == 0:
+                return None
+            cs = self._contacts(u_nodes, self.patches["keys"], record=False)
+            if cs is None:
+                return None
+            keys, slave = cs["keys"], cs["slave"]
+            kc = self._stiffness(cs)
+            G, C = self._gap_gradient(cs)
+            n = cs["normal"]
+            force = np.zeros((len(keys), self.dim))
+            blocks = np.zeros((len(keys), self.dim, self.dim))
+            mu = self.mu_table[self.group[slave], keys % self.n_groups]
+            blocks += (mu * kc)[:, None, None] * (np.eye(self.dim)[None] - np.einsum("pi,pj->pij", n, n))
+            last = self._last
+            current = np.zeros(len(keys), bool)
+            if last is not None:  # the evaluated contacts keep their friction force and stiffness
+                where = np.searchsorted(keys, last["keys"])
+                current[where] = True
+                _, _, _, last_blocks = self._tangent_parts
+                blocks[where] = last_blocks
+                force[where] = self._friction_force
+            self._revision = dict(keys=keys, gap=cs["gap"], cover=cs["cover"], kc=kc, G=G.tocsr(),
+                                  B=(C @ self.P).tocsr(), force=force, blocks=blocks, current=current)
+        rev = self._revision
+        predicted = rev["gap"] + rev["G"] @ np.asarray(step).ravel()
+        leaving = rev["current"] & (predicted > RELEASE * self.dx)
+        joining = ~rev["current"] & (predicted < -self.touch) & (rev["cover"] > 0.0)
+        if not leaving.any() and not joining.any():
+            return None
+        sign = np.where(joining, 1.0, 0.0) - np.where(leaving, 1.0, 0.0)
+        dim, n_slots = self.dim, self.P.shape[1]
+        G, B = rev["G"], rev["B"]
+        fn = rev["kc"] * (-rev["gap"]) * sign
+        df = (G.T @ fn).reshape(n_slots, dim) + (B.T @ (rev["force"] * sign[:, None]))
+        dofs = (free[:, None] * dim + np.arange(dim)[None, :]).ravel()
+        Gf, Bf = G[:, dofs], B[:, free]
+        dJ = -(Gf.T @ sparse.diags(rev["kc"] * sign) @ Gf)
+        for a in range(dim):
+            for b in range(dim):
+                part = -(Bf.T @ sparse.diags(rev["blocks"][:, a, b] * sign) @ Bf)
+                dJ = dJ + sparse.kron(part, sparse.csr_matrix(([1.0], ([a], [b])), shape=(dim, dim)), format="csc")
+        rev["current"] = (rev["current"] & ~leaving) | joining
+        self.held = np.setdiff1d(self.held, rev["keys"][leaving])  # joining ones join where they touch
+        return df, dJ.tocsc()
 
     def step_limit(self, u_nodes: np.ndarray, step: np.ndarray) -> float:
         """The largest fraction (<= 1) of ``step`` after which no contact is deeper than STEP_DEPTH cells (or than
@@ -464,7 +531,7 @@ class BodyContact:
         self.elastic = new
         self._fn_lag = {}
         if self._last is not None:
-            fn_now = np.maximum(self.k[self._last["slave"]] * self._last["cover"] * (-self._last["gap"]), 0.0)
+            fn_now = np.maximum(self._stiffness(self._last) * (-self._last["gap"]), 0.0)
             self._fn_lag = dict(zip(self._last["keys"][self._last["touching"]].tolist(), fn_now[self._last["touching"]].tolist()))
         self._x_last = self.X + self.P @ u_nodes
         self._held_accepted = self.held.copy()
