@@ -39,7 +39,7 @@ def scene(plate: bool, modulus: float, thickness: float):
     names = [b["name"] for b in data["bodies"]]
     data["colliders"] = []
     data["bodies"].append({"name": "plate", "shape": {"type": "box", "center": [0.0, 0.0, -thickness / 2],
-                                                      "size": [0.026, 0.026, thickness]},
+                                                      "size": [0.025, 0.025, thickness]},
                            "material": {"density": 1100.0, "shear_modulus": modulus}})
     data["clamps"] = list(data.get("clamps", [])) + [{"region": {"type": "box", "center": [0.0, 0.0, -thickness],
                                                                  "size": [0.028, 0.028, 0.001]}, "body": "plate"}]
