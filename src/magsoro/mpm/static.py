@@ -98,6 +98,10 @@ ACTIVE_SET_ROUNDS = 30
 #: an iterative linear solver's relative tolerance in those rounds (they decide the set; the step that is taken is
 #: solved to the Newton iteration's own tolerance)
 ROUND_RTOL = 1.0e-2
+#: and a step whose contact set those rounds changed moves no node more than this many cells (MAX_STEP otherwise): the
+#: linearised step of a flap that has just let go of a collider (the hexahedron's walls, held by their hinges only)
+#: was 14.7 cells long, and its |R| rose from 0.03 to 7 N
+ROUND_STEP = 2.0
 #: arc-length continuation (StaticSolver._arc_length), taken where load increments fail (a limit point): at most
 #: ARC_STEPS steps along the equilibrium path; the first step's load change is ARC_FIRST of the way left; a step
 #: grows by ARC_GROW (up to ARC_LONGEST times the first) after a corrector that converged within 4 iterations
@@ -1164,8 +1168,9 @@ class StaticSolver:
             else:
                 du = self._solve_linear(lin, u_nodes, r, field_level, gravity_level)
             self._count_linear(lin, before)
+            settled = False
             if self.contact is not None and ACTIVE_SET_ROUNDS and self.solver.interaction is None:
-                du, r, lin = self._settle_contacts(u_nodes, J, r, du, lin, rtol)
+                du, r, lin, settled = self._settle_contacts(u_nodes, J, r, du, lin, rtol)
             step = self._expand(du)
             # Non-monotone line search: the full step may raise |R| for an iteration (the nodes at the bodies'
             # edges carry little stiffness, and their forces answer the first step nonlinearly), after which
@@ -1177,7 +1182,8 @@ class StaticSolver:
             # a trust region: no node moves more than MAX_STEP cells in one step (a slender body's linearised
             # step from the straight state can be many times its length)
             biggest = float(np.abs(step).max()) if step.size else 0.0
-            alpha = min(1.0, MAX_STEP * self.model.dx / biggest) if biggest > 0.0 else 1.0
+            longest = ROUND_STEP if settled else MAX_STEP
+            alpha = min(1.0, longest * self.model.dx / biggest) if biggest > 0.0 else 1.0
             if self.contact is not None:
                 alpha = min(alpha, self.contact.step_limit(u_nodes, alpha * step) * alpha)
             first = alpha
@@ -1220,8 +1226,9 @@ class StaticSolver:
         the step ``du`` would lift leave, points it would push into a collider join, and the step is solved again
         with the tangent ``J`` and residual ``r`` changed by their springs, until the set stays. An iterative
         solver solves the rounds to ROUND_RTOL (they only decide the set), on a new hierarchy where the last one
-        no longer serves (never the direct fallback); the last step is then solved to ``rtol``. Returns the step, the residual and the
-        linear solver of the last round."""
+        no longer serves (never the direct fallback); the last step is then solved to ``rtol``. Returns the step,
+        the residual, the linear solver of the last round and whether the set changed (the step is then held to
+        ROUND_STEP cells)."""
         changed = False
         for _ in range(ACTIVE_SET_ROUNDS):
             change = self.contact.revise(u_nodes, self._expand(du), self.free)
@@ -1252,7 +1259,7 @@ class StaticSolver:
             before = (lin.total_iterations, lin.solves, lin.fallbacks)
             du = lin.solve(-r, rtol=rtol, x0=du)
             self._count_linear(lin, before)
-        return du, r, lin
+        return du, r, lin, changed
 
     def _linear_solver(self, J, u_nodes=None, reuse: bool = True):
         """The LinearSolver (magsoro.mpm.linear) of the tangent ``J`` at ``u_nodes`` (node displacements; default
