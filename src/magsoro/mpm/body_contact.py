@@ -410,7 +410,12 @@ class BodyContact:
         n_free = len(free) * dim
         if self._last is None:
             return sparse.csc_matrix((n_free, n_free))
-        G, kc, B, blocks = self._tangent_parts
+        return self._springs(*self._tangent_parts, free)
+
+    def _springs(self, G, kc, B, blocks, free: np.ndarray) -> sparse.csc_matrix:
+        """-sum_c k_c g_c' g_c'^T - B_c^T K_c B_c on the free slots' DOFs: the normal springs ``kc`` on the gap
+        gradients ``G`` and the friction blocks ``blocks`` (C, dim, dim) on the relative positions ``B``."""
+        dim = self.dim
         dofs = (free[:, None] * dim + np.arange(dim)[None, :]).ravel()
         Gf = G[:, dofs]
         out = -(Gf.T @ sparse.diags(kc) @ Gf)
@@ -491,16 +496,10 @@ class BodyContact:
         G, B = rev["G"], rev["B"]
         fn = rev["kc"] * (-rev["gap"]) * sign
         df = (G.T @ fn).reshape(n_slots, dim) + (B.T @ (rev["force"] * sign[:, None]))
-        dofs = (free[:, None] * dim + np.arange(dim)[None, :]).ravel()
-        Gf, Bf = G[:, dofs], B[:, free]
-        dJ = -(Gf.T @ sparse.diags(rev["kc"] * sign) @ Gf)
-        for a in range(dim):
-            for b in range(dim):
-                part = -(Bf.T @ sparse.diags(rev["blocks"][:, a, b] * sign) @ Bf)
-                dJ = dJ + sparse.kron(part, sparse.csr_matrix(([1.0], ([a], [b])), shape=(dim, dim)), format="csc")
+        dJ = self._springs(G, rev["kc"] * sign, B, rev["blocks"] * sign[:, None, None], free)
         rev["current"] = (rev["current"] & ~leaving) | joining
         self.held = np.setdiff1d(self.held, rev["keys"][leaving])  # joining ones join where they touch
-        return df, dJ.tocsc()
+        return df, dJ
 
     def step_limit(self, u_nodes: np.ndarray, step: np.ndarray) -> float:
         """The largest fraction (<= 1) of ``step`` after which no contact is deeper than STEP_DEPTH cells (or than
