@@ -28,7 +28,7 @@ import warp as wp
 
 from magsoro.errors import MagsoroError
 from magsoro.fields.device import accumulate_kernel, launch_accumulate
-from magsoro.mpm.colliders import COLLIDER_STRIDE, MODES, collider_table
+from magsoro.mpm.colliders import MODES, DeviceCollider, collider_records
 from magsoro.mpm.g2p import launch_g2p, launch_remap_F, launch_remap_node_velocity
 from magsoro.mpm.grid import launch_grid_update
 from magsoro.mpm.kernels import F_FROM_GRID, F_FROM_REMAP, make_kernels
@@ -250,14 +250,14 @@ class Rollout:
         # colliders: one table per step (moving colliders follow their paths)
         self.n_colliders = len(self.control.colliders)
         if self.n_colliders:
-            tables = np.array([collider_table(self.control.colliders, t) for t in times])
-            width = tables.shape[1]
-            self._collider_all = wp.array(tables.ravel(), dtype=wp.float64, device=dev)
+            records = np.concatenate([collider_records(self.control.colliders, t) for t in times])
+            width = self.n_colliders
+            self._collider_all = wp.array(records, dtype=DeviceCollider, device=dev)
             self._collider_views = [self._collider_all[i * width : (i + 1) * width] for i in range(self.n_steps)]
         else:
-            empty = wp.zeros(COLLIDER_STRIDE, dtype=wp.float64, device=dev)
+            empty = wp.zeros(1, dtype=DeviceCollider, device=dev)
             self._collider_views = [empty] * self.n_steps
-        # the grid update's settings per step (they differ only in the collider table)
+        # the grid update's settings per step (they differ only in the colliders' states)
         if self.n_colliders:
             self._grid_settings = [grid_settings(m, st, self._gravity, v, self.n_colliders, self.dt) for v in self._collider_views]
         else:

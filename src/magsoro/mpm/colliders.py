@@ -1,11 +1,11 @@
 """Rigid colliders: half-space, box, sphere, cylinder; sticky, slip, Coulomb-friction or (half-spaces) symmetry
 contact; optional prescribed motion (position keyframes, whose slope gives the collider velocity used in the contact law).
 
-The device sees a flat float64 table, one row of COLLIDER_STRIDE values per collider, laid out as
-:class:`magsoro.mpm.settings.ColliderRow` says: kind (:class:`~magsoro.mpm.settings.ColliderKind`), mode
-(:class:`~magsoro.mpm.settings.ColliderMode`), friction coefficient, position (m), rotation matrix local->world
-(row-major), size, velocity (m/s). Size: half-space -> outward unit normal; box -> half extents; sphere -> radius;
-cylinder -> radius, half length (axis = local z).
+The kernels see each collider at a time as a :class:`DeviceCollider` struct: kind
+(:class:`~magsoro.mpm.settings.ColliderKind`), mode (:class:`~magsoro.mpm.settings.ColliderMode`), friction
+coefficient, position (m), rotation matrix local->world, size, velocity (m/s). Size: half-space -> outward unit normal;
+box -> half extents; sphere -> radius; cylinder -> radius, half length (axis = local z). The host writes them as
+numpy records of the same layout (:func:`collider_records`).
 """
 
 import numpy as np
@@ -13,15 +13,10 @@ import warp as wp
 
 from magsoro.fields.profiles import Keyframes
 from magsoro.geometry.transforms import rotation_to_axis
-from magsoro.mpm.settings import COLLIDER_MODES, ColliderKind, ColliderMode, ColliderModeName, ColliderRow
-from magsoro.mpm.settings import COLLIDER_STRIDE as _STRIDE
+from magsoro.mpm.settings import COLLIDER_MODES, ColliderKind, ColliderMode, ColliderModeName
 
-# the table's layout and codes as the kernels' ints
-COLLIDER_STRIDE = wp.constant(_STRIDE)
+# the shapes' codes as the kernels' ints
 HALF_SPACE, BOX, SPHERE, CYLINDER = (wp.constant(int(k)) for k in ColliderKind)
-ROW_KIND, ROW_MODE, ROW_FRICTION = wp.constant(int(ColliderRow.KIND)), wp.constant(int(ColliderRow.MODE)), wp.constant(int(ColliderRow.FRICTION))
-ROW_POSITION, ROW_ROTATION = wp.constant(int(ColliderRow.POSITION)), wp.constant(int(ColliderRow.ROTATION))
-ROW_SIZE, ROW_VELOCITY = wp.constant(int(ColliderRow.SIZE)), wp.constant(int(ColliderRow.VELOCITY))
 #: kind name -> code, mode name -> code
 KINDS = {k.name.lower(): int(k) for k in ColliderKind}
 MODES = COLLIDER_MODES
@@ -29,6 +24,23 @@ MODES = COLLIDER_MODES
 #: ``walls``, which writes it as its literal): the builder keeps bodies out of that band, the static solver models
 #: or watches it, runs note a body that comes within its reach
 WALL_CELLS = 2
+
+
+@wp.struct
+class DeviceCollider:
+    """A collider as the kernels see it at one time."""
+
+    kind: wp.int32  # ColliderKind
+    mode: wp.int32  # ColliderMode
+    friction: wp.float64  # Coulomb coefficient
+    position: wp.vec3d  # m
+    rotation: wp.mat33d  # local -> world
+    size: wp.vec3d  # half-space outward unit normal; box half extents; sphere radius; cylinder radius, half length
+    velocity: wp.vec3d  # m/s (the slope of its path)
+
+
+#: the numpy record of a DeviceCollider (its fields and layout): what the host writes and copies to the device
+RECORD = DeviceCollider.numpy_dtype()
 
 
 @wp.func
@@ -57,19 +69,13 @@ def _box_sdf(q: wp.vec3d, h: wp.vec3d):
 
 
 @wp.func
-def collider_sdf(table: wp.array(dtype=wp.float64), c: int, p: wp.vec3d):
-    """Signed distance (m, negative inside), outward unit normal and surface velocity of collider c at p."""
-    row = c * COLLIDER_STRIDE
-    kind = int(table[row + ROW_KIND])
-    at, rot = row + ROW_POSITION, row + ROW_ROTATION
-    centre = wp.vec3d(table[at], table[at + 1], table[at + 2])
-    R = wp.mat33d(
-        table[rot], table[rot + 1], table[rot + 2],
-        table[rot + 3], table[rot + 4], table[rot + 5],
-        table[rot + 6], table[rot + 7], table[rot + 8],
-    )
-    size = wp.vec3d(table[row + ROW_SIZE], table[row + ROW_SIZE + 1], table[row + ROW_SIZE + 2])
-    vel = wp.vec3d(table[row + ROW_VELOCITY], table[row + ROW_VELOCITY + 1], table[row + ROW_VELOCITY + 2])
+def collider_sdf(col: DeviceCollider, p: wp.vec3d):
+    """Signed distance (m, negative inside), outward unit normal and surface velocity of the collider at p."""
+    kind = int(col.kind)
+    centre = col.position
+    R = col.rotation
+    size = col.size
+    vel = col.velocity
     zero = wp.float64(0.0)
     phi = zero
     n = wp.vec3d(zero, zero, zero)
@@ -173,17 +179,18 @@ class Collider:
         """Velocity (m/s, 3) at time ``t`` (s): the slope of its path (zero without one)."""
         return self.path.rate(t) if self.path is not None else np.zeros(3)
 
-    def row(self, t: float) -> np.ndarray:
-        """The collider's row of the device table at time ``t`` (s): :class:`magsoro.mpm.settings.ColliderRow`."""
-        r = np.zeros(COLLIDER_STRIDE)
-        r[ColliderRow.KIND] = KINDS[self.kind]
-        r[ColliderRow.MODE] = self.mode_code
-        r[ColliderRow.FRICTION] = self.friction
-        r[ColliderRow.POSITION : ColliderRow.POSITION + 3] = self.position_at(t)
+    def record(self, t: float) -> np.ndarray:
+        """The collider at time ``t`` (s) as the kernels see it: a numpy record of :class:`DeviceCollider`'s layout
+        (:data:`RECORD`)."""
+        r = np.zeros((), dtype=RECORD)
+        r["kind"] = KINDS[self.kind]
+        r["mode"] = self.mode_code
+        r["friction"] = self.friction
+        r["position"] = self.position_at(t)
         if self.path is not None:
-            r[ColliderRow.VELOCITY : ColliderRow.VELOCITY + 3] = self.velocity_at(t)
-        r[ColliderRow.ROTATION : ColliderRow.ROTATION + 9] = self.rotation.ravel()
-        r[ColliderRow.SIZE : ColliderRow.SIZE + 3] = self.size
+            r["velocity"] = self.velocity_at(t)
+        r["rotation"] = self.rotation
+        r["size"] = self.size
         return r
 
     def signed_distance(self, points, t: float = 0.0) -> np.ndarray:
@@ -201,7 +208,10 @@ class Collider:
         return np.linalg.norm(np.maximum(d, 0), axis=1) + np.minimum(d.max(axis=1), 0)
 
 
-def collider_table(colliders: list[Collider], t: float) -> np.ndarray:
+def collider_records(colliders: list[Collider], t: float) -> np.ndarray:
+    """The colliders at time ``t`` (s) as an array of :data:`RECORD` (a DeviceCollider each), ready for
+    ``wp.array(..., dtype=DeviceCollider)``; without colliders one zeroed record (the kernels' array is never empty,
+    and their collider count is 0)."""
     if not colliders:
-        return np.zeros(COLLIDER_STRIDE)
-    return np.concatenate([c.row(t) for c in colliders])
+        return np.zeros(1, dtype=RECORD)
+    return np.stack([c.record(t) for c in colliders])

@@ -5,6 +5,7 @@ import functools
 
 import warp as wp
 
+from magsoro.mpm.colliders import DeviceCollider
 from magsoro.mpm.settings import FUpdate
 from magsoro.mpm.stencil import make_stencil
 
@@ -202,13 +203,15 @@ def make_g2p(dim: int, scalar, two_fields: bool = False, differentiable: bool = 
         width: int,
         cursor: wp.array(dtype=wp.int32),
         step: wp.array(dtype=Step),
-        colliders: wp.array(dtype=wp.float64),
-        n_collider_values: int,
+        colliders: wp.array(dtype=DeviceCollider),
+        path: wp.array(dtype=DeviceCollider),
+        n_moving: int,
     ):
         """A step of a check window takes its values from row ``cursor[0]`` of the window's drive table (``width``
-        float64 per row: dt, the damping factor, the uniform field's 3 components, then ``n_collider_values`` of
-        the collider table at the step's time) into ``step[0]`` and ``colliders``, and moves the cursor on: every
-        step of a window is the same launch sequence, which a CUDA graph can capture once (one thread)."""
+        float64 per row: dt, the damping factor, the uniform field's 3 components) into ``step[0]``, and, where
+        colliders move (``n_moving`` of them: all the scene's), their states at the step's time from row
+        ``cursor[0]`` of ``path`` (``n_moving`` DeviceColliders per row) into ``colliders``; then moves the cursor
+        on: every step of a window is the same launch sequence, which a CUDA graph can capture once (one thread)."""
         row = cursor[0]
         base = row * width
         sv = Step()
@@ -216,8 +219,8 @@ def make_g2p(dim: int, scalar, two_fields: bool = False, differentiable: bool = 
         sv.damping_factor = scalar(table[base + 1])
         sv.B_uniform = v3(scalar(table[base + 2]), scalar(table[base + 3]), scalar(table[base + 4]))
         step[0] = sv
-        for i in range(n_collider_values):
-            colliders[i] = table[base + 5 + i]
+        for i in range(n_moving):
+            colliders[i] = path[row * n_moving + i]
         cursor[0] = row + 1
 
     @wp.kernel(enable_backward=False)
@@ -383,10 +386,11 @@ def launch_reset_reductions(kernels, *, bounds, max_speed, big, device, record=F
                      inputs=[bounds, max_speed, big])
 
 
-def launch_load_step(kernels, *, table, width, cursor, step, colliders, n_collider_values, device, record=False):
-    """``load_step`` (one thread): the drive table's next row into the Step and the collider table."""
+def launch_load_step(kernels, *, table, width, cursor, step, colliders, path, n_moving, device, record=False):
+    """``load_step`` (one thread): the drive table's next row into the Step, and the moving colliders' states at
+    that step from ``path`` into ``colliders``."""
     return wp.launch(kernels["load_step"], dim=1, device=device, record_cmd=record,
-                     inputs=[table, width, cursor, step, colliders, n_collider_values])
+                     inputs=[table, width, cursor, step, colliders, path, n_moving])
 
 
 def launch_load_params(kernels, n, *, table, width, cursor, offset, params, device, record=False):

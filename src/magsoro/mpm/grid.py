@@ -1,15 +1,14 @@
 """Grid kernels: node velocities from the scattered momenta (damping, gravity, domain walls, rigid colliders,
 contact between velocity fields), and the sum of the CPU threads' private grids.
 
-Colliders come as a flat float64 table, one row of ``COLLIDER_STRIDE`` values each (:mod:`magsoro.mpm.colliders`);
-the contact modes of colliders and walls are :class:`magsoro.mpm.settings.ColliderMode`'s codes.
+Colliders come as an array of :class:`magsoro.mpm.colliders.DeviceCollider` structs; the contact modes of colliders and walls are :class:`magsoro.mpm.settings.ColliderMode`'s codes.
 """
 
 import functools
 
 import warp as wp
 
-from magsoro.mpm.colliders import COLLIDER_STRIDE, ROW_FRICTION, ROW_MODE, collider_sdf
+from magsoro.mpm.colliders import DeviceCollider, collider_sdf
 from magsoro.mpm.contact import BODIES, SINGLE as SINGLE_FIELD, make_contact
 from magsoro.mpm.settings import ColliderMode
 from magsoro.mpm.stencil import make_stencil, make_types
@@ -27,8 +26,8 @@ def grid_settings_struct(dim: int, scalar):
     class GridSettings:
         """What the grid update applies to a node's free velocity: the step dt (s), the damping factor
         exp(-c dt) of f = -c p, gravity (m/s^2), the domain walls (box lo .. hi, m; contact mode and friction of
-        nodes within two cells of a wall), the grid spacing dx (m) and the rigid colliders (flat float64 table of
-        ``n_colliders`` rows, :mod:`magsoro.mpm.colliders`; ``plane_z``: the z of a 2D scene's plane, m).
+        nodes within two cells of a wall), the grid spacing dx (m) and the rigid colliders (``n_colliders``
+        DeviceCollider structs, :mod:`magsoro.mpm.colliders`; ``plane_z``: the z of a 2D scene's plane, m).
         ``node_shift`` = 1 (total Lagrangian): walls and colliders act at the nodes' current positions, the
         reference node plus the mass-weighted displacement of its particles (``node_displacement`` in
         :mod:`magsoro.mpm.p2g`), and a node is in contact with a collider from signed distance
@@ -46,7 +45,7 @@ def grid_settings_struct(dim: int, scalar):
         domain_hi: vec
         wall_mode: int
         wall_friction: scalar
-        colliders: wp.array(dtype=wp.float64)
+        colliders: wp.array(dtype=DeviceCollider)
         n_colliders: int
         plane_z: wp.float64
         node_shift: int
@@ -117,16 +116,16 @@ def make_grid(dim: int, scalar, two_fields: bool = False, differentiable: bool =
         if wp.static(dim == 3):
             p3 = wp.vec3d(wp.float64(pos[0]), wp.float64(pos[1]), wp.float64(pos[2]))
         for c in range(gs.n_colliders):
-            phi, nrm, cvel = collider_sdf(gs.colliders, c, p3)
-            row = c * COLLIDER_STRIDE
-            mode = int(gs.colliders[row + ROW_MODE])
+            col = gs.colliders[c]
+            phi, nrm, cvel = collider_sdf(col, p3)
+            mode = int(col.mode)
             skin = gs.collider_skin
             if mode == SYMMETRY:
                 # a mirror plane holds the node layer on it: every node within half a cell of it (a plane through
                 # a node layer is then safe from round-off in phi)
                 skin = wp.max(skin, wp.float64(0.5) * wp.float64(gs.dx))
             if phi <= skin:
-                mu = scalar(gs.colliders[row + ROW_FRICTION])
+                mu = scalar(col.friction)
                 before = vel
                 vel = project(vel, inplane(v3(cvel)), inplane(v3(nrm)), mode, mu)
                 if record != 0:

@@ -47,7 +47,7 @@ ColliderModeName = Literal["sticky", "slip", "friction", "symmetry"]
 
 class ColliderMode(IntEnum):
     """How a rigid surface (a collider, the domain walls) acts on the node velocities it touches (the grid
-    update's ``project``): the codes of the kernels and of the collider table."""
+    update's ``project``): the codes of the kernels and of DeviceCollider.mode."""
 
     STICKY = 0  # the node moves with the surface
     SLIP = 1  # the approaching normal component is removed (frictionless)
@@ -69,29 +69,12 @@ assert tuple(COLLIDER_MODES) == get_args(ColliderModeName)
 
 
 class ColliderKind(IntEnum):
-    """A collider's shape: the codes of the collider table (:func:`magsoro.mpm.colliders.collider_sdf`)."""
+    """A collider's shape: the codes of DeviceCollider.kind (:func:`magsoro.mpm.colliders.collider_sdf`)."""
 
     HALF_SPACE = 0
     BOX = 1
     SPHERE = 2
     CYLINDER = 3
-
-
-class ColliderRow(IntEnum):
-    """Where each value of a collider sits in its row of the device's flat float64 collider table
-    (:meth:`magsoro.mpm.colliders.Collider.row`); a row is COLLIDER_STRIDE values."""
-
-    KIND = 0  # ColliderKind
-    MODE = 1  # ColliderMode
-    FRICTION = 2  # Coulomb coefficient
-    POSITION = 3  # 3 values, m
-    ROTATION = 6  # 9 values: the rotation matrix local -> world, row-major
-    SIZE = 15  # 3 values: half-space outward unit normal; box half extents; sphere radius; cylinder radius, half length
-    VELOCITY = 18  # 3 values, m/s (the slope of its path)
-
-
-#: values per collider row (the last 3 unused)
-COLLIDER_STRIDE = 24
 
 
 class P2GFlag(IntFlag):

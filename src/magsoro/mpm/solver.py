@@ -25,7 +25,7 @@ import warp as wp
 from magsoro.constants import MU0
 from magsoro.errors import MagsoroError, SimulationError
 from magsoro.fields.device import FieldEvaluator
-from magsoro.mpm.colliders import COLLIDER_STRIDE, Collider, collider_table
+from magsoro.mpm.colliders import Collider, DeviceCollider, collider_records
 from magsoro.mpm.interaction import MagneticInteraction
 from magsoro.mpm.contact import launch_contact_classify
 from magsoro.mpm.g2p import (launch_contact_gather, launch_g2p, launch_load_params, launch_load_step, launch_remap_F,
@@ -121,7 +121,7 @@ CLOSED_CAVITY = 1e-9
 def grid_settings(model: "Model", settings: "SolverSettings", gravity, colliders, n_colliders: int, dt: float,
                   step: wp.array | None = None, impulse: wp.array | None = None):
     """The grid update's :class:`GridSettings` struct (kernels.py): step, damping factor exp(-c dt), gravity (the
-    kernels' vector), domain walls, grid spacing and the collider table ``colliders`` with ``n_colliders`` rows.
+    kernels' vector), domain walls, grid spacing and the colliders ``colliders`` (an array of ``n_colliders`` DeviceCollider structs).
     ``step``: the solver's one-element Step array (:mod:`magsoro.mpm.stencil`); the kernel then takes dt and the
     damping factor from it instead of from ``dt``. ``impulse``: float64 array of 3 per collider, to which the
     grid update adds the momentum each collider takes from the nodes (None: not recorded)."""
@@ -1144,7 +1144,7 @@ class Solver:
             "_arrays": (state_in.x, state_in.v, state_in.C, state_in.F, state_out.x, state_out.v, state_out.C, state_out.F,
                         state_in.H, state_out.H),
             "_threads": threads,
-            "_grid_settings": gs,  # keeps the collider table it points to alive
+            "_grid_settings": gs,  # keeps the collider array it points to alive
             "_serial": next(self._launch_serials),  # names the set in the graph cache (ids can be reused)
             "_contact_grid": ct,  # referenced by pointer from the recorded launches
         }
@@ -1360,7 +1360,7 @@ class Solver:
 
     # -- check windows from drive tables (CUDA graphs) ----------------------------------------------------------
     def _drop_launches(self) -> None:
-        """Forget the recorded launches (grid block refitted, collider table reallocated, too many state pairs) and
+        """Forget the recorded launches (grid block refitted, collider array reallocated, too many state pairs) and
         the graphs that replay them."""
         self._launch_sets.clear()
         self._graphs.clear()
@@ -1409,8 +1409,9 @@ class Solver:
         the other holds the step before, as after plain steps). Needs :meth:`graph_refusal` None.
 
         The host fills the window's drive table once (per step k: dt_k, exp(-c dt_k), the uniform field at t_k and,
-        when a collider moves, the collider table at t_k) and copies it to the device in one copy; every step then
-        runs the same launches: ``load_step`` takes the next row into the Step and collider table the kernels read,
+        when a collider moves, the colliders' states at t_k in the drive's collider path) and copies it to the
+        device; every step then runs the same launches: ``load_step`` takes the next row into the Step and the
+        collider array the kernels read,
         then the step's phases. Captured (:meth:`capture_refusal` None), the steps become graphs of 2^j steps,
         captured once per size, pair of states, grid block and drive table, and replayed; else they are launched
         one by one. Same kernels, same values: the trajectory of :meth:`step` to the bit. ``tick()`` (optional) after
@@ -1427,7 +1428,7 @@ class Solver:
         L = (self._launch_set(state_a, state_b, control, gradient), self._launch_set(state_b, state_a, control, gradient))
         moving = self._fill_drive(control, dts, times)
         F = (self._window_fields(state_a), self._window_fields(state_b))
-        # from here the device's Step and collider table hold window rows: a plain step writes its own again
+        # from here the device's Step and collider array hold window rows: a plain step writes its own again
         self._step_written = None
         if moving:
             self._collider_host = None
@@ -1440,8 +1441,8 @@ class Solver:
                 if tick is not None:
                     tick()
         self.graph_windows += 1
-        if moving:  # the collider table now holds the last step's
-            self._collider_host = collider_table(control.colliders, times[n - 1])
+        if moving:  # the collider array now holds the last step's
+            self._collider_host = collider_records(control.colliders, times[n - 1])
         self._window_dt = max(self._window_dt, max(dts))
         states = (state_a, state_b)
         for k in (n - 1, n):
@@ -1450,36 +1451,39 @@ class Solver:
 
     def _fill_drive(self, control: Control, dts, times) -> bool:
         """Write the window's drive table (:meth:`run_window`) and copy it to the device; reset its cursor. Returns
-        whether the collider table is in it (a collider moves). A row: dt, damping factor, uniform field, the
-        collider table when a collider moves, then the non-uniform field sources' parameters (``load_params``
+        whether a collider moves (the colliders' states at each step are then in the drive's collider path). A
+        row: dt, damping factor, uniform field, then the non-uniform field sources' parameters (``load_params``
         copies them into the arrays their kernels read)."""
         n, dev, st = len(dts), self.device, self.settings
         moving = any(c.path is not None for c in control.colliders)
-        n_values = COLLIDER_STRIDE * len(control.colliders) if moving else 0
+        n_moving = len(control.colliders) if moving else 0
         fields = self.field_evaluator(control)
         prm = fields.param_arrays
-        width = 5 + n_values + sum(int(a.shape[0]) for a in prm)
+        width = 5 + sum(int(a.shape[0]) for a in prm)
         d = self._drive
         if (d is None or d["width"] != width or d["rows"] < n or d["colliders"] is not self._collider_array
-                or d["fields"] is not fields):
+                or d["n_moving"] != n_moving or d["fields"] is not fields):
             old = d["rows"] if d is not None else 0
             rows = old if old >= n else max(n, 2 * old, 64)  # grows by doubling: few reallocations, few re-captures
             table = wp.zeros(rows * width, dtype=wp.float64, device=dev)
             host = table if self._on_cpu else wp.zeros(rows * width, dtype=wp.float64, device="cpu", pinned=True)
+            path = wp.zeros(max(rows * n_moving, 1), dtype=DeviceCollider, device=dev)
+            path_host = path if self._on_cpu else wp.zeros(path.shape[0], dtype=DeviceCollider, device="cpu", pinned=True)
             cursor = wp.zeros(1, dtype=wp.int32, device=dev)
             launch = launch_load_step(self.k, table=table, width=width, cursor=cursor, step=self._step_values,
-                                      colliders=self._collider_array, n_collider_values=n_values, device=dev, record=True)
-            param_loads, offset = [], 5 + n_values
+                                      colliders=self._collider_array, path=path, n_moving=n_moving, device=dev, record=True)
+            param_loads, offset = [], 5
             for a in prm:
                 param_loads.append(launch_load_params(self.k, int(a.shape[0]), table=table, width=width, cursor=cursor,
                                                       offset=offset, params=a, device=dev, record=True))
                 offset += int(a.shape[0])
             d = self._drive = {"width": width, "rows": rows, "table": table, "host": host, "host_np": host.numpy(),
+                               "path": path, "path_host": path_host, "path_np": path_host.numpy(), "n_moving": n_moving,
                                "cursor": cursor, "cursor_np": cursor.numpy() if self._on_cpu else None, "launch": launch,
                                "colliders": self._collider_array, "fields": fields, "param_loads": param_loads,
                                "field_launches": {}}
-            self._graphs.clear()  # they read the table, the collider array and the parameters through these launches
-        if not self._on_cpu:  # the pinned buffer is rewritten: its last copy must be done (the device is idle here)
+            self._graphs.clear()  # they read the table, the collider arrays and the parameters through these launches
+        if not self._on_cpu:  # the pinned buffers are rewritten: their last copies must be done (the device is idle here)
             wp.synchronize_device(dev)
         rows = d["host_np"][: n * width].reshape(n, width)
         for k in range(n):
@@ -1487,14 +1491,16 @@ class Solver:
             row[0] = dts[k]
             row[1] = math.exp(-st.damping_at(times[k]) * dts[k])
             row[2:5] = fields.uniform_value(times[k])
-            if n_values:
-                row[5 : 5 + n_values] = collider_table(control.colliders, times[k])
             if prm:
-                row[5 + n_values :] = fields.params_at(times[k])
+                row[5:] = fields.params_at(times[k])
+        if n_moving:
+            d["path_np"][: n * n_moving] = np.concatenate([collider_records(control.colliders, times[k]) for k in range(n)])
         if self._on_cpu:
             d["cursor_np"][0] = 0
         else:
             wp.copy(d["table"], d["host"], count=n * width)
+            if n_moving:
+                wp.copy(d["path"], d["path_host"], count=n * n_moving)
             d["cursor"].zero_()
         return moving
 
@@ -1633,18 +1639,19 @@ class Solver:
             self.interaction.add_to(self.B_particle, self.grad_B_particle, keep)
 
     def _update_colliders(self, control: Control, t: float) -> None:
-        """The collider table at time t, copied to the device only when it changed (resting colliders: no copy)."""
+        """The colliders' DeviceCollider array at time t, copied to the device only when it changed (resting
+        colliders: no copy)."""
         if control.colliders:
-            table = collider_table(control.colliders, t)
-            if self._collider_array is None or self._collider_array.shape[0] != len(table):
-                self._collider_array = wp.array(table, dtype=wp.float64, device=self.device)
-                self._collider_host = table
+            records = collider_records(control.colliders, t)
+            if self._collider_array is None or self._collider_array.shape[0] != len(records):
+                self._collider_array = wp.array(records, dtype=DeviceCollider, device=self.device)
+                self._collider_host = records
                 self._drop_launches()
-            elif not np.array_equal(table, self._collider_host):
-                self._collider_array.assign(table)
-                self._collider_host = table
+            elif self._collider_host is None or records.tobytes() != self._collider_host.tobytes():
+                self._collider_array.assign(records)
+                self._collider_host = records
         elif self._collider_array is None:
-            self._collider_array = wp.zeros(COLLIDER_STRIDE, dtype=wp.float64, device=self.device)
+            self._collider_array = wp.zeros(1, dtype=DeviceCollider, device=self.device)
 
     def _set_step_values(self, b0, dt: float, t: float = 0.0) -> None:
         """Uniform field, time step and damping factor (the damping at the step's start time ``t``) of a plain step
