@@ -1,5 +1,5 @@
 """The static solver's linear solvers against the size of the problem: the direct sparse LU against multigrid-
-preconditioned Krylov (magsoro.mpm.linear), on one 3D scene refined step by step, timed in one run.
+preconditioned Krylov (magsoro.mpm.newton.linear), on one 3D scene refined step by step, timed in one run.
 
     python benchmarks/linear_scaling.py [--dx 4.2e-4 3e-4 2.4e-4 2.1e-4 1.8e-4] [--level 0.05]
                                         [--direct-limit 300] [--kinds direct iterative]
@@ -32,7 +32,7 @@ SCENE = ROOT / "scenes" / "cantilever_3d.toml"
 
 
 def one(dx: float, kind: str, level: float, direct_max_unknowns: int) -> tuple[dict, np.ndarray | None]:
-    from magsoro.mpm.static import StaticSolver
+    from magsoro.mpm.newton.static import StaticSolver
     from magsoro.scene import load_scene
     from magsoro.simulation import Simulation
 

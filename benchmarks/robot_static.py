@@ -32,7 +32,7 @@ CURVES = {"strip_magnet": ("gap_mm", "strain_percent")}
 def run(robot: str, preview: bool, dynamic: bool) -> dict:
     """One reproduction; ``dynamic`` makes the static solver refuse the scene, so the reproduction takes its
     dynamic path. Returns its wall time, solver, curve and check results."""
-    import magsoro.mpm.static as static
+    import magsoro.mpm.newton.static as static
     from magsoro.errors import SimulationError
     from magsoro.robots import reproduce
     from magsoro.robots.base import read_csv

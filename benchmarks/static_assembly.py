@@ -5,7 +5,7 @@
 On scenes/continuum_soft.toml at its preview grid (3D, 6448 particles, float64, uniform field along +x), at the
 equilibrium of a 1 mT level (a bent state, so every particle's F differs from I):
 
-- ``StaticSolver.tangent`` as shipped (kernels ``material_tangent`` and ``assemble_tangent``, magsoro.mpm.static);
+- ``StaticSolver.tangent`` as shipped (kernels ``material_tangent`` and ``assemble_tangent``, magsoro.mpm.newton.static);
 - the numpy assembly the solver used before (dP/dF by 2 dim^2 launches of the stress kernel, then an einsum over
   particles and a bincount into the CSC pattern; written out again below as the reference);
 - one sparse LU factorisation of the tangent (SuperLU), for scale;
@@ -38,7 +38,7 @@ def numpy_tangent(st, u_nodes, field_level: float):
     import warp as wp
     from scipy import sparse
 
-    from magsoro.mpm.static import F_STEP
+    from magsoro.mpm.newton.static import F_STEP
 
     st.node_forces(u_nodes, field_level, 1.0)
     dim, n = st.dim, st.model.n_particles
@@ -81,7 +81,7 @@ def stability_before(st, J):
     """The lowest-mode check as it was before the shared factorisation: eigsh's own LU, a second one for the sign."""
     from scipy.sparse.linalg import eigsh
 
-    from magsoro.mpm.static import _odd_negative_count
+    from magsoro.mpm.newton.static import _odd_negative_count
 
     K = (0.5 * (-J + -J.T)).tocsc()
     vals, _ = eigsh(K, k=1, sigma=0.0, which="LM", v0=np.ones(K.shape[0]))
@@ -96,7 +96,7 @@ def main() -> None:
     args = ap.parse_args()
     from scipy.sparse.linalg import splu
 
-    from magsoro.mpm.static import StaticSolver
+    from magsoro.mpm.newton.static import StaticSolver
     from magsoro.robots.base import scene_data, simulation
 
     data = scene_data("continuum_soft")

@@ -1,4 +1,4 @@
-"""The static solver's factorisation (magsoro.mpm.static.factor: SuperLU in its symmetric mode) against scipy's
+"""The static solver's factorisation (magsoro.mpm.newton.static.factor: SuperLU in its symmetric mode) against scipy's
 default sparse LU, on the triangle robot's tangent, timed in one run.
 
     python benchmarks/static_factor.py [--preview] [--repeats N]
@@ -28,7 +28,7 @@ ROOT = Path(__file__).resolve().parents[1]
 
 def tangent(preview: bool):
     """The triangle's tangent at its 15 mT equilibrium (the reproduction's static sweep up to 15 mT)."""
-    from magsoro.mpm.static import StaticSolver
+    from magsoro.mpm.newton.static import StaticSolver
     from magsoro.robots import triangle as T
     from magsoro.robots.base import Context
 
@@ -53,7 +53,7 @@ def timed(make, J, repeats: int):
 def main(argv=None) -> int:
     from scipy.sparse.linalg import splu
 
-    from magsoro.mpm.static import factor
+    from magsoro.mpm.newton.static import factor
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--preview", action="store_true", help="the preview grid")

@@ -17,7 +17,7 @@ def lattice_block(lo, hi, h):
 
 def make_block_model(lo, hi, dx, ppc=2, *, density=1000.0, G=1e5, K=None, Br=(0, 0, 0), precision="float64", domain=None, clamped=None):
     """A single-material block model for engine tests."""
-    from magsoro.mpm.solver import Model
+    from magsoro.mpm.model import Model
 
     dim = len(lo)
     h = dx / ppc

@@ -67,7 +67,8 @@ def test_sweep_batch_copies_move_like_the_walker_alone():
     (5 Hz) run on its own, and copy 7 (12 Hz) like the walker driven at 12 Hz; the two copies differ."""
     from magsoro.bench.scenes import SWEEP_FREQUENCIES_HZ, build
     from magsoro.fields import Rotating, Uniform
-    from magsoro.mpm.solver import Control, Solver
+    from magsoro.mpm.model import Control
+    from magsoro.mpm.solver import Solver
 
     def run(model, control, settings, dt, steps=150):
         return run_solver(model, control, settings, dt, steps).x.numpy() - model.host["positions"]

@@ -1,4 +1,4 @@
-"""Contact between bodies in the Newton solvers (magsoro.mpm.body_contact): the static solver and the implicit
+"""Contact between bodies in the Newton solvers (magsoro.mpm.newton.body_contact): the static solver and the implicit
 integrator, on the split reference grid."""
 
 import math
@@ -64,7 +64,7 @@ def test_contact_tangent_matches_finite_differences():
     against central differences of its forces at a pressed, randomly strained state: within 1 % (measured 0.2 %).
     What it leaves out is Gauss-Newton's k g g'' (the gap's curvature times the force) and the patch weights' and
     the friction direction's change, each about the penetration (1e-3 cells here) over the patch's size (a cell)."""
-    from magsoro.mpm.static import StaticSolver
+    from magsoro.mpm.newton.static import StaticSolver
 
     scene = slope_scene(0.4, "slab", start_sites=0, precision="float64")
     scene["simulation"]["formulation"] = "total"
@@ -250,7 +250,7 @@ def test_strip_peels_off_a_stiff_body_as_off_a_collider(dx, monkeypatch):
     slab's stiff penalty held the strip down (a rise of 0.2 um against 0.19 mm). Each Newton iteration settles the
     contact set on its linearised problem: 5 and 7 iterations; without that, 87 iterations in 2 load increments at
     2 cells, and no convergence at 4."""
-    import magsoro.mpm.static as static
+    import magsoro.mpm.newton.static as static
 
     sim = Simulation(parse_scene(_peel_on_slab_scene(dx)))
     res = sim.solve_static(levels=[1.0])

@@ -53,7 +53,7 @@ def test_clamp_path_is_checked_and_refused_where_not_supported():
         build(bad)
     with pytest.raises(SceneError, match=r"clamps\[1\].path: a moving clamp needs"):
         build(strip(formulation="updated"))
-    from magsoro.mpm.static import check_supported
+    from magsoro.mpm.newton.static import check_supported
     from magsoro.simulation import Simulation
 
     check_supported(Simulation(strip()))  # the static solver and the implicit integrator take moving clamps

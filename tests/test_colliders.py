@@ -5,7 +5,8 @@ import pytest
 
 from magsoro.mpm.colliders import Collider
 from magsoro.fields.profiles import Keyframes
-from magsoro.mpm.solver import Control, Solver, SolverSettings
+from magsoro.mpm.model import Control, SolverSettings
+from magsoro.mpm.solver import Solver
 from tests.conftest import make_block_model
 
 G_ACC = 9.81

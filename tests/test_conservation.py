@@ -4,7 +4,8 @@ import numpy as np
 import pytest
 
 from magsoro.fields import Uniform
-from magsoro.mpm.solver import Control, Solver, SolverSettings
+from magsoro.mpm.model import Control, SolverSettings
+from magsoro.mpm.solver import Solver
 from tests.conftest import make_block_model
 
 

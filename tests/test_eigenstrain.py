@@ -1,7 +1,7 @@
-"""Stimulus-driven eigenstrain (issue 25, magsoro.mpm.eigenstrain): F = F_e F_s with F_s = lambda I or
+"""Stimulus-driven eigenstrain (issue 25, magsoro.mpm.laws.eigenstrain): F = F_e F_s with F_s = lambda I or
 I + (lambda - 1) a a^T, W = f det(F_s) W_e(F F_s^-1).
 
-- the engine's particle stress (magsoro.mpm.stencil.make_body_elastic, the one function p2g calls) against the
+- the engine's particle stress (magsoro.mpm.kernels.stencil.make_body_elastic, the one function p2g calls) against the
   law on the elastic part and against central differences of its energy, 2D and 3D;
 - a free cube (3D) and a free square (2D plane strain: the stretch acts in the plane, F_zz = 1 for body and
   stretch alike) shrink to 0.8 of their size, reached by a ramp, to 1e-4 with no stress left;
@@ -18,10 +18,11 @@ import pytest
 import warp as wp
 
 from magsoro.errors import SceneError
-from magsoro.mpm.eigenstrain import KeyframeStimulus, SineStimulus, Stimulus
+from magsoro.mpm.laws.eigenstrain import KeyframeStimulus, SineStimulus, Stimulus
 from magsoro.mpm.kernels import make_kernels
-from magsoro.mpm.materials import LAWS
-from magsoro.mpm.solver import Model, bodies_array
+from magsoro.mpm.laws.elastic import LAWS
+from magsoro.mpm.model import Model
+from magsoro.mpm.runtime import bodies_array
 from magsoro.scene import parse_scene
 from magsoro.simulation import Simulation
 from magsoro.validation.closed_form import central_difference_stress

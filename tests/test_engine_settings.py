@@ -8,7 +8,8 @@ import numpy as np
 import warp as wp
 
 from magsoro.fields.profiles import Keyframes
-from magsoro.mpm import colliders, contact, g2p, grid, p2g, stencil
+from magsoro.mpm import colliders
+from magsoro.mpm.kernels import contact, g2p, grid, p2g, stencil
 from magsoro.mpm.colliders import Collider
 from magsoro.mpm.settings import (COLLIDER_MODES, ColliderKind, ColliderMode, FUpdate, MagnetizationFollows, NodeClass,
                                   P2GFlag)
@@ -49,7 +50,8 @@ def test_a_collider_reaches_the_kernels_as_a_struct():
 def test_kernel_sources_compare_names_not_numbers():
     bare = re.compile(r"\b(mode|kind|follows|s|split\[idx\]) *[!=]= *\d|flags *(%|//)")
     found = []
-    for name in ("colliders.py", "grid.py", "p2g.py", "g2p.py", "contact.py", "stencil.py"):
+    for name in ("colliders.py", "kernels/grid.py", "kernels/p2g.py", "kernels/g2p.py", "kernels/contact.py",
+                 "kernels/stencil.py"):
         for i, line in enumerate((MPM / name).read_text().splitlines(), 1):
             if bare.search(line.split("#")[0]):
                 found.append(f"{name}:{i}: {line.strip()}")

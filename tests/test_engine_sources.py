@@ -5,7 +5,8 @@ import pytest
 
 from magsoro import MU0
 from magsoro.fields import CylinderMagnet
-from magsoro.mpm.solver import Control, Solver
+from magsoro.mpm.model import Control
+from magsoro.mpm.solver import Solver
 from magsoro.scene import parse_scene
 from magsoro.simulation import Simulation
 from tests.conftest import make_block_model

@@ -13,39 +13,39 @@ SRC = pathlib.Path(__file__).resolve().parents[1] / "src" / "magsoro"
 
 #: kernel name -> (module under src/magsoro, its launcher): the only function that may launch it
 LAUNCHERS = {
-    # magsoro.mpm.p2g
-    "p2g": ("mpm/p2g.py", "launch_p2g"),
-    "p2g_scatter": ("mpm/p2g.py", "launch_p2g_scatter"),
-    "node_displacement": ("mpm/p2g.py", "launch_node_displacement"),
-    "contact_scan": ("mpm/p2g.py", "launch_contact_scan"),
-    "contact_scatter": ("mpm/p2g.py", "launch_contact_scatter"),
-    "pressure_net": ("mpm/p2g.py", "launch_pressure_net"),
-    # magsoro.mpm.grid
-    "grid_update": ("mpm/grid.py", "launch_grid_update"),
-    "add_grid": ("mpm/grid.py", "launch_add_grid"),
-    "contact_resolve": ("mpm/grid.py", "launch_contact_resolve"),
-    # magsoro.mpm.g2p
-    "g2p": ("mpm/g2p.py", "launch_g2p"),
-    "remap_scatter": ("mpm/g2p.py", "launch_remap_scatter"),
-    "remap_node_velocity": ("mpm/g2p.py", "launch_remap_node_velocity"),
-    "remap_F": ("mpm/g2p.py", "launch_remap_F"),
-    "contact_gather": ("mpm/g2p.py", "launch_contact_gather"),
-    "reset_reductions": ("mpm/g2p.py", "launch_reset_reductions"),
-    "load_step": ("mpm/g2p.py", "launch_load_step"),
-    "load_params": ("mpm/g2p.py", "launch_load_params"),
-    # magsoro.mpm.contact
-    "contact_classify": ("mpm/contact.py", "launch_contact_classify"),
+    # magsoro.mpm.kernels.p2g
+    "p2g": ("mpm/kernels/p2g.py", "launch_p2g"),
+    "p2g_scatter": ("mpm/kernels/p2g.py", "launch_p2g_scatter"),
+    "node_displacement": ("mpm/kernels/p2g.py", "launch_node_displacement"),
+    "contact_scan": ("mpm/kernels/p2g.py", "launch_contact_scan"),
+    "contact_scatter": ("mpm/kernels/p2g.py", "launch_contact_scatter"),
+    "pressure_net": ("mpm/kernels/p2g.py", "launch_pressure_net"),
+    # magsoro.mpm.kernels.grid
+    "grid_update": ("mpm/kernels/grid.py", "launch_grid_update"),
+    "add_grid": ("mpm/kernels/grid.py", "launch_add_grid"),
+    "contact_resolve": ("mpm/kernels/grid.py", "launch_contact_resolve"),
+    # magsoro.mpm.kernels.g2p
+    "g2p": ("mpm/kernels/g2p.py", "launch_g2p"),
+    "remap_scatter": ("mpm/kernels/g2p.py", "launch_remap_scatter"),
+    "remap_node_velocity": ("mpm/kernels/g2p.py", "launch_remap_node_velocity"),
+    "remap_F": ("mpm/kernels/g2p.py", "launch_remap_F"),
+    "contact_gather": ("mpm/kernels/g2p.py", "launch_contact_gather"),
+    "reset_reductions": ("mpm/kernels/g2p.py", "launch_reset_reductions"),
+    "load_step": ("mpm/kernels/g2p.py", "launch_load_step"),
+    "load_params": ("mpm/kernels/g2p.py", "launch_load_params"),
+    # magsoro.mpm.kernels.contact
+    "contact_classify": ("mpm/kernels/contact.py", "launch_contact_classify"),
     # magsoro.mpm.kernels
-    "stress_kernel": ("mpm/kernels.py", "launch_stress"),
-    "body_stress_kernel": ("mpm/kernels.py", "launch_body_stress"),
-    # magsoro.mpm.viscous
-    "viscous_update": ("mpm/viscous.py", "launch_viscous_update"),
-    "overstress_tangent": ("mpm/viscous.py", "launch_overstress_tangent"),
-    "add_overstress": ("mpm/viscous.py", "launch_add_overstress"),
-    # magsoro.mpm.static
-    "place_particles": ("mpm/static.py", "launch_place_particles"),
-    "material_tangent": ("mpm/static.py", "launch_material_tangent"),
-    "assemble_tangent": ("mpm/static.py", "launch_assemble_tangent"),
+    "stress_kernel": ("mpm/kernels/__init__.py", "launch_stress"),
+    "body_stress_kernel": ("mpm/kernels/__init__.py", "launch_body_stress"),
+    # magsoro.mpm.laws.viscous
+    "viscous_update": ("mpm/laws/viscous.py", "launch_viscous_update"),
+    "overstress_tangent": ("mpm/laws/viscous.py", "launch_overstress_tangent"),
+    "add_overstress": ("mpm/laws/viscous.py", "launch_add_overstress"),
+    # magsoro.mpm.newton.static
+    "place_particles": ("mpm/newton/static.py", "launch_place_particles"),
+    "material_tangent": ("mpm/newton/static.py", "launch_material_tangent"),
+    "assemble_tangent": ("mpm/newton/static.py", "launch_assemble_tangent"),
     # magsoro.mpm.interaction
     "deposit_moments": ("mpm/interaction.py", "launch_deposit_moments"),
     "gather_field": ("mpm/interaction.py", "launch_gather_field"),
@@ -65,7 +65,7 @@ ALLOWED = {
 }
 
 #: kernels a factory makes that the package never launches (tests launch them directly)
-NOT_LAUNCHED = {"particle_stress": "magsoro.mpm.static: the static solver's stress kernel, used by the tests"}
+NOT_LAUNCHED = {"particle_stress": "magsoro.mpm.newton.static: the static solver's stress kernel, used by the tests"}
 
 
 def kernel_name(node: ast.expr) -> str | None:
@@ -151,8 +151,8 @@ def test_allowed_direct_launches_still_exist():
 def test_every_kernel_the_factories_make_has_a_launcher(contact):
     from magsoro.mpm.interaction import make_interaction_kernels
     from magsoro.mpm.kernels import make_kernels
-    from magsoro.mpm.static import make_static_kernels
-    from magsoro.mpm.viscous import make_viscous
+    from magsoro.mpm.newton.static import make_static_kernels
+    from magsoro.mpm.laws.viscous import make_viscous
 
     tables = [make_kernels(2, wp.float64, contact), make_viscous(2, wp.float64), make_static_kernels(2, wp.float64),
               make_interaction_kernels(2, wp.float64)]
@@ -164,16 +164,16 @@ def test_every_kernel_the_factories_make_has_a_launcher(contact):
 def test_a_stray_launch_is_found(tmp_path):
     # the check itself can fail: a copy of the solver with a direct launch of g2p, and a launcher that launches the
     # wrong kernel, are both reported
-    (tmp_path / "mpm").mkdir()
+    (tmp_path / "mpm" / "kernels").mkdir(parents=True)
     solver = (SRC / "mpm" / "solver.py").read_text()
     solver += ('\n\ndef _stray(k, n, args):\n'
                '    wp.launch(k["g2p"], dim=n, inputs=args, device="cpu")\n')
     (tmp_path / "mpm" / "solver.py").write_text(solver)
-    (tmp_path / "mpm" / "p2g.py").write_text(
+    (tmp_path / "mpm" / "kernels" / "p2g.py").write_text(
         'import warp as wp\n\n\ndef launch_pressure_net(kernels, n):\n    return wp.launch(kernels["p2g"], dim=n)\n')
-    (tmp_path / "mpm" / "grid.py").write_text(
+    (tmp_path / "mpm" / "kernels" / "grid.py").write_text(
         'import warp as wp\n\n\ndef helper(kernel, n):\n    return wp.launch(kernel, dim=n)\n')
     bad = misplaced(package_launches(tmp_path))
     assert any("mpm/solver.py" in b and "'g2p'" in b and "_stray" in b for b in bad), bad
-    assert any("mpm/p2g.py" in b and "'p2g'" in b for b in bad), bad
-    assert any("mpm/grid.py" in b and "helper" in b for b in bad), bad
+    assert any("mpm/kernels/p2g.py" in b and "'p2g'" in b for b in bad), bad
+    assert any("mpm/kernels/grid.py" in b and "helper" in b for b in bad), bad

@@ -1,4 +1,4 @@
-"""Linear solvers of the Newton tangents (magsoro.mpm.linear): the multigrid-preconditioned Krylov solver against
+"""Linear solvers of the Newton tangents (magsoro.mpm.newton.linear): the multigrid-preconditioned Krylov solver against
 sparse LU on elasticity stiffnesses and on the static solver's own tangents, its fallbacks, the forcing terms, the
 scene key static.linear_solver, and (slow) the triangle robot's static sweep solved both ways."""
 
@@ -11,8 +11,8 @@ import pytest
 from scipy import sparse
 from scipy.sparse.linalg import spsolve
 
-from magsoro.mpm import linear
-from magsoro.mpm.linear import (DirectSolver, IterativeSolver, forcing_term, lattice_aggregates, make_linear_solver,
+from magsoro.mpm.newton import linear
+from magsoro.mpm.newton.linear import (DirectSolver, IterativeSolver, forcing_term, lattice_aggregates, make_linear_solver,
                                 rigid_body_modes)
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -166,7 +166,7 @@ def test_auto_picks_the_direct_solver_below_the_threshold():
 # -- the static solver's own tangents ---------------------------------------------------------------------------
 
 def _static(scene_name: str, kind: str):
-    from magsoro.mpm.static import StaticSolver
+    from magsoro.mpm.newton.static import StaticSolver
     from magsoro.scene import load_scene
     from magsoro.simulation import Simulation
 
@@ -214,7 +214,7 @@ def test_static_level_iterative_matches_direct():
 def test_scene_key_and_default():
     """[static] linear_solver: 'auto' by default, read by the StaticSolver; other values are refused by name."""
     from magsoro.errors import SceneError
-    from magsoro.mpm.static import StaticSolver
+    from magsoro.mpm.newton.static import StaticSolver
     from magsoro.scene import load_scene, parse_scene
 
     scene = load_scene(ROOT / "scenes" / "cantilever_2d.toml")
@@ -298,7 +298,7 @@ def test_ordering_keeps_the_smaller_fill_and_serves_the_pattern_again():
     from scipy.sparse.csgraph import reverse_cuthill_mckee
     from scipy.sparse.linalg import splu
 
-    from magsoro.mpm.linear import Ordering, PermutedLU, factor
+    from magsoro.mpm.newton.linear import Ordering, PermutedLU, factor
 
     B = sparse.csr_matrix(np.ones((3, 3)) + 3.0 * np.eye(3))  # three unknowns per node, as in 3D
     J = sparse.kron(_strip_lattice(60, 4, 3), B).tocsc()

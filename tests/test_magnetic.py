@@ -10,7 +10,8 @@ import pytest
 
 from magsoro import MU0
 from magsoro.fields import Dipole, Uniform
-from magsoro.mpm.solver import Control, Solver, SolverSettings
+from magsoro.mpm.model import Control, SolverSettings
+from magsoro.mpm.solver import Solver
 from tests.conftest import make_block_model
 
 

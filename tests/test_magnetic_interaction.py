@@ -17,7 +17,7 @@ import warp as wp
 
 from magsoro.constants import MU0
 from magsoro.mpm.interaction import MagneticInteraction, dipole_tensors, sym_pairs, sym_triples
-from magsoro.mpm.solver import Model
+from magsoro.mpm.model import Model
 
 R, DX, BR = 3e-3, 1e-3, 0.1
 

@@ -9,8 +9,8 @@ import warp as wp
 
 from magsoro.constants import MU0
 from magsoro.mpm.interaction import polar_rotation_np
-from magsoro.mpm.stencil import make_magnetization, make_types
-from magsoro.mpm.viscous import viscous_struct
+from magsoro.mpm.kernels.stencil import make_magnetization, make_types
+from magsoro.mpm.laws.viscous import viscous_struct
 
 wp.config.quiet = True
 
@@ -208,7 +208,8 @@ def test_stretched_bar_gradient_force_in_a_dipole_field(follows):
     diag(lambda, lambda^-1/2, lambda^-1/2)), in the field of a point dipole on its axis: the engine's p2g puts the
     net gradient force (grad B)^T m on the grid (the stress impulse sums to zero), with m = lambda Br V0 / mu0 e_x
     under F and Br V0 / mu0 e_x under R; |m_F| / |m_R| = lambda."""
-    from magsoro.mpm.solver import Model, block_struct, bodies_array, contact_grid
+    from magsoro.mpm.model import Model
+    from magsoro.mpm.runtime import block_struct, bodies_array, contact_grid
 
     lam, Br, h = 1.3, 0.1, 1e-3
     X = np.stack([0.02 + h * np.arange(8), np.full(8, 0.02), np.full(8, 0.02)], 1)

@@ -1,4 +1,4 @@
-"""Material registry (magsoro.mpm.materials): the scene schema, the scene builder and the engine Model take their
+"""Material registry (magsoro.mpm.laws.elastic): the scene schema, the scene builder and the engine Model take their
 model names and codes from the registry. Each law's stress against its energy and its initial shear modulus are
 tested for every registered law in tests/test_stress.py."""
 
@@ -9,7 +9,7 @@ import pytest
 import warp as wp
 from pydantic import ValidationError
 
-from magsoro.mpm.materials import (DEFAULT_LAW, FIT_MODEL_LAWS, LAW_NAMES, LAW_PARAM_COUNT, LAWS, PARAMETER_KEYS,
+from magsoro.mpm.laws.elastic import (DEFAULT_LAW, FIT_MODEL_LAWS, LAW_NAMES, LAW_PARAM_COUNT, LAWS, PARAMETER_KEYS,
                                    describe_codes, make_material_functions)
 
 LAW_LIST = list(LAWS.values())
@@ -89,7 +89,7 @@ def test_unknown_model_lists_the_registry_names():
 
 @pytest.mark.parametrize("law", LAW_LIST, ids=lambda law: law.name)
 def test_scene_and_engine_use_the_registry(law):
-    from magsoro.mpm.solver import Model
+    from magsoro.mpm.model import Model
     from magsoro.scene.build import resolve_material
     from magsoro.scene.schema import Material
 
@@ -101,7 +101,7 @@ def test_scene_and_engine_use_the_registry(law):
 
 
 def test_model_refuses_unknown_codes():
-    from magsoro.mpm.solver import Model
+    from magsoro.mpm.model import Model
 
     with pytest.raises(ValueError, match=r"material_model must be 0 \(Neo-Hookean\), 1 \(Mooney-Rivlin\), 2 \(Yeoh\), "
                                          r"3 \(Ogden\) or 4 \(polynomial\)"):

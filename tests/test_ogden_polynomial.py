@@ -1,4 +1,4 @@
-"""The Ogden and polynomial laws of the engine (magsoro.mpm.materials, issue 25): stress against the energy at
+"""The Ogden and polynomial laws of the engine (magsoro.mpm.laws.elastic, issue 25): stress against the energy at
 ordinary, large, repeated and unit stretches; closed-form cross-checks against Neo-Hookean and Mooney-Rivlin;
 fit-material's incompressible uniaxial formulas; material files of every fit-material model in a short scene; and
 bad parameters refused with one line naming the key. All through the engine's own compiled kernels (the float64
@@ -16,7 +16,7 @@ from magsoro.characterization.hyperelastic import uniaxial_stress
 from magsoro.characterization.material_file import write_material
 from magsoro.errors import SceneError
 from magsoro.mpm.kernels import make_kernels
-from magsoro.mpm.materials import LAW_PARAM_COUNT, LAWS
+from magsoro.mpm.laws.elastic import LAW_PARAM_COUNT, LAWS
 from magsoro.scene import parse_scene
 from magsoro.simulation import Simulation
 from magsoro.validation.closed_form import central_difference_stress

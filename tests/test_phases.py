@@ -153,7 +153,7 @@ def test_damping_profile_matches_constant_damping_piecewise(tmp_path):
 def test_damping_profile_in_the_step_and_the_implicit_integrator():
     """SolverSettings follows the profile (linear between the times, held outside); the implicit integrator's
     damping term reads it at the step's load time."""
-    from magsoro.mpm.solver import SolverSettings
+    from magsoro.mpm.model import SolverSettings
 
     st = SolverSettings(damping={"times": [0.0, 1.0], "values": [10.0, 0.0]})
     assert st.damping_at(-1.0) == 10.0 and st.damping_at(0.25) == pytest.approx(7.5) and st.damping_at(5.0) == 0.0

@@ -94,7 +94,7 @@ def _collider_modes(formulation: str) -> dict:
     from magsoro.fields import Uniform
     from magsoro.fields.profiles import Keyframes
     from magsoro.mpm.colliders import Collider
-    from magsoro.mpm.solver import Control, SolverSettings
+    from magsoro.mpm.model import Control, SolverSettings
     from tests.conftest import make_block_model
 
     dx = 5e-4

@@ -1,5 +1,5 @@
 """2D plane stress (``[simulation] plane = "stress"``, issue 56 item 1): the laws evaluated in 3D at
-F = diag(F_2D, lam_3) with lam_3 from a zero normal stress (:func:`magsoro.mpm.materials._plane_stress_functions`).
+F = diag(F_2D, lam_3) with lam_3 from a zero normal stress (:func:`magsoro.mpm.laws.elastic._plane_stress_functions`).
 
 - a material point of a plane-stress strip stretched 50 % along x (the engine's particle stress, float64, the
   lateral stretch solved for a zero lateral stress) carries the axial stress of the 3D uniaxial state of the law
@@ -33,8 +33,8 @@ def _poisson(G, K):
 
 # ------------------------------------------------------------------ material point: uniaxial 50 % stretch
 def _point_model(law, plane):
-    from magsoro.mpm.materials import LAWS
-    from magsoro.mpm.solver import Model
+    from magsoro.mpm.laws.elastic import LAWS
+    from magsoro.mpm.model import Model
 
     entry = LAWS[law]
     given = {"shear_modulus": G0} if law == "neo-hookean" else OGDEN
@@ -48,7 +48,7 @@ def _engine_stress(model, F):
     import warp as wp
 
     from magsoro.mpm.kernels import launch_body_stress
-    from magsoro.mpm.solver import bodies_array
+    from magsoro.mpm.runtime import bodies_array
 
     k = model.kernels
     Fa = wp.array(np.asarray(F, dtype=np.float64).reshape(1, 2, 2), dtype=k["mat"])
@@ -59,7 +59,7 @@ def _engine_stress(model, F):
 
 def _uniaxial_3d(law, stretch):
     """Axial first Piola stress (Pa) of the 3D law stretched ``stretch`` along x, free laterally (lam_2 = lam_3
-    from a zero lateral stress): the compressible laws of magsoro.mpm.materials written out on the host."""
+    from a zero lateral stress): the compressible laws of magsoro.mpm.laws.elastic written out on the host."""
     K = K0
 
     def stresses(l1, l):
@@ -153,7 +153,7 @@ def test_cantilever_tip_against_euler_bernoulli(law):
     """Tip deflection (mean over the tip probe's particles, about 1 % of the length) within 1 % of
     Euler-Bernoulli with E in plane stress and with E / (1 - nu^2) in plane strain; each misses the other
     modulus by 23-30 % (measured: +0.59 % and -0.72 %, both laws)."""
-    from magsoro.mpm.static import StaticSolver
+    from magsoro.mpm.newton.static import StaticSolver
 
     gravity = 2.0
     errors = {}
@@ -270,8 +270,8 @@ PRONY = [[0.3, 0.01], [0.2, 0.1]]  # g_inf = 0.5
 
 
 def _prony_point(dim, plane, G=G0, terms=PRONY):
-    from magsoro.mpm.materials import LAWS
-    from magsoro.mpm.solver import Model
+    from magsoro.mpm.laws.elastic import LAWS
+    from magsoro.mpm.model import Model
 
     law = LAWS["neo-hookean"]
     return Model(np.zeros((1, dim)), 1e-9, 1000.0, G, K0, np.zeros(3), 0, False, dx=1e-3, domain_lo=[-1.0] * dim,
@@ -288,7 +288,7 @@ def test_prony_plane_stress_against_the_3d_law_with_a_free_thickness():
     relaxes), its last the plane stress of the
     relaxed law (isochoric modulus scaled by g_inf = 0.5) within 1e-6 (30 times the longest tau: exp(-30) left of
     the overstress); the two differ by 30 %."""
-    from magsoro.mpm.viscous import prescribed_history
+    from magsoro.mpm.laws.viscous import prescribed_history
 
     times = np.concatenate([[0.0], np.linspace(1e-4, 1e-3, 10), np.geomspace(2e-3, 3.0, 30)])
     stretch = np.concatenate([[1.0], np.linspace(1.03, 1.3, 10), np.full(30, 1.3)])

@@ -549,7 +549,7 @@ def test_sigterm_after_a_static_run_completes_keeps_exit_code_and_run_json_consi
     """SIGTERM just after the closing run.json ('completed') used to exit 143; now the signal waits until the
     outcome is recorded, and the exit status is the one run.json gives."""
     from magsoro.io.recorder import RunWriter
-    from magsoro.mpm.static import StaticResult
+    from magsoro.mpm.newton.static import StaticResult
     from magsoro.simulation import Simulation
 
     monkeypatch.setattr(Simulation, "solve_static", lambda self, *a, **kw: StaticResult(True, message="1 level(s) converged"))

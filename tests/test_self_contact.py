@@ -137,7 +137,7 @@ def test_self_contact_with_a_second_body_runs_and_classifies_only_reached_nodes(
     treat nodes no particle reaches as self-contact candidates and index the friction table with an overflowed
     group number, which crashed the step as soon as there were two contact groups. The disc, pushed into the
     ring, must stay inside it (contact holds) and every node of the split classes must carry mass."""
-    from magsoro.mpm.contact import BODIES, FOLD
+    from magsoro.mpm.kernels.contact import BODIES, FOLD
     from magsoro.scene import parse_scene
     from magsoro.simulation import Simulation
 

@@ -204,7 +204,7 @@ def test_stability_check_finds_a_negative_eigenvalue_behind_a_positive_one():
 def test_permutation_parity_and_negative_count():
     import scipy.sparse as sp
 
-    from magsoro.mpm.static import _odd_negative_count, _permutation_parity
+    from magsoro.mpm.newton.static import _odd_negative_count, _permutation_parity
 
     assert _permutation_parity([0, 1, 2, 3]) == 0 and _permutation_parity([1, 0, 2, 3]) == 1
     assert _permutation_parity([1, 2, 0]) == 0 and _permutation_parity([3, 2, 1, 0]) == 0
@@ -217,7 +217,7 @@ def test_permutation_parity_and_negative_count():
 
 
 def test_limit_load_is_the_vertex_of_the_parabola_through_three_steps():
-    from magsoro.mpm.static import _vertex
+    from magsoro.mpm.newton.static import _vertex
 
     def a(s):  # a parabola with its top, 0.7, at s = 2
         return 0.7 - 0.3 * (s - 2.0) ** 2

@@ -1,4 +1,4 @@
-"""Rigid colliders in the quasi-static solver (issue "Quasi-static solver"): :mod:`magsoro.mpm.static_contact`.
+"""Rigid colliders in the quasi-static solver (issue "Quasi-static solver"): :mod:`magsoro.mpm.newton.static_contact`.
 
 The static solver holds nodes at the engine's total-Lagrangian contact level by a penalty, with stick and Coulomb
 slip. Checked here: a propped cantilever against the engine's own dynamic settling of the same scene, the
@@ -146,7 +146,7 @@ def test_block_rests_inside_the_friction_cone(tmp_path, angle, law):
     g = 9.81
     gx, gy = g * math.sin(math.radians(angle)), -g * math.cos(math.radians(angle))
     sim = _sim(tmp_path, BLOCK.format(gx=gx, gy=gy, mu=0.7))
-    from magsoro.mpm.static import StaticSolver
+    from magsoro.mpm.newton.static import StaticSolver
 
     st = StaticSolver(sim, 0.1, collider_contact=law)
     level = st.solve_level(1.0)
@@ -198,7 +198,7 @@ def test_a_free_body_is_refused_at_once(tmp_path):
     0.125 mm), instead of
     failing its load increments after minutes (scenes/cube_dipole_3d.toml's cube took 6.5 minutes)."""
     from magsoro.errors import SimulationError
-    from magsoro.mpm.static import StaticSolver
+    from magsoro.mpm.newton.static import StaticSolver
 
     text = BLOCK.format(gx=0.0, gy=-9.81, mu=0.7).replace("center = [0.0, 0.001]", "center = [0.0, 0.002]")
     sim = _sim(tmp_path, text)
@@ -278,7 +278,7 @@ def test_strip_peels_off_the_floor_by_the_closed_form(tmp_path):
 def test_settling_the_active_set_keeps_the_equilibrium_and_saves_iterations(tmp_path, monkeypatch):
     """The same peel at 2 cells through the strip with and without the linearised active set: one equilibrium (the
     end's rise equal to 1e-9 relative), 5 Newton iterations against 37."""
-    import magsoro.mpm.static as static
+    import magsoro.mpm.newton.static as static
 
     lifts, iterations = [], []
     for rounds in (static.ACTIVE_SET_ROUNDS, 0):

@@ -1,11 +1,11 @@
-"""The static solver's sparse factorisation (magsoro.mpm.static.factor): SuperLU in its symmetric mode, checked,
+"""The static solver's sparse factorisation (magsoro.mpm.newton.static.factor): SuperLU in its symmetric mode, checked,
 with the default LU where the check fails; and the determinant-sign parity the stability check reads from it."""
 
 import numpy as np
 import pytest
 from scipy import sparse
 
-from magsoro.mpm.static import FACTOR_CHECK, _odd_negative_count, factor
+from magsoro.mpm.newton.static import FACTOR_CHECK, _odd_negative_count, factor
 
 
 def _laplacian_3d(n: int) -> sparse.csc_matrix:

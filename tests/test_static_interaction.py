@@ -111,7 +111,7 @@ def test_matches_the_dynamic_relaxation(solved):
 
 def test_arc_length_is_refused_with_the_bodies_field():
     from magsoro.errors import SimulationError
-    from magsoro.mpm.static import StaticSolver
+    from magsoro.mpm.newton.static import StaticSolver
 
     sim = _sim()
     with pytest.raises(SimulationError, match="magnetic_interaction = 'none' or static.arc_length = false"):

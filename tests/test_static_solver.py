@@ -1,4 +1,4 @@
-"""Quasi-static Newton solver (issue "Quasi-static solver", first part): :mod:`magsoro.mpm.static`.
+"""Quasi-static Newton solver (issue "Quasi-static solver", first part): :mod:`magsoro.mpm.newton.static`.
 
 The equilibrium it finds is one of the engine's own discretisation (an explicit step from it does not move), it
 converges quadratically, and on Zhao et al.'s cantilever (scenes/cantilever_2d.toml, 2D plane strain, t/dx = 4.2)
@@ -92,7 +92,7 @@ def test_a_level_reaching_the_domain_walls_is_not_converged(tmp_path):
     last converged level's. A wall whose band a body starts in is modelled instead, as a half-space collider at
     the band's edge with the walls' contact law."""
     from magsoro.errors import SimulationError
-    from magsoro.mpm.static import StaticSolver
+    from magsoro.mpm.newton.static import StaticSolver
     from magsoro.scene import load_scene
     from magsoro.simulation import Simulation
 
@@ -124,7 +124,7 @@ def test_a_level_reaching_the_domain_walls_is_not_converged(tmp_path):
 def test_quadratic_convergence():
     """Newton from a converged level to a nearby one: the residual falls by squares once close (each iteration
     at least squares the relative residual, within a factor of 1e3)."""
-    from magsoro.mpm.static import StaticSolver
+    from magsoro.mpm.newton.static import StaticSolver
     from magsoro.scene import load_scene
     from magsoro.simulation import Simulation
 
@@ -247,7 +247,7 @@ def test_tangent_is_the_residual_derivative_in_a_non_uniform_field(tmp_path):
     1e-4 (measured 1e-7 and 4e-6; with the gradient force's position term misplaced it was 3 %)."""
     from scipy.sparse.linalg import splu
 
-    from magsoro.mpm.static import StaticSolver
+    from magsoro.mpm.newton.static import StaticSolver
     from magsoro.scene import load_scene
     from magsoro.simulation import Simulation
 
@@ -281,7 +281,7 @@ def test_3d_tangent_is_the_residual_derivative_next_to_a_dipole():
     1.9e-6; the field terms are 39 % of the Newton direction's residual change here, so a missing term fails)."""
     from scipy.sparse.linalg import splu
 
-    from magsoro.mpm.static import StaticSolver
+    from magsoro.mpm.newton.static import StaticSolver
     from magsoro.scene import parse_scene
     from magsoro.simulation import Simulation
     from magsoro.validation.beam import WIDTH_3D, BeamSetup, beam_scene, sweep_schedule
@@ -325,7 +325,7 @@ COLUMN = dict(dx=1e-3, shear=34e3, bulk=5 * 34e3, density=1876.0)  # silicone, K
 
 def _column():
     """The column of the two tests below, its static solver, top height at rest, and Greenhill's s_c."""
-    from magsoro.mpm.static import StaticSolver
+    from magsoro.mpm.newton.static import StaticSolver
     from magsoro.scene import parse_scene
     from magsoro.simulation import Simulation
 
@@ -488,7 +488,7 @@ def test_move_to_continues_along_a_magnets_path(tmp_path):
     contact, and a dipole weak enough for one equilibrium at each time: nothing depends on the path), to 1e-8 of
     the length (measured 2e-11 m). (With a four times stronger moment the beam has two equilibria near the magnet,
     and the continuation and the fresh solve find different ones.)"""
-    from magsoro.mpm.static import StaticSolver
+    from magsoro.mpm.newton.static import StaticSolver
     from magsoro.scene import load_scene
     from magsoro.simulation import Simulation
 
@@ -523,7 +523,7 @@ def test_move_to_that_fails_names_the_move(tmp_path):
     """A move along the path that load increments cannot follow (the strong dipole swept towards the beam's tip: the
     increments stall at 0.85 of the way, though a fresh solve at the end time converges; the beam has more than one
     equilibrium there) fails with a message that names the move and what to do, not an arc-length one."""
-    from magsoro.mpm.static import StaticSolver
+    from magsoro.mpm.newton.static import StaticSolver
     from magsoro.scene import load_scene
     from magsoro.simulation import Simulation
 

@@ -1,4 +1,4 @@
-"""First Piola stress of every registered material law (magsoro.mpm.materials) against central differences of
+"""First Piola stress of every registered material law (magsoro.mpm.laws.elastic) against central differences of
 its strain energy, through the engine's own device code; initial shear moduli against small-strain slopes."""
 
 import numpy as np
@@ -6,7 +6,7 @@ import pytest
 import warp as wp
 
 from magsoro.mpm.kernels import make_kernels
-from magsoro.mpm.materials import LAW_PARAM_COUNT, LAWS
+from magsoro.mpm.laws.elastic import LAW_PARAM_COUNT, LAWS
 from magsoro.validation.closed_form import central_difference_stress
 
 

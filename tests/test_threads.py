@@ -6,7 +6,9 @@ import pytest
 
 from magsoro.fields import Dipole, Uniform
 from magsoro.mpm.colliders import Collider
-from magsoro.mpm.solver import Control, Solver, SolverSettings, resolve_threads
+from magsoro.mpm.model import Control, SolverSettings
+from magsoro.mpm.runtime import resolve_threads
+from magsoro.mpm.solver import Solver
 from magsoro.errors import MagsoroError, SceneError
 from magsoro.scene import parse_scene
 from tests.conftest import make_block_model
@@ -91,7 +93,7 @@ def test_workers_run_every_launch_and_pass_errors_on():
     import threading
     import time
 
-    from magsoro.mpm.solver import _Workers
+    from magsoro.mpm.runtime import Workers
 
     ran = []
 
@@ -105,7 +107,7 @@ def test_workers_run_every_launch_and_pass_errors_on():
             if self.fail:
                 raise RuntimeError(f"{self.name} failed")
 
-    w = _Workers(2)
+    w = Workers(2)
     w.run([Job("a"), Job("b"), Job("c")])
     assert sorted(n for n, _ in ran) == ["a", "b", "c"]
     assert {t for _, t in ran} == {threading.current_thread().name, "magsoro-step-1", "magsoro-step-2"}

@@ -1,4 +1,4 @@
-"""Finite-strain viscoelasticity (issue 25, magsoro.mpm.viscous): a Prony series on the isochoric stress.
+"""Finite-strain viscoelasticity (issue 25, magsoro.mpm.laws.viscous): a Prony series on the isochoric stress.
 
 - material point (the engine's own update and stress functions on a prescribed F path): a sudden held shear
   relaxes as G(t) = G0 (g_inf + sum g_i exp(-t/tau_i)) (1 %); at finite stretch, for Neo-Hookean (2D) and Ogden
@@ -23,10 +23,10 @@ import warp as wp
 
 from magsoro.errors import SceneError, SimulationError
 from magsoro.mpm.kernels import make_kernels
-from magsoro.mpm.materials import LAWS
-from magsoro.mpm.prony import dynamic_moduli, prony_problem, relaxation_modulus
-from magsoro.mpm.solver import Model
-from magsoro.mpm.viscous import prescribed_history
+from magsoro.mpm.laws.elastic import LAWS
+from magsoro.mpm.laws.prony import dynamic_moduli, prony_problem, relaxation_modulus
+from magsoro.mpm.model import Model
+from magsoro.mpm.laws.viscous import prescribed_history
 from magsoro.scene import parse_scene
 from magsoro.simulation import Simulation
 

@@ -10,9 +10,9 @@ What gets compiled (:func:`warp_modules`)
 -----------------------------------------
 
 The engine's kernels are built by ``functools.cache``'d factories parameterised by dimension, precision and
-flags (:func:`magsoro.mpm.kernels.make_kernels`, which assembles :mod:`~magsoro.mpm.p2g`, :mod:`~magsoro.mpm.grid`,
-:mod:`~magsoro.mpm.g2p`, :mod:`~magsoro.mpm.contact` and the stress kernel). Warp files a kernel made inside a
-factory under the Warp module of the Python module that defines it, so ``magsoro.mpm.p2g`` holds every variant
+flags (:func:`magsoro.mpm.kernels.make_kernels`, which assembles :mod:`~magsoro.mpm.kernels.p2g`, :mod:`~magsoro.mpm.kernels.grid`,
+:mod:`~magsoro.mpm.kernels.g2p`, :mod:`~magsoro.mpm.kernels.contact` and the stress kernel). Warp files a kernel made inside a
+factory under the Warp module of the Python module that defines it, so ``magsoro.mpm.kernels.p2g`` holds every variant
 created in the process, and compiles them all as one unit on the first launch. :func:`warp_modules` therefore
 builds each variant past the factory's cache (the same source and closure, so the same generated code), takes it
 back out of the package's Warp module (which keeps holding only what the process's own runs created: building all
@@ -20,7 +20,7 @@ variants through the caches would make the next CPU launch compile every one of 
 the kernels of each factory call into a Warp module of their own, one per (variant, defining module), with the
 defining module's options (``max_unroll``, ``enable_backward``, ...). That also names the failing variant in a
 report and lets the compiles run in parallel. (The one exception: ``contact_classify``, which the transfers'
-stencil builds through its cache, stays in ``magsoro.mpm.contact`` for every dimension and precision, about a
+stencil builds through its cache, stays in ``magsoro.mpm.kernels.contact`` for every dimension and precision, about a
 second of compile each.) Every variant the package can create is listed:
 
 - ``engine {2,3}D {float32,float64}[ (contact)| (adjoint)]: p2g | g2p | grid``: the transfers and the grid
@@ -31,7 +31,7 @@ second of compile each.) Every variant the package can create is listed:
   (``stress_kernel``, ``body_stress_kernel``; one per dimension and precision);
 - ``fields {2,3}D {float32,float64}[ (adjoint)]: device``: the field accumulate kernel (:mod:`magsoro.fields.device`) for the
   device function of every field source (found from the ``device_func`` methods of the package's sources);
-- ``viscous {2,3}D {float32,float64}: viscous``: the Prony update and overstress kernels (:mod:`magsoro.mpm.viscous`);
+- ``viscous {2,3}D {float32,float64}: viscous``: the Prony update and overstress kernels (:mod:`magsoro.mpm.laws.viscous`);
 - ``bench reference {2,3}D: reference``: the bare MLS-MPM step of ``magsoro bench``;
 - ``diff.rollout`` (and any other module with module-level kernels): those kernels as they are.
 
@@ -257,14 +257,14 @@ def _catalogue() -> tuple:
 
     from magsoro.bench.reference import reference_kernels
     from magsoro.fields.device import accumulate_kernel
-    from magsoro.mpm.contact import make_contact
-    from magsoro.mpm.g2p import make_g2p
-    from magsoro.mpm.grid import make_grid
+    from magsoro.mpm.kernels.contact import make_contact
+    from magsoro.mpm.kernels.g2p import make_g2p
+    from magsoro.mpm.kernels.grid import make_grid
     from magsoro.mpm.interaction import make_interaction_kernels
     from magsoro.mpm.kernels import _stress_kernel
-    from magsoro.mpm.static import make_static_kernels
-    from magsoro.mpm.p2g import make_p2g
-    from magsoro.mpm.viscous import make_viscous
+    from magsoro.mpm.newton.static import make_static_kernels
+    from magsoro.mpm.kernels.p2g import make_p2g
+    from magsoro.mpm.laws.viscous import make_viscous
 
     scalars = {"float32": wp.float32, "float64": wp.float64}
     seen: set = set()
@@ -279,10 +279,10 @@ def _catalogue() -> tuple:
                     groups += _groups_of(label, _fresh(factory, dim, sc, contact, differentiable), seen)
                 if not contact and not differentiable:
                     # one per dimension and precision; contact_classify comes from the cache, where the transfers'
-                    # stencil (magsoro.mpm.stencil) has already put it
+                    # stencil (magsoro.mpm.kernels.stencil) has already put it
                     groups += _groups_of(label, _fresh(_stress_kernel, dim, sc), seen)
                     groups += _groups_of(label, _kernels_in(make_contact(dim, sc)["contact_classify"]), seen)
-    # the 2D plane-stress variants of the kernels that evaluate a law (magsoro.mpm.stencil.make_body_elastic)
+    # the 2D plane-stress variants of the kernels that evaluate a law (magsoro.mpm.kernels.stencil.make_body_elastic)
     for sname in SCALAR_NAMES:
         sc = scalars[sname]
         for contact in (False, True):

@@ -20,14 +20,14 @@ from magsoro.limits import check_time_step, plausibility_notes, time_step_proble
 from magsoro.mpm.colliders import WALL_CELLS
 from magsoro.mpm.interaction import MagneticInteraction
 from magsoro.mpm.solver import Solver
-from magsoro.mpm.static import StaticResult
+from magsoro.mpm.newton.static import StaticResult
 from magsoro.mpm.timestep import cfl_time_step
 from magsoro.scene import Scene, load_scene
 from magsoro.scene.build import Built, build
 from magsoro.scene.schema import MAX_RECORDS
 
 #: cells from a domain face within which a particle may be held by that wall: the walls stop nodes within
-#: WALL_CELLS of the face (magsoro.mpm.grid), and a particle's mass reaches nodes up to 1.5 cells from it
+#: WALL_CELLS of the face (magsoro.mpm.kernels.grid), and a particle's mass reaches nodes up to 1.5 cells from it
 WALL_REACH_CELLS = WALL_CELLS + 1.5
 #: a body whose particles fill more than this fraction more or less than its shape's volume is noted in run.json
 LATTICE_FILL_NOTE = 0.02
@@ -190,7 +190,7 @@ class RunResult:
 
 @dataclass
 class StaticRun(StaticResult):
-    """Outcome of :meth:`Simulation.solve_static` (a :class:`~magsoro.mpm.static.StaticResult`) with ``metrics``:
+    """Outcome of :meth:`Simulation.solve_static` (a :class:`~magsoro.mpm.newton.static.StaticResult`) with ``metrics``:
     the probe values at each converged level as a numpy structured array, column 'level' (or 'time', s, when
     solved at times along the paths) then the probe columns (m; field probes T at the level's field; collider_force
     probes N, the contact's reaction); :meth:`dataframe` gives it as a pandas DataFrame."""
@@ -500,11 +500,11 @@ class Simulation:
     # -- statics -------------------------------------------------------------------------------------------
     def solve_static(self, levels=None, t: float | None = None, on_level: Callable | None = None, times=None,
                      watch: Callable | None = None):
-        """Equilibria by Newton's method (:mod:`magsoro.mpm.static`) under the loads at time ``t`` (default
+        """Equilibria by Newton's method (:mod:`magsoro.mpm.newton.static`) under the loads at time ``t`` (default
         simulation.duration), the fields scaled by each of ``levels`` in turn (default [static] levels) and
         gravity in full; each level starts from the previous equilibrium and the state holds the last converged
         one. ``on_level(sim, level_result)`` after each converged level; ``watch(solver)`` once before the first
-        level, given the :class:`~magsoro.mpm.static.StaticSolver` whose counters (``linear_solves``: one per
+        level, given the :class:`~magsoro.mpm.newton.static.StaticSolver` whose counters (``linear_solves``: one per
         Newton iteration; ``residual_evaluations``) a progress display may read while a level solves. Returns a :class:`StaticRun` (its ``metrics``
         the probe values per level); stops at the
         first level that does not converge (its message names the level). Afterwards :meth:`field_at` and the
@@ -513,7 +513,7 @@ class Simulation:
         ``times`` (default [static] times) sweeps along the scene's paths instead: the equilibrium under the loads
         at each of these times (s, increasing) in turn, the fields in full; the first from the unloaded body, each
         later one from the last, the fields and colliders moving along their paths with the load increments
-        (:meth:`~magsoro.mpm.static.StaticSolver.move_to`; a magnet brought closer step by step). ``levels`` and
+        (:meth:`~magsoro.mpm.newton.static.StaticSolver.move_to`; a magnet brought closer step by step). ``levels`` and
         ``t`` do not apply then; each result's ``level`` is 1 and ``time`` its time. The state's time is the last
         time solved.
 
@@ -522,7 +522,7 @@ class Simulation:
         first call, keeping its state, field sources and device, and :attr:`notes` says so; one that has already
         taken steps is refused (a rebuild would restart its motion): set ``scene.simulation.precision =
         'float64'`` before building it."""
-        from magsoro.mpm.static import StaticSolver
+        from magsoro.mpm.newton.static import StaticSolver
 
         self._rebuild_for_static()
         cfg = self.scene.static
@@ -705,10 +705,10 @@ class Simulation:
         self.check_wall_reach()
 
     def implicit_integrator(self):
-        """The :class:`magsoro.mpm.implicit.ImplicitIntegrator` of simulation.integrator = 'implicit' (made on the
+        """The :class:`magsoro.mpm.newton.implicit.ImplicitIntegrator` of simulation.integrator = 'implicit' (made on the
         first call, from the current state and sources)."""
         if self.implicit is None:
-            from magsoro.mpm.implicit import ImplicitIntegrator
+            from magsoro.mpm.newton.implicit import ImplicitIntegrator
 
             cfg = self.scene.implicit
             self.implicit = ImplicitIntegrator(self, cfg.scheme, cfg.rho_inf, cfg.tolerance, cfg.max_iterations,
@@ -758,7 +758,7 @@ class Simulation:
         Newton iterations."""
         if self.integrator != "implicit":
             return {"kind": "explicit"}
-        from magsoro.mpm.implicit import integrator_summary
+        from magsoro.mpm.newton.implicit import integrator_summary
 
         cfg = self.scene.implicit
         return {"kind": "implicit", **integrator_summary(self.implicit, cfg),

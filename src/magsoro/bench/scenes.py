@@ -19,7 +19,7 @@ import numpy as np
 from magsoro.geometry.primitives import Box, Rectangle, fill_lattice
 from magsoro.mpm.colliders import Collider
 from magsoro.fields import Regional, Rotating, Uniform
-from magsoro.mpm.solver import Control, Model, SolverSettings
+from magsoro.mpm.model import Control, Model, SolverSettings
 
 
 #: Walker sheet size (m) and the sweep's tile: copies 4 along x and 2 along y, 1 mm apart (10 cells: no grid

@@ -36,7 +36,7 @@ import numpy as np
 
 from magsoro.characterization.csvfiles import read_columns
 from magsoro.characterization.errors import CharacterizationDataError
-from magsoro.mpm.prony import MAX_PRONY_TERMS, prony_problem
+from magsoro.mpm.laws.prony import MAX_PRONY_TERMS, prony_problem
 
 # g_inf is kept at least this large: the engine needs sum g_i < 1 (a solid), and a Prony fit on a finite window
 # cannot tell g_inf = 0 from a tiny positive one
@@ -88,7 +88,7 @@ def _is_number(x) -> bool:
 
 
 def check_prony(value, where: str, error=CharacterizationDataError) -> list[tuple[float, float]]:
-    """Validate a ``prony`` value (as read from TOML) with the engine's rules (:func:`magsoro.mpm.prony.prony_problem`)
+    """Validate a ``prony`` value (as read from TOML) with the engine's rules (:func:`magsoro.mpm.laws.prony.prony_problem`)
     and return it as [(g_i, tau_i), ...] floats.
 
     ``where`` starts every message (e.g. ``"mat.toml: key 'prony'"``); ``error`` is the exception class raised.

@@ -87,7 +87,7 @@ def run(args) -> int:
         sim.note(text)
     if static:
         from magsoro.errors import SimulationError
-        from magsoro.mpm.static import check_supported
+        from magsoro.mpm.newton.static import check_supported
 
         try:
             check_supported(sim)
@@ -95,7 +95,7 @@ def run(args) -> int:
             raise SceneError(f"{args.scene}: --static: {exc}") from None
     if sim.integrator == "implicit" and not static and not getattr(args, "equilibrium", False):
         from magsoro.errors import SimulationError
-        from magsoro.mpm.implicit import check_implicit_supported
+        from magsoro.mpm.newton.implicit import check_implicit_supported
 
         try:
             check_implicit_supported(sim)

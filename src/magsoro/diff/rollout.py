@@ -1,7 +1,7 @@
 """A differentiable MLS-MPM rollout on Warp's autodiff (``wp.Tape``) with checkpointed segments.
 
 The physics is the engine's own: the kernels come from :func:`magsoro.mpm.kernels.make_kernels` and run through
-the engine's launchers (:func:`magsoro.mpm.p2g.launch_p2g` and the others), as plain launches (the explicit
+the engine's launchers (:func:`magsoro.mpm.kernels.p2g.launch_p2g` and the others), as plain launches (the explicit
 solver's recorded launches are not taped), over one fixed grid block chosen for the whole rollout. Inside a
 segment of ``segment`` steps every step has its own State, field and grid arrays, so the tape can replay it
 backwards; across segments only the segment start states are stored (checkpoints), and the
@@ -29,13 +29,13 @@ import warp as wp
 from magsoro.errors import MagsoroError
 from magsoro.fields.device import accumulate_kernel, launch_accumulate
 from magsoro.mpm.colliders import MODES, DeviceCollider, collider_records
-from magsoro.mpm.g2p import launch_g2p, launch_remap_F, launch_remap_node_velocity
-from magsoro.mpm.grid import launch_grid_update
+from magsoro.mpm.kernels.g2p import launch_g2p, launch_remap_F, launch_remap_node_velocity
+from magsoro.mpm.kernels.grid import launch_grid_update
 from magsoro.mpm.kernels import F_FROM_GRID, F_FROM_REMAP, make_kernels
-from magsoro.mpm.p2g import launch_p2g
-from magsoro.mpm.materials import LAWS
-from magsoro.mpm.solver import block_struct, bodies_array, contact_grid, grid_settings
-from magsoro.mpm.viscous import viscous_struct
+from magsoro.mpm.kernels.p2g import launch_p2g
+from magsoro.mpm.laws.elastic import LAWS
+from magsoro.mpm.runtime import block_struct, bodies_array, contact_grid, grid_settings
+from magsoro.mpm.laws.viscous import viscous_struct
 
 
 class DiffError(MagsoroError):
@@ -134,7 +134,7 @@ class Rollout:
         largest extent of the bodies, enough for any rigid rotation about a point of the body).
 
     ``run(loss)`` returns the loss and, with ``grad=True``, the gradients as numpy arrays: ``Br`` (N, 3),
-    ``shear`` (N,), ``bulk`` (N,), ``material_params`` (N, LAW_PARAM_COUNT = 6 of magsoro.mpm.materials),
+    ``shear`` (N,), ``bulk`` (N,), ``material_params`` (N, LAW_PARAM_COUNT = 6 of magsoro.mpm.laws.elastic),
     ``B_uniform`` (n_steps, 3), ``source_params`` (a list, one (n_steps, L_s) array per non-uniform source).
     """
 

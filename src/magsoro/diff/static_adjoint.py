@@ -1,6 +1,6 @@
 """Gradients of a static shape target by the adjoint of the converged Newton system (``magsoro optimize --static``).
 
-The static solver (:mod:`magsoro.mpm.static`) finds node displacements u with R(u, theta) = 0 for the design
+The static solver (:mod:`magsoro.mpm.newton.static`) finds node displacements u with R(u, theta) = 0 for the design
 theta (a body's magnetisation, a body's shear modulus). A target L(x, F) of the particles' positions and
 deformation gradients then has, by the implicit function theorem,
 
@@ -84,7 +84,7 @@ class StaticProblem:
         from magsoro.diff.optimize import _absolute_paths
         from magsoro.diff.targets import make_target
         from magsoro.io.files import read_toml_file
-        from magsoro.mpm.static import check_supported
+        from magsoro.mpm.newton.static import check_supported
         from magsoro.scene import load_scene
         from magsoro.simulation import Simulation, prepare_static
 
@@ -127,7 +127,7 @@ class StaticProblem:
         """The equilibrium of the current design: from the last one (warm), or from the unloaded state through
         the levels (the first time, with ``warm=False``, or when the warm start does not converge: a design far
         from the last one)."""
-        from magsoro.mpm.static import StaticSolver
+        from magsoro.mpm.newton.static import StaticSolver
 
         cfg = self.scene.static
         for fresh in ([False, True] if self.warm and self.solver is not None else [True]):

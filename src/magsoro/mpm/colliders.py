@@ -20,7 +20,7 @@ HALF_SPACE, BOX, SPHERE, CYLINDER = (wp.constant(int(k)) for k in ColliderKind)
 #: kind name -> code, mode name -> code
 KINDS = {k.name.lower(): int(k) for k in ColliderKind}
 MODES = COLLIDER_MODES
-#: the domain walls act on the nodes within this many cells of the domain's edge (:mod:`magsoro.mpm.grid`'s
+#: the domain walls act on the nodes within this many cells of the domain's edge (:mod:`magsoro.mpm.kernels.grid`'s
 #: ``walls``, which writes it as its literal): the builder keeps bodies out of that band, the static solver models
 #: or watches it, runs note a body that comes within its reach
 WALL_CELLS = 2

@@ -26,7 +26,7 @@ import warp as wp
 
 from magsoro.constants import MU0
 from magsoro.mpm.settings import INTERACTION_MODES
-from magsoro.mpm.stencil import host_bspline, make_stencil
+from magsoro.mpm.kernels.stencil import host_bspline, make_stencil
 
 # No kernel here runs under wp.Tape (only magsoro.diff's rollout does): Warp need not build their adjoints.
 wp.set_module_options({"enable_backward": False})
@@ -37,7 +37,7 @@ MARGIN = 2  # nodes kept between the magnetised particles' box and the grid's ed
 
 def polar_rotation_np(F: np.ndarray) -> np.ndarray:
     """The rotation R of the polar decomposition F = R U of each of ``F`` (..., dim, dim), float64, as the engine's
-    ``polar_rotation`` (:func:`magsoro.mpm.stencil.make_magnetization`) takes it: from the SVD F = W S V^T,
+    ``polar_rotation`` (:func:`magsoro.mpm.kernels.stencil.make_magnetization`) takes it: from the SVD F = W S V^T,
     R = W V^T with the last column of W flipped where det(W V^T) < 0."""
     W, _, Vt = np.linalg.svd(np.asarray(F, dtype=np.float64))
     flip = np.linalg.det(W @ Vt) < 0.0
@@ -116,7 +116,7 @@ def make_interaction_kernels(dim: int, scalar) -> dict:
         M: wp.array(dtype=scalar),
     ):
         """Spread particle ``p``'s moment F Br V0 ``scale`` (A m^2; 2D: A m, in-plane; R Br V0 ``scale`` when it
-        follows R, :func:`magsoro.mpm.stencil.make_magnetization`) onto its stencil's nodes:
+        follows R, :func:`magsoro.mpm.kernels.stencil.make_magnetization`) onto its stencil's nodes:
         M[a n_total + node] holds component a. ``select`` >= 0: only the particles of that body."""
         p = wp.tid()
         if select >= 0 and body[p] != select:
@@ -191,7 +191,7 @@ def make_interaction_kernels(dim: int, scalar) -> dict:
     return {"deposit_moments": deposit_moments, "gather_field": gather_field, "add_field": add_field}
 
 
-# -- launchers: the one place each kernel's argument order is written (as in :mod:`magsoro.mpm.p2g`); ``kernels``
+# -- launchers: the one place each kernel's argument order is written (as in :mod:`magsoro.mpm.kernels.p2g`); ``kernels``
 # is :func:`make_interaction_kernels`' table -------------------------------------------------------------------
 
 def launch_deposit_moments(kernels, n, *, x, F, Br, follows, vol0, lo, inv_h, shape, n_total, scale, body, select, M,
@@ -238,7 +238,7 @@ def _kernel_spectra(padded: tuple, h: float, dim: int, real: str = "float64") ->
 
 
 class MagneticInteraction:
-    """The bodies' own field at the particles of a :class:`~magsoro.mpm.solver.Model`, refreshed on demand.
+    """The bodies' own field at the particles of a :class:`~magsoro.mpm.model.Model`, refreshed on demand.
 
     ``depth`` (2D): the out-of-plane thickness the particle volumes include; the 2D field is that of line dipoles
     of moment m / depth per unit length. After :meth:`refresh`, ``B`` and ``grad_B`` (device arrays, the model's

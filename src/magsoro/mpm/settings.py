@@ -3,14 +3,14 @@ integer codes the kernels take as ``IntEnum``s.
 
 Warp kernels compare plain integers, so each kernel module keeps its codes as ``wp.constant`` ints; those ints
 are made from the enums here (``wp.constant(int(ColliderMode.STICKY))``), and host code names the members, never
-the numbers. The string settings (scene keys, :class:`magsoro.mpm.solver.SolverSettings`) stay strings; where a
+the numbers. The string settings (scene keys, :class:`magsoro.mpm.model.SolverSettings`) stay strings; where a
 kernel needs one as a code, the enum maps the name (:meth:`ColliderMode.named`).
 """
 
 from enum import IntEnum, IntFlag
 from typing import Literal, get_args
 
-#: the MPM formulation (:class:`magsoro.mpm.solver.SolverSettings` ``formulation``): "updated" Lagrangian (grid
+#: the MPM formulation (:class:`magsoro.mpm.model.SolverSettings` ``formulation``): "updated" Lagrangian (grid
 #: weights at the current positions) or "total" Lagrangian (weights, node forces and the velocity gradient on the
 #: reference configuration)
 Formulation = Literal["updated", "total"]
@@ -24,7 +24,7 @@ VELOCITY_GRADIENTS: tuple[str, ...] = get_args(VelocityGradient)
 
 #: the 2D idealisation (Model ``plane``, scene key simulation.plane): "strain" (F_zz = 1, long bodies) or "stress"
 #: (zero normal stress, the thickness stretch solved per particle: thin plates loaded in their plane, wide strips
-#: bending like beams; :func:`magsoro.mpm.materials.make_plane_stress_functions`). A compile-time choice: the
+#: bending like beams; :func:`magsoro.mpm.laws.elastic.make_plane_stress_functions`). A compile-time choice: the
 #: kernels that evaluate a law (p2g, the static solver's, the stress kernels) are built for one of them.
 #: "axisymmetric" (scene key simulation.dim = "axisymmetric"): the 2D plane is the (r, z) half-plane of a body of
 #: revolution about the y axis, F_thetatheta = r / R (docs/engine.md, "Axisymmetric bodies").
@@ -78,14 +78,14 @@ class ColliderKind(IntEnum):
 
 
 class P2GFlag(IntFlag):
-    """Bits of p2g's ``flags`` argument (:mod:`magsoro.mpm.p2g`)."""
+    """Bits of p2g's ``flags`` argument (:mod:`magsoro.mpm.kernels.p2g`)."""
 
     TOTAL = 1  # total Lagrangian: the weights at the reference positions
     APART = 2  # store each particle's affine matrix and momentum for p2g_scatter (the GPU's scatter threads)
 
 
 class FUpdate(IntEnum):
-    """Where g2p's F update takes its velocity gradient from (its ``f_update`` argument, :mod:`magsoro.mpm.g2p`)."""
+    """Where g2p's F update takes its velocity gradient from (its ``f_update`` argument, :mod:`magsoro.mpm.kernels.g2p`)."""
 
     FROM_GRID = 0  # the node velocities of the momentum update
     FROM_REMAP = 1  # the remap: g2p scatters the new affine velocities, remap_F gathers F
@@ -94,7 +94,7 @@ class FUpdate(IntEnum):
 
 
 class NodeClass(IntEnum):
-    """A grid node's class in the contact classification (:mod:`magsoro.mpm.contact`)."""
+    """A grid node's class in the contact classification (:mod:`magsoro.mpm.kernels.contact`)."""
 
     SINGLE = 0  # one velocity field
     BODIES = 1  # two contact groups meet
@@ -102,7 +102,7 @@ class NodeClass(IntEnum):
 
 
 class MagnetizationFollows(IntEnum):
-    """The map that carries a particle's remanence (material.magnetization_follows, :mod:`magsoro.mpm.stencil`)."""
+    """The map that carries a particle's remanence (material.magnetization_follows, :mod:`magsoro.mpm.kernels.stencil`)."""
 
     F = 0  # the deformation gradient (Zhao's law)
     R = 1  # the rotation of its polar decomposition F = R U

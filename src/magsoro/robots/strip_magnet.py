@@ -226,7 +226,7 @@ def _dynamic_sweep(ctx: Context, data: dict, gaps, centre, half: float, diameter
 def reproduce(ctx: Context) -> ReproduceResult:
     from magsoro.errors import SimulationError
     from magsoro.fields import CylinderMagnet
-    from magsoro.mpm.static import check_supported
+    from magsoro.mpm.newton.static import check_supported
 
     gaps = PREVIEW_GAPS if ctx.preview else GAPS
     data = scene_data(NAME)

@@ -118,7 +118,7 @@ def cauchy_stress(sim) -> np.ndarray:
     import warp as wp
 
     from magsoro.mpm.kernels import launch_body_stress
-    from magsoro.mpm.solver import bodies_array
+    from magsoro.mpm.runtime import bodies_array
 
     m = sim.model
     k = m.kernels

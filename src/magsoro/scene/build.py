@@ -38,12 +38,12 @@ from magsoro.geometry.primitives import (
     fill_lattice,
 )
 from magsoro.materials.library import MaterialLibraryError, get_material, load_library
-from magsoro.mpm.materials import DEFAULT_LAW, FIT_MODEL_LAWS, LAWS, PARAMETER_KEYS, law_of_file_model
+from magsoro.mpm.laws.elastic import DEFAULT_LAW, FIT_MODEL_LAWS, LAWS, PARAMETER_KEYS, law_of_file_model
 from magsoro.mpm.colliders import WALL_CELLS, Collider
-from magsoro.mpm.eigenstrain import KeyframeStimulus, SineStimulus, Stimulus
-from magsoro.mpm.prony import prony_problem
-from magsoro.mpm.stencil import MAGNETIZATION_FOLLOWS
-from magsoro.mpm.solver import Control, ContactSettings, Model, SolverSettings
+from magsoro.mpm.laws.eigenstrain import KeyframeStimulus, SineStimulus, Stimulus
+from magsoro.mpm.laws.prony import prony_problem
+from magsoro.mpm.kernels.stencil import MAGNETIZATION_FOLLOWS
+from magsoro.mpm.model import Control, ContactSettings, Model, SolverSettings
 from magsoro.scene.schema import Scene
 
 
@@ -224,7 +224,7 @@ def resolve_material(spec, base_dir, key: str, library: dict | None = None) -> d
 
 
 def make_stimulus(spec, key: str) -> Stimulus:
-    """The engine's :class:`~magsoro.mpm.eigenstrain.Stimulus` of a material's ``stimulus`` table."""
+    """The engine's :class:`~magsoro.mpm.laws.eigenstrain.Stimulus` of a material's ``stimulus`` table."""
     p = spec.profile
     try:
         if p.type == "ramp":
@@ -284,7 +284,7 @@ class Particles:
     positions (N, dim) m; volumes (N,) m^3 (2D: area x depth); density, shear_modulus, bulk_modulus (N,);
     remanence (N, 3) T; body (N,) int; clamped (N,) bool; material_model (N,) int; material_params
     (N, LAW_PARAM_COUNT) Pa (Ogden exponents dimensionless); velocity (N, dim) m/s; stimulus (N,) int, the row of
-    ``stimuli`` (:class:`magsoro.mpm.eigenstrain.Stimulus`, one per body whose material has one) or -1; prony
+    ``stimuli`` (:class:`magsoro.mpm.laws.eigenstrain.Stimulus`, one per body whose material has one) or -1; prony
     (N,) int, the row of ``pronies`` (Prony tables [[g, tau], ...], one per body whose material has one) or -1.
     """
 

@@ -13,8 +13,8 @@ from typing import Annotated, Literal, Optional, Union
 
 from pydantic import AfterValidator, BaseModel, ConfigDict, Discriminator, Field, PlainValidator, PrivateAttr, Tag, model_validator
 
-from magsoro.mpm.materials import DEFAULT_LAW, LAW_NAMES, LAWS, LIST_KEYS, PARAMETER_KEYS
-from magsoro.mpm.prony import prony_problem
+from magsoro.mpm.laws.elastic import DEFAULT_LAW, LAW_NAMES, LAWS, LIST_KEYS, PARAMETER_KEYS
+from magsoro.mpm.laws.prony import prony_problem
 
 Vec = list[float]
 
@@ -160,7 +160,7 @@ SHAPES_2D = ("rectangle", "polygon", "arc")
 
 
 # ---------------------------------------------------------------- bodies
-MaterialModel = Literal[LAW_NAMES]  # the laws of magsoro.mpm.materials
+MaterialModel = Literal[LAW_NAMES]  # the laws of magsoro.mpm.laws.elastic
 
 
 def _terms(v: list[float]) -> list[float]:
@@ -237,7 +237,7 @@ StimulusProfile = Annotated[Union[StimulusRamp, StimulusKeyframes, StimulusSine,
 
 def _table(name: str):
     def check(rows: list[list[float]]) -> list[list[float]]:
-        from magsoro.mpm.eigenstrain import table_problem
+        from magsoro.mpm.laws.eigenstrain import table_problem
 
         problem = table_problem(rows, name)
         if problem is not None:
@@ -1009,7 +1009,7 @@ class Static(Strict):
     max_iterations: int = Field(default=40, ge=1, le=1000, description="Newton iterations per load increment before the increment is halved.")
     arc_length: bool = Field(default=False, description="Follow the equilibrium path from each level to the next by arc length (the load factor an unknown) instead of load increments: passes limit points (a snap-through) and reports the field levels where the path turned back (run.json static.levels[].limit_levels). Scenes without colliders. Where load increments fail, the solver takes it anyway.")
     collider_contact: Literal["surface", "nodes"] = Field(default="surface", description="Where rigid colliders meet the bodies in the static solve: 'surface' (default): each particle is a ball of half its lattice spacing, so the bodies' surface rests on the collider's; 'nodes': the grid nodes at the engine's contact skin, the law of a dynamic run, which holds a body that moves onto a collider about one cell off it (docs/engine.md). Domain walls always act at the nodes.")
-    linear_solver: Literal["auto", "direct", "iterative"] = Field(default="auto", description="How the Newton steps' linear systems are solved: 'direct' (sparse LU: exact, its cost and memory grow faster than the unknowns), 'iterative' (conjugate gradients, or GMRES with friction colliders, preconditioned by smoothed-aggregation multigrid with the rigid-body modes: memory and time per iteration in proportion to the unknowns, for large 3D bodies) or 'auto' (default): direct up to magsoro.mpm.linear.DIRECT_MAX_UNKNOWNS (8,000) unknowns, iterative above. run.json reports each level's linear solves and Krylov iterations (static.levels[].linear_iterations). docs/engine.md, 'Static solver'.")
+    linear_solver: Literal["auto", "direct", "iterative"] = Field(default="auto", description="How the Newton steps' linear systems are solved: 'direct' (sparse LU: exact, its cost and memory grow faster than the unknowns), 'iterative' (conjugate gradients, or GMRES with friction colliders, preconditioned by smoothed-aggregation multigrid with the rigid-body modes: memory and time per iteration in proportion to the unknowns, for large 3D bodies) or 'auto' (default): direct up to magsoro.mpm.newton.linear.DIRECT_MAX_UNKNOWNS (8,000) unknowns, iterative above. run.json reports each level's linear solves and Krylov iterations (static.levels[].linear_iterations). docs/engine.md, 'Static solver'.")
 
     @model_validator(mode="after")
     def _times_or_levels(self):
@@ -1035,7 +1035,7 @@ class Implicit(Strict):
     easy_iterations: int = Field(default=4, ge=1, le=100, description="Newton iterations of a step that counts as easy.")
     tolerance: float = Field(default=1e-6, gt=0, lt=1, allow_inf_nan=False, description="Newton tolerance: largest node force left over the step's force scale (the loads on the undeformed body, the internal forces of the last state, the nodes' weight and inertia).")
     max_iterations: int = Field(default=20, ge=1, le=1000, description="Newton iterations of a step before it is retried at half the step.")
-    linear_solver: Literal["auto", "direct", "iterative"] = Field(default="auto", description="How each Newton iteration's linear system is solved, as static.linear_solver: 'direct' (sparse LU), 'iterative' (multigrid-preconditioned conjugate gradients or GMRES) or 'auto' (default): direct up to magsoro.mpm.implicit.DIRECT_MAX_UNKNOWNS (50,000) unknowns, iterative above (a factorisation serves many Newton iterations and steps). run.json's integrator entry counts the linear solves and their Krylov iterations.")
+    linear_solver: Literal["auto", "direct", "iterative"] = Field(default="auto", description="How each Newton iteration's linear system is solved, as static.linear_solver: 'direct' (sparse LU), 'iterative' (multigrid-preconditioned conjugate gradients or GMRES) or 'auto' (default): direct up to magsoro.mpm.newton.implicit.DIRECT_MAX_UNKNOWNS (50,000) unknowns, iterative above (a factorisation serves many Newton iterations and steps). run.json's integrator entry counts the linear solves and their Krylov iterations.")
 
     @model_validator(mode="after")
     def _step_bounds(self):

@@ -28,7 +28,7 @@ SINGLE_THREAD_ENV = {
     "MKL_NUM_THREADS": "1",
     "NUMEXPR_NUM_THREADS": "1",
     "VECLIB_MAXIMUM_THREADS": "1",
-    "MAGSORO_THREADS": "1",  # the engine's own CPU threads (magsoro.mpm.solver.resolve_threads)
+    "MAGSORO_THREADS": "1",  # the engine's own CPU threads (magsoro.mpm.runtime.resolve_threads)
 }
 
 

@@ -28,7 +28,7 @@ def _lattice(lo, hi, h):
 
 def _block(lo, hi, dx, ppc, density, G, Br, precision="float64", domain=None):
     """Model of one block of Neo-Hookean material (K = 20 G) filled with ppc^dim particles per cell."""
-    from magsoro.mpm.solver import Model
+    from magsoro.mpm.model import Model
 
     dim = len(lo)
     h = dx / ppc
@@ -62,7 +62,8 @@ def _angular_momentum_z(model, state, dx, origin):
           "angular acceleration (m x B)/I (3D and 2D)", cost="~10 s")
 def uniform_torque(ctx: Context) -> CaseResult:
     from magsoro.fields import Uniform
-    from magsoro.mpm.solver import Control, Solver
+    from magsoro.mpm.model import Control
+    from magsoro.mpm.solver import Solver
 
     rows, info = [], {}
     for dim in (3, 2):
@@ -108,7 +109,8 @@ def uniform_torque(ctx: Context) -> CaseResult:
 @register("dipole_force", "net force on a small magnetised cube in a dipole field equals (m . grad) B", cost="~5 s")
 def dipole_force(ctx: Context) -> CaseResult:
     from magsoro.fields import Dipole
-    from magsoro.mpm.solver import Control, Solver
+    from magsoro.mpm.model import Control
+    from magsoro.mpm.solver import Solver
 
     a, dx, d = 1e-3, 1.25e-4, 1.0e-2  # cube side, grid spacing, distance to the dipole (m); a = d / 10
     Br = np.array([0.0, 0.0, 0.2])  # T
@@ -203,7 +205,8 @@ def neo_hookean(ctx: Context) -> CaseResult:
 @register("momentum", "linear momentum conserved to round-off without external forces (2D and 3D)", cost="~5 s")
 def momentum(ctx: Context) -> CaseResult:
     from magsoro.fields import Uniform
-    from magsoro.mpm.solver import Control, Solver, SolverSettings
+    from magsoro.mpm.model import Control, SolverSettings
+    from magsoro.mpm.solver import Solver
 
     rows, info = [], {}
     for dim in (2, 3):

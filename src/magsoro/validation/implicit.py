@@ -1,4 +1,4 @@
-"""Validation case ``implicit``: the implicit integrator (:mod:`magsoro.mpm.implicit`) against closed forms.
+"""Validation case ``implicit``: the implicit integrator (:mod:`magsoro.mpm.newton.implicit`) against closed forms.
 
 Zhao et al.'s cantilever (scenes/cantilever_2d.toml, 2D plane strain, 17.8 mm free length, 0.8 mm as the particle
 lattice fills it) released from its gravity-deflected static shape: the first mode's period against the

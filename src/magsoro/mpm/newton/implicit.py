@@ -1,6 +1,6 @@
 """Implicit time integration: each step minimises the incremental potential on the static solver's discretisation.
 
-The unknowns are the static solver's (:mod:`magsoro.mpm.static`): the displacements u of the free nodes of the
+The unknowns are the static solver's (:mod:`magsoro.mpm.newton.static`): the displacements u of the free nodes of the
 reference grid block, the particles at x_p = X_p + sum_i w_ip u_i. The node masses m_i are the particles' masses
 scattered with the same weights (a lumped mass matrix M), and the nodes carry velocities v and accelerations a.
 A step from t_n to t_{n+1} = t_n + dt solves, for u_{n+1},
@@ -12,7 +12,7 @@ with Coulomb friction, pressure loads, eigenstrains, clamps as held nodes) and c
 (simulation.damping, f = -c p, as in the explicit engine; a damping profile at the step's load time t_a). This is the stationarity condition of the incremental
 potential 1/2 |u - u_pred|^2_M / (beta dt^2) + E(u) - W_ext(u) (Gast et al. 2015) for conservative loads; friction
 enters as the static solver's lagged Coulomb law, its anchors updated after each step. Prony materials keep their
-internal stresses (:mod:`magsoro.mpm.viscous`): each trial F of a step takes them updated over [t_n, t_a] to itself,
+internal stresses (:mod:`magsoro.mpm.laws.viscous`): each trial F of a step takes them updated over [t_n, t_a] to itself,
 the tangent their derivative, and they move on to F(u_{n+1}) when the step is accepted.
 
 Two schemes, from one family of Newmark updates
@@ -43,7 +43,7 @@ import numpy as np
 import warp as wp
 
 from magsoro.errors import SimulationError
-from magsoro.mpm.static import StaticSolver, check_supported
+from magsoro.mpm.newton.static import StaticSolver, check_supported
 
 #: the step's force scale is never below the force of this strain over one cell face of the stiffest material
 #: ((K + 4G/3) dx^(dim-1), 2D times the depth): with the default tolerance 1e-6 Newton then resolves the node forces of
@@ -181,7 +181,7 @@ class ImplicitIntegrator(StaticSolver):
     def __init__(self, sim, scheme: str = "generalized_alpha", rho_inf: float = 0.0, tolerance: float = 1e-6,
                  max_iterations: int = 20, linear_solver: str = "auto"):
         check_implicit_supported(sim)
-        if sim.model.viscous:  # the Prony internal stresses of the state (magsoro.mpm.viscous), and a step's trial
+        if sim.model.viscous:  # the Prony internal stresses of the state (magsoro.mpm.laws.viscous), and a step's trial
             self.H_n = wp.clone(sim.state.H)
             self.H_trial = wp.zeros_like(self.H_n)
         super().__init__(sim, sim.state.time, tolerance=tolerance, max_iterations=max_iterations,
@@ -189,7 +189,7 @@ class ImplicitIntegrator(StaticSolver):
         self.scheme = Scheme.make(scheme, rho_inf)
         if self.body_contact is not None:
             # friction between bodies on each step's starting normal force: within a step a potential of the
-            # tangential motion alone (magsoro.mpm.body_contact); with the current one, Newton's iterates on a
+            # tangential motion alone (magsoro.mpm.newton.body_contact); with the current one, Newton's iterates on a
             # sliding block swung between the normal and tangential directions and grew
             self.body_contact.lag_normal = True
         self._set_collider_time(self.t)
@@ -327,7 +327,7 @@ class ImplicitIntegrator(StaticSolver):
     def _viscous_argument(self):
         """The overstress of the placed particles: during a step, after the update of the state's internal stresses
         over [t_n, t_a] to the trial F (viscous.trial_overstress's stress); outside a step, the state's own."""
-        from magsoro.mpm.viscous import launch_viscous_update, make_viscous, viscous_struct
+        from magsoro.mpm.laws.viscous import launch_viscous_update, make_viscous, viscous_struct
 
         if not self.model.viscous:
             return self.no_viscous
@@ -340,8 +340,8 @@ class ImplicitIntegrator(StaticSolver):
         return viscous_struct(self.model, self.H_trial)
 
     def _add_material_tangent(self, A) -> None:
-        from magsoro.mpm.static import F_STEP
-        from magsoro.mpm.viscous import launch_overstress_tangent, make_viscous, viscous_struct
+        from magsoro.mpm.newton.static import F_STEP
+        from magsoro.mpm.laws.viscous import launch_overstress_tangent, make_viscous, viscous_struct
 
         if not self.model.viscous or self._inertia is None:
             return
@@ -357,7 +357,7 @@ class ImplicitIntegrator(StaticSolver):
 
     def _advance_viscous(self, u1: np.ndarray, dt: float) -> None:
         """The internal stresses at the end of an accepted step: updated over dt to F(u_{n+1})."""
-        from magsoro.mpm.viscous import launch_viscous_update, make_viscous, viscous_struct
+        from magsoro.mpm.laws.viscous import launch_viscous_update, make_viscous, viscous_struct
 
         self._place(u1)
         kv = make_viscous(self.dim, self.model.scalar, self.model.plane)
@@ -441,13 +441,13 @@ class ImplicitIntegrator(StaticSolver):
     def _step_newton(self, u, scale):
         """Newton on the step's balance from ``u`` with a kept tangent (module docstring, "Newton"): the tangent of
         an earlier iteration or step, with its linear solver (a factorisation, or a multigrid hierarchy:
-        ``implicit.linear_solver``, magsoro.mpm.linear), is reused while the residual falls by REFRESH_RATE or more
+        ``implicit.linear_solver``, magsoro.mpm.newton.linear), is reused while the residual falls by REFRESH_RATE or more
         per iteration, and made anew at the current iterate when it does not (or when the step size changed). An
         iterative solve is asked for Eisenstat and Walker's forcing term (loose far from the solution), never
         tighter than what leaves a tenth of the tolerance in the linear residual.
         Returns (u, converged, iterations, |R|_inf, message)."""
-        from magsoro.mpm.linear import forcing_term
-        from magsoro.mpm.static import GROWTH, MAX_STEP
+        from magsoro.mpm.newton.linear import forcing_term
+        from magsoro.mpm.newton.static import GROWTH, MAX_STEP
 
         fl, gl = self.field_level, self.gravity_level
         contact = self.contact

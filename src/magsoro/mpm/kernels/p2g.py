@@ -7,8 +7,8 @@ import warp as wp
 
 from magsoro.constants import MU0
 from magsoro.mpm.settings import P2GFlag
-from magsoro.mpm.stencil import make_body_elastic, make_stencil
-from magsoro.mpm.viscous import make_viscous
+from magsoro.mpm.kernels.stencil import make_body_elastic, make_stencil
+from magsoro.mpm.laws.viscous import make_viscous
 
 #: bits of p2g's ``flags`` (:class:`magsoro.mpm.settings.P2GFlag`): the total-Lagrangian form; the affine matrix
 #: and momentum stored for p2g_scatter
@@ -21,10 +21,10 @@ wp.set_module_options({"max_unroll": 32})
 
 @functools.cache
 def make_p2g(dim: int, scalar, two_fields: bool = False, differentiable: bool = False, plane: str = "strain") -> dict:
-    """Scatter kernels for ``dim``, ``scalar``; ``two_fields``: the contact variant (:mod:`magsoro.mpm.contact`);
+    """Scatter kernels for ``dim``, ``scalar``; ``two_fields``: the contact variant (:mod:`magsoro.mpm.kernels.contact`);
     ``differentiable``: with the adjoints of the kernels the differentiable rollout (:mod:`magsoro.diff`) records
     on its wp.Tape. Warp otherwise builds none (docs/engine.md, "Compile time"). ``plane``: the 2D idealisation of
-    the laws, "strain" or "stress" (:func:`magsoro.mpm.stencil.make_body_elastic`)."""
+    the laws, "strain" or "stress" (:func:`magsoro.mpm.kernels.stencil.make_body_elastic`)."""
     s = make_stencil(dim, scalar, two_fields)
     t = s.types
     vec, mat, v3, m3, ivec = t.vec, t.mat, t.v3, t.m3, t.ivec
@@ -59,7 +59,7 @@ def make_p2g(dim: int, scalar, two_fields: bool = False, differentiable: bool = 
     def particle_stress(Fp: mat, b: Bodies, p: int, B: v3):
         """First Piola stress of particle ``p``: its elastic law (with its stimulus eigenstrain, if any) plus the
         magnetic stress of a hard-magnetic elastomer: P = -(1/mu0) B (x) Br when its moment follows F (seed 000
-        eq 13), dW/dF of W = -(1/mu0) B . R Br when it follows R (:func:`magsoro.mpm.stencil.make_magnetization`)."""
+        eq 13), dW/dF of W = -(1/mu0) B . R Br when it follows R (:func:`magsoro.mpm.kernels.stencil.make_magnetization`)."""
         return body_elastic_stress(Fp, b, p) + magnetic_stress(Fp, b, p, B)
 
     @wp.func
@@ -103,7 +103,7 @@ def make_p2g(dim: int, scalar, two_fields: bool = False, differentiable: bool = 
             P = mat(P3[0, 0], P3[0, 1], P3[1, 0], P3[1, 1]) + magnetic_stress(Fp, b, p, B)
             hoop_force[0] = -b.vol0[p] * P3[2, 2] / R
         elif wp.static(plane_stress):
-            # a Prony particle's law and overstress share their thickness stretch (magsoro.mpm.viscous)
+            # a Prony particle's law and overstress share their thickness stretch (magsoro.mpm.laws.viscous)
             if vs.n_rows > 0 and vs.row[p] >= 0:
                 P = plane_total(Fp, b, vs, p, scalar(0.0), 0) + magnetic_stress(Fp, b, p, B)
             else:
@@ -208,10 +208,10 @@ def make_p2g(dim: int, scalar, two_fields: bool = False, differentiable: bool = 
         configuration's, and the node force takes the first Piola stress P instead of the Kirchhoff stress P F^T).
         With bit 1 (P2G_APART) the affine matrix and momentum go to ``affine`` and ``momentum`` instead, for
         :func:`p2g_scatter` (the GPU's scatter threads, docs/engine.md "Scatter threads"). In the contact variant
-        each node has two velocity fields (:mod:`magsoro.mpm.contact`): the particle scatters into its own, and
+        each node has two velocity fields (:mod:`magsoro.mpm.kernels.contact`): the particle scatters into its own, and
         adds its share of that field's mass gradient. ``vs``: the Prony materials' internal stresses
-        (:mod:`magsoro.mpm.viscous`), whose overstress adds to P. With ``bodies[0].stepped`` dt and the uniform
-        field come from ``bodies[0].step[0]`` instead of ``dt`` and ``applied.B_uniform`` (:class:`magsoro.mpm.stencil`
+        (:mod:`magsoro.mpm.laws.viscous`), whose overstress adds to P. With ``bodies[0].stepped`` dt and the uniform
+        field come from ``bodies[0].step[0]`` instead of ``dt`` and ``applied.B_uniform`` (:class:`magsoro.mpm.kernels.stencil`
         Step)."""
         p = wp.tid()
         dx = block.dx
@@ -319,7 +319,7 @@ def make_p2g(dim: int, scalar, two_fields: bool = False, differentiable: bool = 
         gmax: wp.array(dtype=wp.int32),
         moments: wp.array(dtype=scalar),
     ):
-        """Contact step 1 (:mod:`magsoro.mpm.contact`): the smallest and largest contact group reaching each node;
+        """Contact step 1 (:mod:`magsoro.mpm.kernels.contact`): the smallest and largest contact group reaching each node;
         with ``fold`` also the reference-position moments m, m X, m X X^T (1 + dim + dim^2 per node)."""
         p = wp.tid()
         base, fx = local_coords(x[p], block.lo, scalar(1.0) / block.dx)
@@ -355,7 +355,7 @@ def make_p2g(dim: int, scalar, two_fields: bool = False, differentiable: bool = 
     ):
         """Total Lagrangian with contact: scatter the particles' trial velocities (after the reference-grid update)
         as momentum, with mass and mass gradient, into their velocity fields on a grid over the current
-        configuration ``x`` (:mod:`magsoro.mpm.contact`), where :func:`contact_resolve` corrects them."""
+        configuration ``x`` (:mod:`magsoro.mpm.kernels.contact`), where :func:`contact_resolve` corrects them."""
         p = wp.tid()
         base, fx = local_coords(x[p], block.lo, scalar(1.0) / block.dx)
         if outside_block(base, block.shape):

@@ -3,7 +3,7 @@ and the quadratic B-spline stencil (seed 000 eq 2).
 
 Grid: a dense block of nodes whose global index origin ``org`` and shape ``shape`` follow the bodies (see
 :mod:`magsoro.mpm.solver`); arrays are flat, node (i, j[, k]) at ((i * ny) + j) * nz + k, and with contact
-field f of node i at slot i + f n (:mod:`magsoro.mpm.contact`).
+field f of node i at slot i + f n (:mod:`magsoro.mpm.kernels.contact`).
 
 Structs with arrays are passed to the particle kernels as one-element arrays (``arg[0].field``): a struct
 argument is copied for every task of a CPU launch, an array of it is not.
@@ -16,8 +16,8 @@ import numpy as np
 import warp as wp
 
 from magsoro.constants import MU0
-from magsoro.mpm.contact import make_contact
-from magsoro.mpm.materials import LAW_PARAM_COUNT, make_material_functions, make_plane_stress_functions
+from magsoro.mpm.kernels.contact import make_contact
+from magsoro.mpm.laws.elastic import LAW_PARAM_COUNT, make_material_functions, make_plane_stress_functions
 from magsoro.mpm.settings import MagnetizationFollows
 
 
@@ -66,10 +66,10 @@ def make_types(dim: int, scalar) -> SimpleNamespace:
 
     @wp.struct
     class Bodies:
-        """Per-particle constants of the model (:class:`magsoro.mpm.solver.Model`): reference volume (m^3),
+        """Per-particle constants of the model (:class:`magsoro.mpm.model.Model`): reference volume (m^3),
         mass (kg), shear and bulk moduli (Pa), material law code and its LAW_PARAM_COUNT numbers
-        (:mod:`magsoro.mpm.materials`), remanence Br (T, reference frame; in 2D the in-plane part plus Br_z),
-        clamp flag. Stimulus eigenstrain (:mod:`magsoro.mpm.eigenstrain`): each particle's stimulus (a row of the
+        (:mod:`magsoro.mpm.laws.elastic`), remanence Br (T, reference frame; in 2D the in-plane part plus Br_z),
+        clamp flag. Stimulus eigenstrain (:mod:`magsoro.mpm.laws.eigenstrain`): each particle's stimulus (a row of the
         two tables; -1: none), and per stimulus its current F_s^-1 and stress factor f det F_s, which the host
         updates when the stimulus changes; ``n_stimuli`` 0: no particle has one (the tables are never read).
         Pressure loads: each particle's reference face area vector (m^2, outward into the cavity) and its row
@@ -154,7 +154,7 @@ def make_types(dim: int, scalar) -> SimpleNamespace:
 @functools.cache
 def make_body_elastic(dim: int, scalar, plane: str = "strain") -> SimpleNamespace:
     """The elastic stress and energy of a particle of the model, the one place where a particle's law, moduli and
-    stimulus eigenstrain (:mod:`magsoro.mpm.eigenstrain`) meet; every kernel that needs a particle's elastic
+    stimulus eigenstrain (:mod:`magsoro.mpm.laws.eigenstrain`) meet; every kernel that needs a particle's elastic
     response calls these:
 
     - ``body_elastic_stress(F, b, p)``: first Piola stress (Pa) of particle ``p`` of the Bodies ``b`` at ``F``,
@@ -163,7 +163,7 @@ def make_body_elastic(dim: int, scalar, plane: str = "strain") -> SimpleNamespac
     - ``body_elastic_energy(F, b, p)``: the matching energy c W_e(F F_s^-1), J/m^3 of reference volume.
 
     ``plane`` (2D only): "strain" (F_zz = 1) or "stress" (the laws of
-    :func:`magsoro.mpm.materials.make_plane_stress_functions`); a compile-time choice, so that plane-strain kernels
+    :func:`magsoro.mpm.laws.elastic.make_plane_stress_functions`); a compile-time choice, so that plane-strain kernels
     carry no trace of the plane-stress solve."""
     t = make_types(dim, scalar)
     mat, Bodies = t.mat, t.Bodies
@@ -365,7 +365,7 @@ def make_magnetization(dim: int, scalar) -> SimpleNamespace:
 @functools.cache
 def make_stencil(dim: int, scalar, two_fields: bool = False) -> SimpleNamespace:
     """Device functions of the quadratic B-spline stencil; ``two_fields``: particles scatter into and gather
-    from the velocity field they belong to at each node (:mod:`magsoro.mpm.contact`)."""
+    from the velocity field they belong to at each node (:mod:`magsoro.mpm.kernels.contact`)."""
     t = make_types(dim, scalar)
     vec, ivec, v3 = t.vec, t.ivec, t.v3
     ct_ns = make_contact(dim, scalar)

@@ -3,7 +3,7 @@
 Model (the convolution form of Simo's finite-strain viscoelasticity, as the Prony option of hyperelastic laws
 in the FEM codes our users compare with). Write the second Piola stress of a particle's law as
 S_0 = S_vol + S_iso, with S_iso = F^-1 P_iso(F) the isochoric part (the law's stress with its bulk modulus set
-to 0, :mod:`magsoro.mpm.materials`). With the material key ``prony = [[g_1, tau_1], ..., [g_n, tau_n]]``
+to 0, :mod:`magsoro.mpm.laws.elastic`). With the material key ``prony = [[g_1, tau_1], ..., [g_n, tau_n]]``
 (n <= 3, g_i > 0 dimensionless fractions of the instantaneous shear modulus with sum g_i < 1, tau_i > 0 s):
 
     S = S_vol + g_inf S_iso + sum_i h_i,   g_inf = 1 - sum_i g_i,
@@ -24,14 +24,14 @@ internal stress follows the law (h_i += g_i dS), with dt >> tau_i it vanishes at
 decay is applied as h - (1 - exp(-x)) h with 1 - exp(-x) from its series for small x: at dt = 1e-6 s and
 tau = 1 s, exp(-x) in float32 carries a relative error of 6 % in 1 - exp(-x), the series none.
 
-State: per particle an array of 1 + n matrices (:class:`magsoro.mpm.solver.State` ``H``): S_iso at the state's F,
+State: per particle an array of 1 + n matrices (:class:`magsoro.mpm.model.State` ``H``): S_iso at the state's F,
 then h_1 .. h_n. The solver updates it after each step's gather from the new F (:func:`make_viscous`
 ``viscous_update``, reading the step's input state and writing its output, so a check window can go back), and
 p2g adds the overstress F (sum_i h_i - sum_i g_i S_iso) to the law's first Piola stress. The time step is set by
 the instantaneous modulus (the stiffest response), so a Prony term never shortens it. The reported strain
 energy is the law's (instantaneous) one; the dissipated work is not tracked.
 
-The implicit integrator (:mod:`magsoro.mpm.implicit`) uses the same update: each Newton iterate's residual takes
+The implicit integrator (:mod:`magsoro.mpm.newton.implicit`) uses the same update: each Newton iterate's residual takes
 the overstress after the update to its own F (``trial_overstress``), its tangent the derivative of that
 (``overstress_tangent``), and the state's H moves on when a step is accepted.
 
@@ -39,7 +39,7 @@ Plane stress (2D, ``plane = "stress"``): the internal stresses are 3 x 3 (the th
 thickness stretch lambda_3 makes the normal stress of the law plus the overstress zero,
 P_33 of P_law(F3) + F3 (sum_i h_i - sum_i g_i S_iso(F3)) = 0 with F3 = diag(F, lambda_3) and h_i the state's (the
 stress) or updated to the trial F (the update, the implicit integrator's trial stress), solved by the secant method as for
-the elastic laws (:func:`magsoro.mpm.materials.make_plane_stress_functions`). p2g takes the in-plane block of that
+the elastic laws (:func:`magsoro.mpm.laws.elastic.make_plane_stress_functions`). p2g takes the in-plane block of that
 total stress (``plane_total``) for a Prony particle in place of the law's plane stress; ``overstress`` (the reported
 stress, the implicit integrator's tangent) is that block minus the law's own plane stress.
 
@@ -52,8 +52,8 @@ import functools
 
 import warp as wp
 
-from magsoro.mpm.materials import PLANE_STRESS_ITERATIONS, make_material_functions, make_plane_stress_functions
-from magsoro.mpm.stencil import make_types
+from magsoro.mpm.laws.elastic import PLANE_STRESS_ITERATIONS, make_material_functions, make_plane_stress_functions
+from magsoro.mpm.kernels.stencil import make_types
 
 # No kernel here runs under wp.Tape (only magsoro.diff's rollout does): Warp need not build their adjoints.
 wp.set_module_options({"enable_backward": False})
@@ -229,7 +229,7 @@ def make_viscous(dim: int, scalar, plane: str = "strain"):
     def viscous_update(F: wp.array(dtype=mat), bodies: wp.array(dtype=Bodies), vs: Viscous,
                        H_out: wp.array2d(dtype=Hmat), dt: scalar):
         """H_out of particle p from the step's input H (in ``vs``) and its new deformation gradient F (module
-        docstring); dt from ``bodies[0].step[0]`` when ``bodies[0].stepped`` (:class:`magsoro.mpm.stencil` Step)."""
+        docstring); dt from ``bodies[0].step[0]`` when ``bodies[0].stepped`` (:class:`magsoro.mpm.kernels.stencil` Step)."""
         p = wp.tid()
         row = vs.row[p]
         if row < 0:
@@ -287,7 +287,7 @@ def make_viscous(dim: int, scalar, plane: str = "strain"):
                 plane_total=plane_total if stress else None)
 
 
-# -- launchers: the one place each kernel's argument order is written (as in :mod:`magsoro.mpm.p2g`); ``kernels``
+# -- launchers: the one place each kernel's argument order is written (as in :mod:`magsoro.mpm.kernels.p2g`); ``kernels``
 # is :func:`make_viscous`'s table, ``record=True`` returns Warp's recorded launch ---------------------------------
 
 def launch_viscous_update(kernels, n, *, F, bodies, viscous, H_out, dt, device, record=False):
@@ -330,7 +330,7 @@ def prescribed_history(model, F_path, times):
     import numpy as np
 
     from magsoro.mpm.kernels import launch_body_stress  # kernels imports this module (through p2g)
-    from magsoro.mpm.solver import bodies_array
+    from magsoro.mpm.runtime import bodies_array
 
     k, dev, s = model.kernels, model.device, model.np_scalar
     kv = make_viscous(model.dim, model.scalar, model.plane)

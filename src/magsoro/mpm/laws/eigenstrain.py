@@ -6,7 +6,7 @@ Model (multiplicative split, as thermal expansion and swelling are written at fi
     F = F_e F_s,  F_s = lambda(s) I  (isotropic)  or  F_s = I + (lambda(s) - 1) a a^T  (along a unit a),
 
 with ``a`` in the reference frame and s = s(t) the stimulus. The energy per reference volume is
-W(F) = f(s) det(F_s) W_e(F F_s^-1): W_e is the material's own law (:mod:`magsoro.mpm.materials`) on the elastic part,
+W(F) = f(s) det(F_s) W_e(F F_s^-1): W_e is the material's own law (:mod:`magsoro.mpm.laws.elastic`) on the elastic part,
 counted per volume of the stress-free (intermediate) configuration, and f(s) > 0 the modulus factor. Every law's
 energy is linear in its moduli (G, K, Cij, Ogden mu_i; the Ogden exponents are not moduli), so scaling all moduli
 by f scales W_e by f, and the stress is

@@ -9,9 +9,9 @@ import functools
 import warp as wp
 
 from magsoro.mpm.colliders import DeviceCollider, collider_sdf
-from magsoro.mpm.contact import BODIES, SINGLE as SINGLE_FIELD, make_contact
+from magsoro.mpm.kernels.contact import BODIES, SINGLE as SINGLE_FIELD, make_contact
 from magsoro.mpm.settings import ColliderMode
-from magsoro.mpm.stencil import make_stencil, make_types
+from magsoro.mpm.kernels.stencil import make_stencil, make_types
 
 # the contact modes as the kernels' ints
 STICKY, FRICTION, SYMMETRY = (wp.constant(int(m)) for m in (ColliderMode.STICKY, ColliderMode.FRICTION, ColliderMode.SYMMETRY))
@@ -30,7 +30,7 @@ def grid_settings_struct(dim: int, scalar):
         DeviceCollider structs, :mod:`magsoro.mpm.colliders`; ``plane_z``: the z of a 2D scene's plane, m).
         ``node_shift`` = 1 (total Lagrangian): walls and colliders act at the nodes' current positions, the
         reference node plus the mass-weighted displacement of its particles (``node_displacement`` in
-        :mod:`magsoro.mpm.p2g`), and a node is in contact with a collider from signed distance
+        :mod:`magsoro.mpm.kernels.p2g`), and a node is in contact with a collider from signed distance
         ``collider_skin`` (m) down. With ``record_impulse`` = 1 each collider adds the momentum it takes from
         the nodes it touches, -m dv (N s; three components per collider, 2D z = 0), to ``collider_impulse``: over
         an interval, the impulse the bodies give it (its force times the interval). ``axis`` = 1: the scene is
@@ -63,7 +63,7 @@ def grid_settings_struct(dim: int, scalar):
 
 @functools.cache
 def make_grid(dim: int, scalar, two_fields: bool = False, differentiable: bool = False) -> dict:
-    """Node kernels for ``dim``, ``scalar``; ``two_fields``: the contact variant (:mod:`magsoro.mpm.contact`);
+    """Node kernels for ``dim``, ``scalar``; ``two_fields``: the contact variant (:mod:`magsoro.mpm.kernels.contact`);
     ``differentiable``: with the adjoints of the kernels the differentiable rollout (:mod:`magsoro.diff`) records
     on its wp.Tape. Warp otherwise builds none (docs/engine.md, "Compile time")."""
     s = make_stencil(dim, scalar, two_fields)
@@ -204,7 +204,7 @@ def make_grid(dim: int, scalar, two_fields: bool = False, differentiable: bool =
         grid_u: wp.array(dtype=vec),
     ):
         """Node velocities. With contact, a node's second field (slot idx + n_nodes) gets its own velocity and the
-        two are corrected for contact (:mod:`magsoro.mpm.contact`). With ``gs.node_shift`` the node sits at its
+        two are corrected for contact (:mod:`magsoro.mpm.kernels.contact`). With ``gs.node_shift`` the node sits at its
         reference position plus ``grid_u[idx] / m`` (mass-weighted particle displacement) for walls and
         colliders."""
         idx = wp.tid()
@@ -274,7 +274,7 @@ def make_grid(dim: int, scalar, two_fields: bool = False, differentiable: bool =
         grid_dv: wp.array(dtype=vec),
     ):
         """Total Lagrangian with contact: the correction dv of each field of a node (slots idx and idx + n_nodes)
-        that the contact law (:mod:`magsoro.mpm.contact`) makes to the fields' velocities p / m; zero where a
+        that the contact law (:mod:`magsoro.mpm.kernels.contact`) makes to the fields' velocities p / m; zero where a
         node has one field."""
         idx = wp.tid()
         slot = idx + ct[0].n_nodes
@@ -295,7 +295,7 @@ def make_grid(dim: int, scalar, two_fields: bool = False, differentiable: bool =
     return dict(grid_update=grid_update, add_grid=add_grid, GridSettings=GridSettings, contact_resolve=contact_resolve)
 
 
-# -- launchers: the one place each kernel's argument order is written (as in :mod:`magsoro.mpm.p2g`) ------------
+# -- launchers: the one place each kernel's argument order is written (as in :mod:`magsoro.mpm.kernels.p2g`) ------------
 
 def launch_grid_update(kernels, n, *, grid_p, grid_m, grid_clamp, org, shape, settings, grid_v, contact, grid_u,
                        device, record=False):

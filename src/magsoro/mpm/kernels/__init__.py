@@ -3,13 +3,13 @@
 One factory per phase builds its kernels from the same source for 2D/3D and float32/float64, so the variants
 never drift apart; Warp compiles them for CPU and CUDA alike:
 
-- :mod:`magsoro.mpm.stencil`: types, argument structs and the quadratic B-spline stencil every phase shares;
-- :mod:`magsoro.mpm.p2g`: particle to grid (mass, momentum, stress impulse), contact scan, node displacements;
-- :mod:`magsoro.mpm.grid`: node velocities (damping, gravity, walls, colliders, contact);
-- :mod:`magsoro.mpm.g2p`: grid to particle (x, v, C, F), the velocity-gradient remap, the checks' reductions;
-- :mod:`magsoro.mpm.materials`: the constitutive laws; :mod:`magsoro.mpm.contact`: the contact model;
-- :mod:`magsoro.mpm.eigenstrain`: stimulus-driven eigenstrain (host tables; the stress is
-  :func:`magsoro.mpm.stencil.make_body_elastic`).
+- :mod:`magsoro.mpm.kernels.stencil`: types, argument structs and the quadratic B-spline stencil every phase shares;
+- :mod:`magsoro.mpm.kernels.p2g`: particle to grid (mass, momentum, stress impulse), contact scan, node displacements;
+- :mod:`magsoro.mpm.kernels.grid`: node velocities (damping, gravity, walls, colliders, contact);
+- :mod:`magsoro.mpm.kernels.g2p`: grid to particle (x, v, C, F), the velocity-gradient remap, the checks' reductions;
+- :mod:`magsoro.mpm.laws.elastic`: the constitutive laws; :mod:`magsoro.mpm.kernels.contact`: the contact model;
+- :mod:`magsoro.mpm.laws.eigenstrain`: stimulus-driven eigenstrain (host tables; the stress is
+  :func:`magsoro.mpm.kernels.stencil.make_body_elastic`).
 
 Notation: dx grid spacing, inv_dx = 1/dx, particles carry reference volume V0, mass, shear modulus G, bulk
 modulus K, remanence Br (reference frame, in-plane part in 2D).
@@ -19,12 +19,12 @@ import functools
 
 import warp as wp
 
-from magsoro.mpm.contact import make_contact
-from magsoro.mpm.g2p import F_FROM_GRID, F_FROM_REMAP, F_REMAP_APART, F_TOTAL, make_g2p
-from magsoro.mpm.grid import grid_settings_struct, make_grid
-from magsoro.mpm.materials import make_material_functions, make_plane_stress_functions
-from magsoro.mpm.p2g import make_p2g
-from magsoro.mpm.stencil import make_body_elastic, make_types
+from magsoro.mpm.kernels.contact import make_contact
+from magsoro.mpm.kernels.g2p import F_FROM_GRID, F_FROM_REMAP, F_REMAP_APART, F_TOTAL, make_g2p
+from magsoro.mpm.kernels.grid import grid_settings_struct, make_grid
+from magsoro.mpm.laws.elastic import make_material_functions, make_plane_stress_functions
+from magsoro.mpm.kernels.p2g import make_p2g
+from magsoro.mpm.kernels.stencil import make_body_elastic, make_types
 
 __all__ = ["make_kernels", "grid_settings_struct", "F_FROM_GRID", "F_FROM_REMAP", "F_REMAP_APART", "F_TOTAL"]
 
@@ -60,7 +60,7 @@ def _stress_kernel(dim: int, scalar, plane: str = "strain") -> dict:
         F: wp.array(dtype=mat), bodies: wp.array(dtype=Bodies), P: wp.array(dtype=mat), psi: wp.array(dtype=scalar)
     ):
         """Elastic first Piola stress and energy density of every particle of the model at F[p]: its law, moduli
-        and stimulus eigenstrain now (:func:`magsoro.mpm.stencil.make_body_elastic`)."""
+        and stimulus eigenstrain now (:func:`magsoro.mpm.kernels.stencil.make_body_elastic`)."""
         p = wp.tid()
         b = bodies[0]
         P[p] = body_elastic_stress(F[p], b, p)
@@ -87,13 +87,13 @@ def launch_body_stress(kernels, n, *, F, bodies, P, psi, device, record=False):
 def make_kernels(dim: int, scalar, contact: bool = False, differentiable: bool = False, plane: str = "strain") -> dict:
     """Every kernel and type of the engine for ``dim`` in (2, 3) and ``scalar`` in (wp.float32, wp.float64).
 
-    ``contact``: the variant with two velocity fields per node (:mod:`magsoro.mpm.contact`). Without it the
+    ``contact``: the variant with two velocity fields per node (:mod:`magsoro.mpm.kernels.contact`). Without it the
     kernels never read their contact argument, which on CPU doubled the grid update of a single body (a few
     nanoseconds per node against about 4 ns for the whole update). ``differentiable``: p2g, grid_update, g2p,
     remap_node_velocity and remap_F with their adjoints, for the differentiable rollout (:mod:`magsoro.diff`), the
     only caller that records kernels on a wp.Tape; without it Warp builds no adjoint, which on a cold cache saves
     most of the engine's compile time (docs/engine.md, "Compile time"). ``plane`` (2D): the laws in plane strain
-    or plane stress (:func:`magsoro.mpm.stencil.make_body_elastic`), chosen at compile time: the kernels that
+    or plane stress (:func:`magsoro.mpm.kernels.stencil.make_body_elastic`), chosen at compile time: the kernels that
     evaluate a law (p2g and the stress kernels) are built for one of them."""
     t = make_types(dim, scalar)
     two_fields = bool(contact)

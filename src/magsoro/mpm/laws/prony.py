@@ -1,5 +1,5 @@
 """Prony tables of viscoelastic materials (the scene key ``prony``) and their closed forms, without Warp: the
-scene schema and ``magsoro fit-material`` read them; the engine side is :mod:`magsoro.mpm.viscous`.
+scene schema and ``magsoro fit-material`` read them; the engine side is :mod:`magsoro.mpm.laws.viscous`.
 
 A table is [[g_1, tau_1], ..., [g_n, tau_n]], 1 <= n <= 3: g_i > 0 the fraction of the instantaneous shear
 modulus that relaxes with time constant tau_i > 0 s, sum g_i < 1 (the long-term fraction g_inf = 1 - sum g_i).

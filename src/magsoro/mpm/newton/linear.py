@@ -45,7 +45,7 @@ import numpy as np
 #: the static solver's "auto" chooses the direct solver up to this many unknowns, the iterative one above: one Newton
 #: iteration's solve on the 3D cantilever took 0.36 s direct and 0.44 s iterative at 6,960 unknowns, 2.0 s and 1.1 s
 #: at 16,167 (benchmarks/linear_scaling.py; benchmarks/README.md, "Linear solvers"). The implicit integrator,
-#: which keeps a factorisation for many solves, has its own (magsoro.mpm.implicit.DIRECT_MAX_UNKNOWNS)
+#: which keeps a factorisation for many solves, has its own (magsoro.mpm.newton.implicit.DIRECT_MAX_UNKNOWNS)
 DIRECT_MAX_UNKNOWNS = 8_000
 #: the relative tolerance |A x - b| / |b| of an iterative solve when the caller gives none
 ITERATIVE_RTOL = 1.0e-8

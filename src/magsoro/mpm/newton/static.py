@@ -25,7 +25,7 @@ leaves the body on the stable branch, and reports the level as buckled.
 
 Rigid colliders meet the bodies' surface (static.collider_contact = "surface": the particles as balls of half their
 spacing) or the nodes as the engine's total-Lagrangian form has them ("nodes"), by a penalty with stick and Coulomb
-slip (:mod:`magsoro.mpm.static_contact`; each level reports the penetration left). Not handled yet:
+slip (:mod:`magsoro.mpm.newton.static_contact`; each level reports the penetration left). Not handled yet:
 contact between bodies (refused). The engine's walls act on nodes within two cells of the domain's edge: a
 wall whose band holds a node at the start acts here as a half-space collider at the band's edge with the walls'
 contact law (:meth:`StaticSolver._starting_walls`); for the others, a level whose equilibrium reaches the band is
@@ -54,14 +54,14 @@ import warp as wp
 from magsoro.errors import SimulationError
 from magsoro.constants import MU0
 from magsoro.mpm.colliders import WALL_CELLS, Collider
-from magsoro.mpm.linear import (FACTOR_CHECK, DirectSolver, IterativeSolver, Ordering, factor, forcing_term,  # noqa: F401 (re-exported)
+from magsoro.mpm.newton.linear import (FACTOR_CHECK, DirectSolver, IterativeSolver, Ordering, factor, forcing_term,  # noqa: F401 (re-exported)
                                 make_linear_solver, rigid_body_modes)
-from magsoro.mpm import linear as _linear
-from magsoro.mpm.p2g import P2G_TOTAL, launch_p2g, launch_pressure_net
+from magsoro.mpm.newton import linear as _linear
+from magsoro.mpm.kernels.p2g import P2G_TOTAL, launch_p2g, launch_pressure_net
 from magsoro.mpm.settings import NodeClass
-from magsoro.mpm.solver import block_struct, bodies_array, contact_grid
-from magsoro.mpm.stencil import host_bspline, make_body_elastic, make_stencil
-from magsoro.mpm.viscous import viscous_struct
+from magsoro.mpm.runtime import block_struct, bodies_array, contact_grid
+from magsoro.mpm.kernels.stencil import host_bspline, make_body_elastic, make_stencil
+from magsoro.mpm.laws.viscous import viscous_struct
 
 # No kernel here runs under wp.Tape (only magsoro.diff's rollout does): Warp need not build their adjoints.
 wp.set_module_options({"enable_backward": False})
@@ -185,7 +185,7 @@ def _vertex(points) -> float:
 @functools.cache
 def make_static_kernels(dim: int, scalar, plane: str = "strain", two_fields: bool = False) -> dict:
     """The static solver's kernels for ``dim``, ``scalar`` and, in 2D, the laws' ``plane`` idealisation ("strain" or
-    "stress", :func:`magsoro.mpm.stencil.make_body_elastic`); ``two_fields``: the reference grid is split by contact
+    "stress", :func:`magsoro.mpm.kernels.stencil.make_body_elastic`); ``two_fields``: the reference grid is split by contact
     group (:meth:`magsoro.mpm.solver.Solver.reference_contact_grid`), each particle gathering from and assembling
     into its own group's slot of a node, as the contact variant of p2g scatters."""
     s = make_stencil(dim, scalar, two_fields)
@@ -337,7 +337,7 @@ def make_static_kernels(dim: int, scalar, plane: str = "strain", two_fields: boo
             "material_tangent": material_tangent, "assemble_tangent": assemble_tangent, "FieldTerms": FieldTerms}
 
 
-# -- launchers: the one place each kernel's argument order is written (as in :mod:`magsoro.mpm.p2g`); ``kernels``
+# -- launchers: the one place each kernel's argument order is written (as in :mod:`magsoro.mpm.kernels.p2g`); ``kernels``
 # is :func:`make_static_kernels`' table ------------------------------------------------------------------------
 
 def launch_place_particles(kernels, n, *, X, u, block, clamped, clamp_shift, contact, x, F, device, record=False):
@@ -387,7 +387,7 @@ class LevelResult:
     no_equilibrium: bool = False
     # the time of the loads (s): simulation.duration, or the time of a sweep along the paths ([static] times)
     time: float | None = None
-    # the Newton steps' linear solves (magsoro.mpm.linear; static.linear_solver): the kind used ('direct',
+    # the Newton steps' linear solves (magsoro.mpm.newton.linear; static.linear_solver): the kind used ('direct',
     # 'iterative', or both joined by '+'), the solves, their Krylov iterations (0 for a direct solve), the
     # factorisations or multigrid hierarchies made, and the iterative solves that missed their tolerance and were
     # done by the direct solver instead
@@ -434,8 +434,8 @@ def check_supported(sim, who: str = "the static solver", viscous: bool = False) 
 
 class StaticSolver:
     """Newton solver for the equilibria of a :class:`magsoro.simulation.Simulation` built in the total-Lagrangian
-    form (rigid colliders and the domain walls a body starts at: penalty, see :mod:`magsoro.mpm.static_contact`;
-    contact between bodies on a reference grid split by contact group: :mod:`magsoro.mpm.body_contact`). Loads: the fields at time ``t`` scaled by a level, gravity in full, the
+    form (rigid colliders and the domain walls a body starts at: penalty, see :mod:`magsoro.mpm.newton.static_contact`;
+    contact between bodies on a reference grid split by contact group: :mod:`magsoro.mpm.newton.body_contact`). Loads: the fields at time ``t`` scaled by a level, gravity in full, the
     colliders where their paths have them at ``t`` (reached with the first level's load increments)."""
 
     #: whether Prony materials are taken (the implicit integrator's steps; an equilibrium has none to give)
@@ -444,7 +444,7 @@ class StaticSolver:
     def __init__(self, sim, t: float, tolerance: float = 1e-8, max_iterations: int = 40, arc_length: bool = False,
                  collider_contact: str | None = None, linear_solver: str | None = None):
         self.sim, self.t = sim, float(t)
-        # how the Newton steps' linear systems are solved (static.linear_solver; magsoro.mpm.linear): 'direct',
+        # how the Newton steps' linear systems are solved (static.linear_solver; magsoro.mpm.newton.linear): 'direct',
         # 'iterative' (multigrid-preconditioned Krylov) or 'auto' (direct up to linear.DIRECT_MAX_UNKNOWNS unknowns)
         self.linear_solver = getattr(sim.scene.static, "linear_solver", "auto") if linear_solver is None else linear_solver
         if self.linear_solver not in _linear.KINDS:
@@ -515,7 +515,7 @@ class StaticSolver:
         self.fields = solver.field_evaluator(sim.control)
         self.residual_evaluations = 0
         self.extra_force = None  # (n_nodes, dim) N: the imperfection force of a branch switch
-        self.contact = None  # the colliders' penalty (magsoro.mpm.static_contact), set up below
+        self.contact = None  # the colliders' penalty (magsoro.mpm.newton.static_contact), set up below
         self.collider_time = self.t  # the time the colliders stand at (their paths), s: ramped from 0 to t
         self.field_time = self.t  # the time the fields are evaluated at, s: moved with the loads after move_to()
         self._scene_contact = None  # its part for the scene's colliders (the rest: the domain walls)
@@ -543,7 +543,7 @@ class StaticSolver:
         # two cells inside the domain's edge); the others are watched (wall_crossing)
         self.walls = self._starting_walls()
         if list(sim.control.colliders) or self.walls:
-            from magsoro.mpm.static_contact import ColliderPenalty, Contacts
+            from magsoro.mpm.newton.static_contact import ColliderPenalty, Contacts
 
             # the scene's colliders meet the bodies' surface (the particles) unless static.collider_contact = 'nodes';
             # the walls act where the engine's do (the nodes)
@@ -555,11 +555,11 @@ class StaticSolver:
             # the colliders start where they are at the scene's start; the first level's load increments move them
             # along their paths to the solve's time with the loads (a plate pressed into a body: a crushing test)
             self._set_collider_time(0.0)
-        #: contact between the bodies' contact groups, and within one (magsoro.mpm.body_contact); None without
+        #: contact between the bodies' contact groups, and within one (magsoro.mpm.newton.body_contact); None without
         self.body_contact = None
         if solver.contact_active:
-            from magsoro.mpm.body_contact import BodyContact
-            from magsoro.mpm.static_contact import Contacts
+            from magsoro.mpm.newton.body_contact import BodyContact
+            from magsoro.mpm.newton.static_contact import Contacts
 
             self.body_contact = BodyContact(self, st.contact.friction, st.contact.self_contact, st.depth)
             self.contact = Contacts(([] if self.contact is None else self.contact.parts) + [self.body_contact])
@@ -796,10 +796,10 @@ class StaticSolver:
         return self._interpolation_cache
 
     def node_positions(self):
-        """(nodes carrying mass, W, X) of :func:`~magsoro.mpm.static_contact.node_positions_map` (computed once):
+        """(nodes carrying mass, W, X) of :func:`~magsoro.mpm.newton.static_contact.node_positions_map` (computed once):
         where the engine puts the grid nodes, X + W u, for the node contact law and the walls' check."""
         if getattr(self, "_node_map", None) is None:
-            from magsoro.mpm.static_contact import node_positions_map
+            from magsoro.mpm.newton.static_contact import node_positions_map
 
             self._node_map = node_positions_map(self)
         return self._node_map
@@ -832,7 +832,7 @@ class StaticSolver:
         """Half-space colliders for the domain walls whose band holds a free node at the start: the plane at the
         band's inner edge less the penalty's skin (so a node touches where the engine's wall stops it), with the
         walls' contact law (simulation.walls, wall_friction); a node that starts deeper is held where it starts."""
-        from magsoro.mpm.static_contact import SKIN_CELLS
+        from magsoro.mpm.newton.static_contact import SKIN_CELLS
 
         st = self.solver.settings
         out = []
@@ -975,7 +975,7 @@ class StaticSolver:
 
     def _slot_of(self, group, node):
         """The slot holding contact group ``group`` at grid-block node ``node`` (arrays, broadcast): the node's second
-        where the reference grid is split there and the group is not its smallest (:mod:`magsoro.mpm.contact`'s
+        where the reference grid is split there and the group is not its smallest (:mod:`magsoro.mpm.kernels.contact`'s
         field_of); the node itself otherwise."""
         node = np.asarray(node)
         if not self.split:
@@ -1222,7 +1222,7 @@ class StaticSolver:
 
     def _settle_contacts(self, u_nodes, J, r, du, lin, rtol):
         """The contacts' active set settled on the linearised problem before a Newton step is taken (rounds of
-        :meth:`Contacts.revise <magsoro.mpm.static_contact.Contacts.revise>`, at most ACTIVE_SET_ROUNDS): points
+        :meth:`Contacts.revise <magsoro.mpm.newton.static_contact.Contacts.revise>`, at most ACTIVE_SET_ROUNDS): points
         the step ``du`` would lift leave, points it would push into a collider join, and the step is solved again
         with the tangent ``J`` and residual ``r`` changed by their springs, until the set stays. An iterative
         solver solves the rounds to ROUND_RTOL (they only decide the set), on a new hierarchy where the last one
@@ -1262,7 +1262,7 @@ class StaticSolver:
         return du, r, lin, changed
 
     def _linear_solver(self, J, u_nodes=None, reuse: bool = True):
-        """The LinearSolver (magsoro.mpm.linear) of the tangent ``J`` at ``u_nodes`` (node displacements; default
+        """The LinearSolver (magsoro.mpm.newton.linear) of the tangent ``J`` at ``u_nodes`` (node displacements; default
         the current state) of the kind static.linear_solver asks for ('auto': direct up to
         linear.DIRECT_MAX_UNKNOWNS unknowns). An iterative one keeps the last tangent's multigrid hierarchy as its
         preconditioner (``reuse``) until its iterations grow (IterativeSolver.stale); a new hierarchy takes the

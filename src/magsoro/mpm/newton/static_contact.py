@@ -1,4 +1,4 @@
-"""Rigid colliders in the quasi-static solver (:mod:`magsoro.mpm.static`): penalty with stick and Coulomb slip.
+"""Rigid colliders in the quasi-static solver (:mod:`magsoro.mpm.newton.static`): penalty with stick and Coulomb slip.
 
 Two sets of contact points, both linear in the node unknowns u (x = X + W u):
 
@@ -7,7 +7,7 @@ Two sets of contact points, both linear in the node unknowns u (x = X + W u):
   (h_p^dim = its volume; 2D: its area), and touches a collider when its centre comes within h_p / 2 of it, so a
   body rests with its surface on the collider's wherever the collider cuts the grid.
 - ``"nodes"`` (static.collider_contact = "nodes"; always for the domain walls): where the engine's
-  total-Lagrangian form meets a collider (:mod:`magsoro.mpm.grid`): the grid nodes, each at its reference position
+  total-Lagrangian form meets a collider (:mod:`magsoro.mpm.kernels.grid`): the grid nodes, each at its reference position
   plus the mass-weighted displacement of its particles, x~_i = X_i + sum_p m_p w_ip (x_p - X_p) / m_i, so
   W_ij = sum_p m_p w_ip w_jp / m_i, in contact below the engine's skin (0.1 cells). A node carrying mass lies up to
   about a cell outside its body, so a body that moves onto a collider stops about a cell off it, as it does in a
@@ -106,7 +106,7 @@ def step_fraction(depth, limit: float, rounds: int) -> float:
 
 
 def node_positions_map(static):
-    """Where the engine's total form puts the grid nodes of a :class:`~magsoro.mpm.static.StaticSolver`: node i at
+    """Where the engine's total form puts the grid nodes of a :class:`~magsoro.mpm.newton.static.StaticSolver`: node i at
     X_i + sum_p m_p w_ip (x_p - X_p) / m_i, the mass-weighted displacement of its particles, with clamped particles
     held at X_p (their mass counts in m_i, their displacement is zero). Linear in the node unknowns: x~ = X + W u.
     Returns (the nodes carrying mass, W (n_nodes x n_nodes, sparse), X (n_nodes, dim))."""
@@ -124,7 +124,7 @@ def node_positions_map(static):
 
 
 class ColliderPenalty:
-    """The colliders' node forces and their tangent for a :class:`~magsoro.mpm.static.StaticSolver`."""
+    """The colliders' node forces and their tangent for a :class:`~magsoro.mpm.newton.static.StaticSolver`."""
 
     def __init__(self, static, colliders, t: float, plane_z: float = 0.0, depth: float = 1.0, points: str = "nodes"):
         model = static.model

@@ -7,7 +7,7 @@ import warp as wp
 
 from magsoro.mpm.colliders import DeviceCollider
 from magsoro.mpm.settings import FUpdate
-from magsoro.mpm.stencil import make_stencil
+from magsoro.mpm.kernels.stencil import make_stencil
 
 # Unroll the 3^dim-node stencil loops (27 in 3D): constant offsets let the compiler fold the weight selection.
 wp.set_module_options({"max_unroll": 32})
@@ -22,7 +22,7 @@ F_REMAP_APART = wp.constant(int(FUpdate.REMAP_APART))  # F from the remap, whose
 
 @functools.cache
 def make_g2p(dim: int, scalar, two_fields: bool = False, differentiable: bool = False) -> dict:
-    """Gather kernels for ``dim``, ``scalar``; ``two_fields``: the contact variant (:mod:`magsoro.mpm.contact`);
+    """Gather kernels for ``dim``, ``scalar``; ``two_fields``: the contact variant (:mod:`magsoro.mpm.kernels.contact`);
     ``differentiable``: with the adjoints of the kernels the differentiable rollout (:mod:`magsoro.diff`) records
     on its wp.Tape. Warp otherwise builds none (docs/engine.md, "Compile time")."""
     s = make_stencil(dim, scalar, two_fields)
@@ -86,7 +86,7 @@ def make_g2p(dim: int, scalar, two_fields: bool = False, differentiable: bool = 
         which move by dt v: the same array in the updated-Lagrangian form. In the total-Lagrangian form
         (F_TOTAL) ``x_in`` holds the reference positions, C is the velocity gradient with respect to them and F
         grows by dt C; the bounds reduction then covers the reference positions, which the grid block is
-        fitted to. With ``bodies[0].stepped`` dt comes from ``bodies[0].step[0]`` (:class:`magsoro.mpm.stencil`
+        fitted to. With ``bodies[0].stepped`` dt comes from ``bodies[0].step[0]`` (:class:`magsoro.mpm.kernels.stencil`
         Step) instead of ``dt``."""
         p = wp.tid()
         dts = dt
@@ -165,7 +165,7 @@ def make_g2p(dim: int, scalar, two_fields: bool = False, differentiable: bool = 
         (the scatter threads of a GPU; g2p does it itself with F_FROM_REMAP): each particle's new affine velocity field
         v + C (x_i - x_p), mass-weighted, into ``grid_r`` over the stencil of its start-of-step position ``x`` (the
         one g2p gathered at). ``spread``: one thread per particle (0) or per (particle, node) (1), as in
-        :func:`magsoro.mpm.p2g` p2g_scatter (docs/engine.md, "Scatter threads")."""
+        :func:`magsoro.mpm.kernels.p2g` p2g_scatter (docs/engine.md, "Scatter threads")."""
         tid = wp.tid()
         p = tid
         if spread != 0:
@@ -245,7 +245,7 @@ def make_g2p(dim: int, scalar, two_fields: bool = False, differentiable: bool = 
         particles, same positions), at rest on held nodes. Once per slot (node and field) instead of once per
         stencil entry; slots from ``n_nodes`` on are the contact fields of the nodes. ``axis`` 1: an axisymmetric
         grid block (``block``) whose axis x = 0 is a node line; the nodes near it and their mirrors share mass and
-        mirrored momentum, as in the grid update (:func:`magsoro.mpm.grid.make_grid`'s ``fold``)."""
+        mirrored momentum, as in the grid update (:func:`magsoro.mpm.kernels.grid.make_grid`'s ``fold``)."""
         idx = wp.tid()
         m = grid_m[idx]
         r = grid_r[idx]
@@ -343,7 +343,7 @@ def make_g2p(dim: int, scalar, two_fields: bool = False, differentiable: bool = 
                 load_params=load_params)
 
 
-# -- launchers: the one place each kernel's argument order is written (as in :mod:`magsoro.mpm.p2g`) ------------
+# -- launchers: the one place each kernel's argument order is written (as in :mod:`magsoro.mpm.kernels.p2g`) ------------
 
 def launch_g2p(kernels, n, *, grid_v, bodies, block, dt, x_in, x_cur, F_in, out, checks, f_update, grid_r, contact,
                device, record=False):

@@ -1,9 +1,9 @@
-"""Contact between bodies, and within one, in the Newton solvers (:mod:`magsoro.mpm.static`, :mod:`magsoro.mpm.implicit`).
+"""Contact between bodies, and within one, in the Newton solvers (:mod:`magsoro.mpm.newton.static`, :mod:`magsoro.mpm.newton.implicit`).
 
 The static solver's reference grid is split by contact group (:meth:`magsoro.mpm.solver.Solver.reference_contact_grid`),
 so bodies that may separate or slide never share an unknown; they meet only through this term, a penalty on the
 bodies' surfaces with Coulomb friction, added to the energy the solvers minimise (its forces to the residual, its
-springs to the tangent), as the rigid colliders' (:mod:`magsoro.mpm.static_contact`).
+springs to the tangent), as the rigid colliders' (:mod:`magsoro.mpm.newton.static_contact`).
 
 Surfaces. A particle is on its body's surface when its neighbours of the same contact group within SURFACE_REACH
 spacings, in the reference configuration, do not balance: their offsets sum to more than SURFACE_SPREAD spacings
@@ -56,7 +56,7 @@ import numpy as np
 from scipy import sparse
 from scipy.spatial import cKDTree
 
-from magsoro.mpm.static_contact import (PENALTY, RELEASE, SLIP_CELLS, STEP_DEPTH, TOUCH_CELLS, regularised_coulomb,
+from magsoro.mpm.newton.static_contact import (PENALTY, RELEASE, SLIP_CELLS, STEP_DEPTH, TOUCH_CELLS, regularised_coulomb,
                                         step_fraction)
 
 #: a particle's same-group neighbours within this many of its spacings (reference) tell whether it is on a surface
@@ -97,9 +97,9 @@ def surface_normals(X: np.ndarray, group: np.ndarray, spacing: np.ndarray):
 
 
 class BodyContact:
-    """Contact between the contact groups of a :class:`~magsoro.mpm.static.StaticSolver` (and within one, with
+    """Contact between the contact groups of a :class:`~magsoro.mpm.newton.static.StaticSolver` (and within one, with
     self-contact): forces on its slots, their tangent, the active set and friction's slip (module docstring). The
-    interface is :class:`~magsoro.mpm.static_contact.ColliderPenalty`'s, so :class:`~magsoro.mpm.static_contact.Contacts`
+    interface is :class:`~magsoro.mpm.newton.static_contact.ColliderPenalty`'s, so :class:`~magsoro.mpm.newton.static_contact.Contacts`
     takes it as one more part."""
 
     def __init__(self, static, friction: np.ndarray, self_contact: bool, depth: float = 1.0):
@@ -452,7 +452,7 @@ class BodyContact:
 
     def revise(self, u_nodes: np.ndarray, step: np.ndarray, free: np.ndarray):
         """One round of the active set on the linearised problem, as :meth:`ColliderPenalty.revise
-        <magsoro.mpm.static_contact.ColliderPenalty.revise>` does for the colliders: with the gaps linear in the
+        <magsoro.mpm.newton.static_contact.ColliderPenalty.revise>` does for the colliders: with the gaps linear in the
         step, g + G step (:meth:`_gap_gradient` at ``u_nodes``, the last :meth:`forces` evaluation), contacts of the
         set that ``step`` (n_slots, dim) would open by more than RELEASE cells leave it, and contacts of this
         solve's patches that it would close join it (their spring linearised at ``u_nodes``, friction's tangent
