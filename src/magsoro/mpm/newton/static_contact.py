@@ -18,9 +18,11 @@ engine stops a node's inward motion there; it does not push it out). In what fol
 of point.
 
 The constraint phi >= s is imposed by a penalty: a node in contact is pushed out along the collider's normal n with
-f_n = k (s - phi) n (s the level), k = PENALTY x (K + 4G/3)_max x dx^(dim-2) (2D: times the scene's depth, the node
-forces' thickness): per cell, PENALTY times the stiffest material's P-wave modulus; a particle's k is the same per
-unit area, k (h_p / dx)^(dim-1). The penetration left at equilibrium is
+f_n = k (s - phi) n (s the level), k = PENALTY x (K + 4G/3) x dx^(dim-2) (2D: times the scene's depth, the node
+forces' thickness): per cell, PENALTY times the P-wave modulus of the point's own material (a node's: the stiffest
+of the particles on its stencil); a particle's k is the same per unit area, k (h_p / dx)^(dim-1). The point's own
+modulus, not the scene's stiffest: a held point leaves once it pulls by RELEASE cells, and a soft strip held with a
+stiff body's penalty could not lift off the floor at all. The penetration left at equilibrium is
 f_n / k, so about p / (PENALTY (K + 4G/3)) cells for a contact pressure p: 1e-3 cells for p = 1 % of the P-wave
 modulus. Every level reports the largest penetration (m) it left.
 
@@ -40,7 +42,7 @@ from scipy import sparse
 
 from magsoro.mpm.settings import ColliderMode
 
-#: penalty stiffness per cell, as a multiple of the stiffest particle's P-wave modulus K + 4G/3
+#: penalty stiffness per cell, as a multiple of the point's P-wave modulus K + 4G/3
 PENALTY = 10.0
 #: the engine's contact skin (cells): a node touches a collider from this signed distance down
 SKIN_CELLS = 0.1
@@ -134,14 +136,17 @@ class ColliderPenalty:
         self.slip = SLIP_CELLS * self.dx
         self.touch = TOUCH_CELLS * self.dx
         h = model.host
-        p_wave = float(np.max(h["bulk_modulus"] + 4.0 / 3.0 * h["shear_modulus"]))
+        p_wave = np.asarray(h["bulk_modulus"] + 4.0 / 3.0 * h["shear_modulus"], dtype=np.float64)  # per particle
         thickness = depth if self.dim == 2 else 1.0
         n_nodes = static.n_nodes
         if points == "nodes":
             # the engine's law: nodes at X + W u touch from the skin down
             self.touchable, self.W, self.X = static.node_positions()
             reach = np.full(len(self.touchable), SKIN_CELLS * self.dx)
-            self.k = np.full(n_nodes, PENALTY * p_wave * self.dx ** (self.dim - 2) * thickness)
+            P = static.interpolation().tocoo()
+            node_wave = np.zeros(n_nodes)
+            np.maximum.at(node_wave, P.col[P.data > 0.0], p_wave[P.row[P.data > 0.0]])
+            self.k = PENALTY * node_wave * self.dx ** (self.dim - 2) * thickness
         elif points == "particles":
             # the body's surface: each particle (x = X + P u, as the total form places it) is a ball of half its
             # lattice spacing, touching when its centre comes within that of the collider; the penalty per particle is
