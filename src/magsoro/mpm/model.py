@@ -368,6 +368,11 @@ class Model:
             raise ValueError(f'simulation.plane = "{plane}" needs a 2D model (a 3D body has no plane idealisation)')
         self.plane = plane
 
+    def p_wave_modulus(self) -> np.ndarray:
+        """Each particle's P-wave modulus K + 4G/3 (Pa, (N,)): the stiffness scale of the Newton solvers' contact
+        penalties and force floor."""
+        return self.host["bulk_modulus"] + 4.0 / 3.0 * self.host["shear_modulus"]
+
     def wave_speed(self, field_magnitude: float = 0.0) -> float:
         """Largest elastic wave speed sqrt((c (K + 4G/3) + |B||Br|/mu0) / rho) over particles, m/s.
         The magnetic term bounds the stiffening a field of magnitude ``field_magnitude`` (T) adds; c bounds that of

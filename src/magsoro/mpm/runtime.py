@@ -77,9 +77,9 @@ COLLIDER_SKIN = 0.1  # cells: total-Lagrangian nodes touch a collider from this 
 def grid_settings(model: "Model", settings: "SolverSettings", gravity, colliders, n_colliders: int, dt: float,
                   step: wp.array | None = None, impulse: wp.array | None = None):
     """The grid update's :class:`GridSettings` struct (kernels.py): step, damping factor exp(-c dt), gravity (the
-    kernels' vector), domain walls, grid spacing and the colliders ``colliders`` (an array of ``n_colliders`` DeviceCollider structs).
-    ``step``: the solver's one-element Step array (:mod:`magsoro.mpm.kernels.stencil`); the kernel then takes dt and the
-    damping factor from it instead of from ``dt``. ``impulse``: float64 array of 3 per collider, to which the
+    kernels' vector), domain walls, grid spacing and the colliders ``colliders`` (an array of ``n_colliders``
+    DeviceCollider structs). ``step``: the solver's one-element Step array (:mod:`magsoro.mpm.kernels.stencil`); the
+    kernel then takes dt and the damping factor from it instead of from ``dt``. ``impulse``: float64 array of 3 per collider, to which the
     grid update adds the momentum each collider takes from the nodes (None: not recorded)."""
     sc = model.scalar
     vec = model.kernels["vec"]

@@ -343,7 +343,7 @@ def make_g2p(dim: int, scalar, two_fields: bool = False, differentiable: bool = 
                 load_params=load_params)
 
 
-# -- launchers: the one place each kernel's argument order is written (as in :mod:`magsoro.mpm.kernels.p2g`) ------------
+# -- launchers: the one place each kernel's argument order is written (as in :mod:`magsoro.mpm.kernels.p2g`) -----------
 
 def launch_g2p(kernels, n, *, grid_v, bodies, block, dt, x_in, x_cur, F_in, out, checks, f_update, grid_r, contact,
                device, record=False):

@@ -1,7 +1,8 @@
 """Grid kernels: node velocities from the scattered momenta (damping, gravity, domain walls, rigid colliders,
 contact between velocity fields), and the sum of the CPU threads' private grids.
 
-Colliders come as an array of :class:`magsoro.mpm.colliders.DeviceCollider` structs; the contact modes of colliders and walls are :class:`magsoro.mpm.settings.ColliderMode`'s codes.
+Colliders come as an array of :class:`magsoro.mpm.colliders.DeviceCollider` structs; the contact modes of colliders
+and walls are :class:`magsoro.mpm.settings.ColliderMode`'s codes.
 """
 
 import functools
@@ -295,7 +296,7 @@ def make_grid(dim: int, scalar, two_fields: bool = False, differentiable: bool =
     return dict(grid_update=grid_update, add_grid=add_grid, GridSettings=GridSettings, contact_resolve=contact_resolve)
 
 
-# -- launchers: the one place each kernel's argument order is written (as in :mod:`magsoro.mpm.kernels.p2g`) ------------
+# -- launchers: the one place each kernel's argument order is written (as in :mod:`magsoro.mpm.kernels.p2g`) -----------
 
 def launch_grid_update(kernels, n, *, grid_p, grid_m, grid_clamp, org, shape, settings, grid_v, contact, grid_u,
                        device, record=False):

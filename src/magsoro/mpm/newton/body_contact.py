@@ -127,7 +127,7 @@ class BodyContact:
         self.reach = MASTER_REACH * float(np.max(spacing))
         # the penalty per unit P-wave modulus; a contact's modulus is the softer of its two groups' (pair_wave)
         self.k = 0.5 * PENALTY / self.dx * spacing ** (self.dim - 1) * thickness
-        wave = np.asarray(h["bulk_modulus"], dtype=np.float64) + 4.0 / 3.0 * np.asarray(h["shear_modulus"], dtype=np.float64)
+        wave = static.model.p_wave_modulus()
         softest = np.array([wave[self.group == g].min() for g in range(self.n_groups)])
         self.pair_wave = np.minimum(softest[:, None], softest[None, :])
         self.slip = SLIP_CELLS * self.dx

@@ -388,8 +388,7 @@ class ImplicitIntegrator(StaticSolver):
         return max(float(np.abs(r0).max()), float(np.abs(rn - r0).max()), weight, inertial, self._force_floor())
 
     def _force_floor(self) -> float:
-        h = self.model.host
-        p_wave = float(np.max(h["bulk_modulus"] + 4.0 / 3.0 * h["shear_modulus"]))
+        p_wave = float(np.max(self.model.p_wave_modulus()))
         thickness = float(self.solver.settings.depth) if self.dim == 2 else 1.0
         return FLOOR_STRAIN * p_wave * float(self.model.dx) ** (self.dim - 1) * thickness
 

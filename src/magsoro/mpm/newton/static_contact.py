@@ -136,7 +136,7 @@ class ColliderPenalty:
         self.slip = SLIP_CELLS * self.dx
         self.touch = TOUCH_CELLS * self.dx
         h = model.host
-        p_wave = np.asarray(h["bulk_modulus"] + 4.0 / 3.0 * h["shear_modulus"], dtype=np.float64)  # per particle
+        p_wave = model.p_wave_modulus()
         thickness = depth if self.dim == 2 else 1.0
         n_nodes = static.n_nodes
         if points == "nodes":
