@@ -13,7 +13,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from magsoro.validation import closed_form, collider_force, beam, contact, self_contact, hertz, everted_wall, implicit, robots  # noqa: F401, I001  (registers the cases, fast ones first)
+from magsoro.validation import closed_form, collider_force, beam, contact, self_contact, hertz, hertz_bodies, everted_wall, implicit, robots  # noqa: F401, I001  (registers the cases, fast ones first)
 from magsoro.validation.registry import CASES, Case, CaseResult, Context, Row, run_case
 
 

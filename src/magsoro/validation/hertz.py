@@ -228,17 +228,40 @@ class HemisphereFE:
     def rest(self, force: float) -> dict:
         """The hemisphere under its weight ``force`` (units of E* R^2) on the plane z = -1: centre-of-mass
         approach ``approach`` (R), ``contact_radius`` (R) and ``reaction`` (the plane's force, equal to the weight)."""
+        f = np.zeros(2 * len(self.nodes))
+        f[1::2] = -force / self.volume * self.mass_weight
+        u, reaction, act = self._contact(f, {}, 0.5 * (0.75 * force) ** (2 / 3))
+        return {
+            "approach": float(-(self.mass_weight @ u[1::2]) / self.volume),
+            "contact_radius": float(self.nodes[act, 0].max()),
+            "reaction": float(reaction[2 * act + 1].sum()),
+            "u": u,
+        }
+
+    def pressed(self, approach: float) -> dict:
+        """The hemisphere held by its flat face z = 0 (clamped: no radial motion) and moved down by ``approach``
+        (units of R) onto the plane z = -1, no body force: the plane's ``reaction`` (units of E* R^2) and the
+        ``contact_radius`` (R)."""
+        top = np.flatnonzero(np.abs(self.nodes[:, 1]) < 1e-12)
+        held = {2 * i: 0.0 for i in top}
+        held.update({2 * i + 1: -float(approach) for i in top})
+        u, reaction, act = self._contact(np.zeros(2 * len(self.nodes)), held, 0.5 * float(approach))
+        return {"reaction": float(reaction[2 * act + 1].sum()), "contact_radius": float(self.nodes[act, 0].max()), "u": u}
+
+    def _contact(self, f, held: dict, reach: float):
+        """Frictionless unilateral contact with the plane z = -1 by an active set, under the nodal loads ``f`` and
+        the prescribed components ``held`` (dof -> value); the first set takes the surface nodes within ``reach``
+        of the plane. Returns (u, reaction K u - f, the contact nodes)."""
         import scipy.sparse.linalg as spla
 
         nodes, n = self.nodes, len(self.nodes)
-        f = np.zeros(2 * n)
-        f[1::2] = -force / self.volume * self.mass_weight
         axis = np.flatnonzero(np.abs(nodes[:, 0]) < 1e-12)
         cand = np.flatnonzero(self.surface & (nodes[:, 1] < -0.3))
         gap0 = nodes[cand, 1] + 1.0
-        active = set(cand[gap0 < 0.5 * (0.75 * force) ** (2 / 3)].tolist()) or {int(cand[np.argmin(gap0)])}
+        active = set(cand[gap0 < reach].tolist()) or {int(cand[np.argmin(gap0)])}
         for _ in range(100):
             fixed = {2 * i: 0.0 for i in axis}
+            fixed.update(held)
             fixed.update({2 * i + 1: -1.0 - nodes[i, 1] for i in active})
             pres = np.array(sorted(fixed))
             vals = np.array([fixed[k] for k in pres])
@@ -254,14 +277,8 @@ class HemisphereFE:
                 break
             active = keep
         else:
-            raise RuntimeError("HemisphereFE.rest: the contact active set did not settle")
-        act = np.array(sorted(active))
-        return {
-            "approach": float(-(self.mass_weight @ u[1::2]) / self.volume),
-            "contact_radius": float(nodes[act, 0].max()),
-            "reaction": float(reaction[2 * act + 1].sum()),
-            "u": u,
-        }
+            raise RuntimeError("HemisphereFE: the contact active set did not settle")
+        return u, reaction, np.array(sorted(active))
 
 
 def finite_body_term(force, radius: float, e_star: float, fe: HemisphereFE) -> np.ndarray:
