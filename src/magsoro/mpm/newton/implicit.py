@@ -157,6 +157,10 @@ class StepResult:
     fatal: bool = False  # a smaller step cannot help (the body reached a domain wall the solver does not model)
 
 
+#: settle the colliders' contact set on each fresh tangent's linearised step (StaticSolver._settle_contacts)
+SETTLE_CONTACTS = True
+
+
 def check_implicit_supported(sim) -> None:
     """Raise SimulationError naming the scene key the implicit integrator cannot take yet."""
     check_supported(sim, who="the implicit integrator (simulation.integrator = 'implicit')", viscous=True)
@@ -483,9 +487,11 @@ class ImplicitIntegrator(StaticSolver):
                 continue
             if it == self.max_iterations:
                 break
+            J = None
             if self._kept is None:
                 try:
-                    self._kept = (dt, self._linear_solver(self.tangent(u, fl, gl), u))
+                    J = self.tangent(u, fl, gl)
+                    self._kept = (dt, self._linear_solver(J, u))
                 except RuntimeError as exc:
                     return u, False, it, norm, f"singular tangent ({exc})"
                 self.tangents += 1
@@ -497,6 +503,13 @@ class ImplicitIntegrator(StaticSolver):
             before = (lin.total_iterations, lin.solves, lin.fallbacks)
             raw = lin.solve(-r, rtol=rtol)
             self._count_linear(lin, before)
+            if J is not None and contact is not None and SETTLE_CONTACTS:
+                # the contact set settled on the linearised step (the static solver's rounds): a body set down on a
+                # floor otherwise swaps its touching points between iterates and the line search stalls
+                raw, _, lin, settled = self._settle_contacts(u, J, r, raw, lin, rtol)
+                if settled:
+                    self._kept = (dt, lin)
+                    history = self._anderson = None
             if history is None or history.tangent is not lin:
                 history = Anderson(ANDERSON_DEPTH, lin)
             step = self._expand(history.step(raw))
