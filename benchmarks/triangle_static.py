@@ -76,7 +76,7 @@ def main(argv=None) -> int:
     sim = simulation("triangle", d, preview=args.preview, device="cpu")
     X0 = sim.model.host["positions"].astype(np.float64)
     mass = sim.model.host["mass"].astype(np.float64)
-    corners = T._corners(d)
+    corners = T.outer_vertices(d)
     rest = T.measure(sim, X0, mass, corners)
     touching_rest = touching(sim)
     fractions = None if args.fractions is None else [float(v) for v in args.fractions.split(",")]

@@ -57,20 +57,44 @@ def largest_rate(t: np.ndarray, z: np.ndarray, t_from: float = SETTLE) -> tuple[
     return float(rate[ok][k]), float(tm[ok][k])
 
 
-def _sampled(sim, t_end: float, take) -> float:
-    """Advance ``sim`` to ``t_end`` calling ``take`` every SAMPLE s (and at the start); returns the wall time."""
+def _sampled(sim, t_end: float, take, sample: float = SAMPLE) -> float:
+    """Advance ``sim`` to ``t_end`` calling ``take`` every ``sample`` s (and at the start); returns the wall time."""
     w0 = time.perf_counter()
     take()
     while sim.time < t_end - 1e-9:
-        sim.advance_to(min(t_end, sim.time + SAMPLE))
+        sim.advance_to(min(t_end, sim.time + sample))
         take()
     return time.perf_counter() - w0
 
 
-def rising_run(name: str, base: dict, xy, speed: float, remanence_sign: float, markers, ctx, label: str) -> dict:
+def slow_settings(data: dict, speed: float, implicit_step: float | None) -> float:
+    """Make ``data`` a run of the implicit integrator when ``implicit_step`` (m of magnet travel per step) is given:
+    backward Euler, steps of implicit_step / ``speed`` (the largest; halved where Newton needs it), no mass damping
+    (the scene's damping settles the explicit engine; at the magnet's speed it would drag the robot with a force
+    of c m v). Returns the sampling interval: SAMPLE for the explicit engine, one step for the implicit one."""
+    if implicit_step is None:
+        return SAMPLE
+    dt = float(implicit_step) / float(speed)
+    data["simulation"].update(integrator="implicit", damping=0.0)
+    data["implicit"] = {"scheme": "backward_euler", "dt": dt, "dt_max": dt}
+    return dt
+
+
+def _integrator_stats(sim) -> dict:
+    """The implicit integrator's steps, rejected steps and Newton iterations (empty for the explicit engine)."""
+    integ = getattr(sim, "implicit", None)
+    if integ is None:
+        return {}
+    return {"steps": integ.steps, "rejected_steps": integ.rejected, "newton_iterations": integ.newton_iterations}
+
+
+def rising_run(name: str, base: dict, xy, speed: float, remanence_sign: float, markers, ctx, label: str,
+               implicit_step: float | None = None) -> dict:
     """The magnet rises under ``xy`` at ``speed`` (m/s). ``markers(X0) -> {key: mask}`` picks the material whose
-    mean height is sampled. Returns times, magnet heights, marker heights (m) and run facts."""
+    mean height is sampled. ``implicit_step``: run by the implicit integrator (:func:`slow_settings`). Returns
+    times, magnet heights, marker heights (m) and run facts."""
     data = copy.deepcopy(base)
+    sample = slow_settings(data, speed, implicit_step)
     m = actuator(data, remanence_sign)
     t_move = SETTLE + (Z_TOP - Z_START) / speed
     start, top = [float(xy[0]), float(xy[1]), Z_START], [float(xy[0]), float(xy[1]), Z_TOP]
@@ -92,17 +116,22 @@ def rising_run(name: str, base: dict, xy, speed: float, remanence_sign: float, m
         for k, mask in masks.items():
             rec[k].append(float(x[mask, 2].mean()))
 
-    wall = _sampled(sim, t_end, take)
+    wall = _sampled(sim, t_end, take, sample)
     out = {k: np.asarray(v) for k, v in rec.items()}
-    out.update(speed=speed, t_move=t_move, wall_s=wall, dx=sim.model.dx, particles=int(len(X0)))
+    out.update(speed=speed, t_move=t_move, wall_s=wall, dx=sim.model.dx, particles=int(len(X0)),
+               integrator="explicit" if implicit_step is None else "implicit", sample_s=sample,
+               integrator_stats=_integrator_stats(sim))
     ctx.log(f"  {label} at {speed * 1e3:.0f} mm/s: {wall:.0f} s wall")
     return out
 
 
-def passing_run(name: str, base: dict, speed: float, remanence_sign: float, domain, ctx, label: str) -> dict:
+def passing_run(name: str, base: dict, speed: float, remanence_sign: float, domain, ctx, label: str,
+                implicit_step: float | None = None) -> dict:
     """The magnet passes along y from PASS_FROM to PASS_TO under the plate at ``speed`` (m/s) in a domain widened
-    to ``domain`` (lo, hi); the mass centre is sampled. Returns times, magnet y, centroid (m) and run facts."""
+    to ``domain`` (lo, hi); the mass centre is sampled. ``implicit_step``: run by the implicit integrator
+    (:func:`slow_settings`). Returns times, magnet y, centroid (m) and run facts."""
     data = copy.deepcopy(base)
+    sample = slow_settings(data, speed, implicit_step)
     m = actuator(data, remanence_sign)
     t_pass = SETTLE + (PASS_FROM - PASS_TO) / speed
     p0, p1 = [0.0, PASS_FROM, Z_TOP], [0.0, PASS_TO, Z_TOP]
@@ -124,10 +153,12 @@ def passing_run(name: str, base: dict, speed: float, remanence_sign: float, doma
         rec["magnet_y"].append(float(np.interp(sim.time, [0.0, SETTLE, t_pass], [PASS_FROM, PASS_FROM, PASS_TO])))
         rec["cx"].append(c[0]), rec["cy"].append(c[1]), rec["cz"].append(c[2])
 
-    wall = _sampled(sim, t_end, take)
+    wall = _sampled(sim, t_end, take, sample)
     out = {k: np.asarray(v) for k, v in rec.items()}
     i0, i1 = np.searchsorted(out["t"], SETTLE), np.searchsorted(out["t"], t_pass)
     out.update(speed=speed, t_pass=t_pass, wall_s=wall, dx=sim.model.dx, particles=int(len(mass)),
+               integrator="explicit" if implicit_step is None else "implicit", sample_s=sample,
+               integrator_stats=_integrator_stats(sim),
                dy=float(out["cy"][i1] - out["cy"][i0]), mean_speed=float((out["cy"][i1] - out["cy"][i0]) / (t_pass - SETTLE)))
     ctx.log(f"  {label} at {speed * 1e3:.0f} mm/s: centroid moved {out['dy'] * 1e3:+.1f} mm along y in the pass "
             f"({wall:.0f} s wall)")

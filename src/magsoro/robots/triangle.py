@@ -131,7 +131,7 @@ def advance(sim, t_end: float, frames: FrameRecorder | None, frame_every: float)
 
 
 # -- the triangle -----------------------------------------------------------------------------------------
-def _corners(data: dict) -> np.ndarray:
+def outer_vertices(data: dict) -> np.ndarray:
     """Outer vertices (3, 2) of the triangle, from the baseplate polygons of the scene (the points shared by two
     side strips)."""
     pts = [tuple(np.round(v, 6)) for b in data["bodies"] if b["name"].startswith("base_")
@@ -257,7 +257,7 @@ def static_sweep(ctx: Context, levels_mt, between_mt):
     [(level, measure)], StaticSweep, the frames)."""
     data = scene_data(NAME)
     magnet = next(f for f in data["fields"] if f.get("name") == "magnet")
-    corners = _corners(data)
+    corners = outer_vertices(data)
     current = {"level": 0.0}
     frames = FrameRecorder(axes=(0, 2), label=lambda s: f"equilibrium, B_z at the robot centre = {current['level']:.0f} mT")
     rows_out, ref = [], {}
@@ -297,7 +297,7 @@ def dynamic_sweep(ctx: Context, levels_mt):
     sim = simulation(NAME, data, preview=ctx.preview, device=ctx.device)
     X0 = sim.model.host["positions"].astype(np.float64)
     mass = sim.model.host["mass"].astype(np.float64)
-    corners = _corners(data)
+    corners = outer_vertices(data)
     ctx.log(f"triangle: {len(X0)} particles, dx = {sim.model.dx * 1e3:.2f} mm, levels {levels_mt} mT, "
             f"{reads[-1]:.2f} s simulated (dynamics)")
 

@@ -1,0 +1,95 @@
+"""Seed 002's triangle under the paper's actuator moving at hand speeds, by the implicit integrator: warping (the
+magnet rising under the top vertex, Fig. 7c) and locomotion (the magnet passing along -y under the robot, Fig. 4c).
+
+    python benchmarks/seed002_slow.py [--motion warp|pass|both] [--speeds 5,10,20] [--step-mm 0.5] [--preview]
+                                      [--dx DX]
+
+Each run is magsoro.robots._seed002_speeds's rising or passing run of magsoro reproduce triangle, with the implicit
+integrator (backward Euler, no mass damping) stepping ``--step-mm`` of magnet travel per step (dt = step / speed;
+halved where Newton needs it). ``--speeds`` in mm/s; ``--preview``: the robot's preview grid (dx 2 mm: one cell
+through the plate, where the total-Lagrangian form the integrator uses bends far softer than at the full grid; a
+check that the script runs, not a result); ``--dx``: another grid spacing (m). Records per run: the top vertex's largest rise rate and its rise over the run (warping),
+the centroid's displacement along the pass and its mean speed (locomotion), the integrator's steps, rejected steps
+and Newton iterations, and the wall time. Writes
+benchmarks/results/<date>-cpu-<commit>-seed002-slow[-preview].json with the machine and the commit.
+"""
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from magsoro.bench.runner import provenance
+
+ROOT = Path(__file__).resolve().parents[1]
+#: the pass's domain (m): reproduce's (magsoro.robots.triangle.LOCO_DOMAIN) with room along +y up to the magnet's
+#: start, since a slow magnet draws the robot towards it before it passes (the implicit integrator models only the
+#: walls a body starts at)
+PASS_DOMAIN = ((-0.036, -0.170, -0.004), (0.036, 0.110, 0.040))
+
+
+class _Context:
+    """What the runs take from a reproduce context: the grid, the device and a log."""
+
+    def __init__(self, preview: bool):
+        self.preview, self.device = preview, "cpu"
+
+    @staticmethod
+    def log(msg: str) -> None:
+        print(msg, flush=True)
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--motion", choices=["warp", "pass", "both"], default="both")
+    ap.add_argument("--speeds", default="5,10,20", help="magnet speeds, mm/s")
+    ap.add_argument("--step-mm", type=float, default=0.5, help="magnet travel per implicit step, mm")
+    ap.add_argument("--preview", action="store_true", help="the robot's preview grid")
+    ap.add_argument("--dx", type=float, default=None, help="grid spacing, m (default the scene's)")
+    args = ap.parse_args(argv)
+    from magsoro.robots import _seed002_speeds as sp
+    from magsoro.robots import triangle
+    from magsoro.robots.base import scene_data
+
+    data = scene_data(triangle.NAME)
+    if args.dx is not None:
+        data["simulation"]["dx"] = float(args.dx)
+    ctx = _Context(args.preview)
+    corners = triangle.outer_vertices(data)
+    i_top = int(np.argmax(corners[:, 1]))
+    top = corners[i_top]
+
+    def vertices(X0):
+        return {"top": np.linalg.norm(X0[:, :2] - top, axis=1) < 0.002}
+
+    speeds = [float(v) * 1e-3 for v in args.speeds.split(",")]
+    step = args.step_mm * 1e-3
+    runs = []
+    for v in speeds:
+        if args.motion in ("warp", "both"):
+            r = sp.rising_run(triangle.NAME, data, top, v, +1.0, vertices, ctx, "warping", implicit_step=step)
+            i0 = int(np.searchsorted(r["t"], sp.SETTLE))
+            runs.append({"motion": "warp", "magnet_speed_mm_s": v * 1e3, "vertex_rise_rate_mm_s": 1e3 * sp.largest_rate(r["t"], r["top"])[0],
+                         "vertex_rise_mm": 1e3 * float(r["top"][-1] - r["top"][i0]), "wall_s": round(r["wall_s"], 1),
+                         "dx_m": r["dx"], "particles": r["particles"], "dt_s": r["sample_s"], **r["integrator_stats"],
+                         "t_s": r["t"].tolist(), "vertex_z_m": r["top"].tolist()})
+        if args.motion in ("pass", "both"):
+            r = sp.passing_run(triangle.NAME, data, v, +1.0, PASS_DOMAIN, ctx, "locomotion", implicit_step=step)
+            runs.append({"motion": "pass", "magnet_speed_mm_s": v * 1e3, "centroid_along_magnet_mm": -1e3 * r["dy"],
+                         "centroid_speed_along_magnet_mm_s": -1e3 * r["mean_speed"], "wall_s": round(r["wall_s"], 1),
+                         "dx_m": r["dx"], "particles": r["particles"], "dt_s": r["sample_s"], **r["integrator_stats"],
+                         "t_s": r["t"].tolist(), "centroid_y_m": r["cy"].tolist(), "centroid_z_m": r["cz"].tolist()})
+        print({k: val for k, val in runs[-1].items() if not isinstance(val, list)}, flush=True)
+    result = {"benchmark": "seed002_slow", **provenance(), "robot": triangle.NAME, "preview": args.preview,
+              "step_mm": args.step_mm, "integrator": "implicit, backward Euler, no mass damping", "runs": runs}
+    tag = "-preview" if args.preview else ""
+    out = ROOT / "benchmarks" / "results" / f"{result['date'][:10]}-cpu-{result['commit']}-seed002-slow{tag}.json"
+    out.write_text(json.dumps(result, indent=1))
+    print(out)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
