@@ -34,17 +34,6 @@ START_TRAVEL = 0.005
 PASS_DOMAIN = ((-0.036, -0.170, -0.004), (0.036, 0.110, 0.040))
 
 
-class _Context:
-    """What the runs take from a reproduce context: the grid, the device and a log."""
-
-    def __init__(self, preview: bool):
-        self.preview, self.device = preview, "cpu"
-
-    @staticmethod
-    def log(msg: str) -> None:
-        print(msg, flush=True)
-
-
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--motion", choices=["warp", "pass", "both"], default="both")
@@ -55,12 +44,13 @@ def main(argv=None) -> int:
     args = ap.parse_args(argv)
     from magsoro.robots import _seed002_speeds as sp
     from magsoro.robots import triangle
-    from magsoro.robots.base import scene_data
+    from magsoro.robots.base import Context, scene_data
 
     data = scene_data(triangle.NAME)
     if args.dx is not None:
         data["simulation"]["dx"] = float(args.dx)
-    ctx = _Context(args.preview)
+    ctx = Context(out=ROOT / "benchmarks" / "results", preview=args.preview, device="cpu",
+                  log=lambda msg: print(msg, flush=True))
     corners = triangle.outer_vertices(data)
     i_top = int(np.argmax(corners[:, 1]))
     top = corners[i_top]
@@ -75,17 +65,18 @@ def main(argv=None) -> int:
         if args.motion in ("warp", "both"):
             r = sp.rising_run(triangle.NAME, data, top, v, +1.0, vertices, ctx, "warping", implicit_step=step)
             i0 = int(np.searchsorted(r["t"], sp.SETTLE))
-            runs.append({"motion": "warp", "magnet_speed_mm_s": v * 1e3, "vertex_rise_rate_mm_s": 1e3 * sp.largest_rate(r["t"], r["top"], sp.SETTLE + START_TRAVEL / v)[0],
+            rate = sp.largest_rate(r["t"], r["top"], sp.SETTLE + START_TRAVEL / v)[0]
+            runs.append({"motion": "warp", "magnet_speed_mm_s": v * 1e3, "vertex_rise_rate_mm_s": 1e3 * rate,
                          "vertex_rise_mm": 1e3 * float(r["top"][-1] - r["top"][i0]), "wall_s": round(r["wall_s"], 1),
-                         "dx_m": r["dx"], "particles": r["particles"], "dt_s": r["sample_s"], **r["integrator_stats"],
+                         "dx_m": r["dx"], "particles": r["particles"], "dt_s": r["sample_s"], "integrator": r["integrator"],
                          "t_s": r["t"].tolist(), "vertex_z_m": r["top"].tolist()})
         if args.motion in ("pass", "both"):
             r = sp.passing_run(triangle.NAME, data, v, +1.0, PASS_DOMAIN, ctx, "locomotion", implicit_step=step)
             runs.append({"motion": "pass", "magnet_speed_mm_s": v * 1e3, "centroid_along_magnet_mm": -1e3 * r["dy"],
                          "centroid_speed_along_magnet_mm_s": -1e3 * r["mean_speed"], "wall_s": round(r["wall_s"], 1),
-                         "dx_m": r["dx"], "particles": r["particles"], "dt_s": r["sample_s"], **r["integrator_stats"],
+                         "dx_m": r["dx"], "particles": r["particles"], "dt_s": r["sample_s"], "integrator": r["integrator"],
                          "t_s": r["t"].tolist(), "centroid_y_m": r["cy"].tolist(), "centroid_z_m": r["cz"].tolist()})
-        print({k: val for k, val in runs[-1].items() if not isinstance(val, list)}, flush=True)
+        print({k: val for k, val in runs[-1].items() if not isinstance(val, (list, dict))}, flush=True)
     result = {"benchmark": "seed002_slow", **provenance(), "robot": triangle.NAME, "preview": args.preview,
               "step_mm": args.step_mm, "integrator": "implicit, backward Euler, no mass damping", "runs": runs}
     tag = "-preview" if args.preview else ""

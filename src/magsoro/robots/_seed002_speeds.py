@@ -80,14 +80,6 @@ def slow_settings(data: dict, speed: float, implicit_step: float | None) -> floa
     return dt
 
 
-def _integrator_stats(sim) -> dict:
-    """The implicit integrator's steps, rejected steps and Newton iterations (empty for the explicit engine)."""
-    integ = getattr(sim, "implicit", None)
-    if integ is None:
-        return {}
-    return {"steps": integ.steps, "rejected_steps": integ.rejected, "newton_iterations": integ.newton_iterations}
-
-
 def rising_run(name: str, base: dict, xy, speed: float, remanence_sign: float, markers, ctx, label: str,
                implicit_step: float | None = None) -> dict:
     """The magnet rises under ``xy`` at ``speed`` (m/s). ``markers(X0) -> {key: mask}`` picks the material whose
@@ -119,8 +111,7 @@ def rising_run(name: str, base: dict, xy, speed: float, remanence_sign: float, m
     wall = _sampled(sim, t_end, take, sample)
     out = {k: np.asarray(v) for k, v in rec.items()}
     out.update(speed=speed, t_move=t_move, wall_s=wall, dx=sim.model.dx, particles=int(len(X0)),
-               integrator="explicit" if implicit_step is None else "implicit", sample_s=sample,
-               integrator_stats=_integrator_stats(sim))
+               integrator=sim.integrator_info(), sample_s=sample)
     ctx.log(f"  {label} at {speed * 1e3:.0f} mm/s: {wall:.0f} s wall")
     return out
 
@@ -157,8 +148,7 @@ def passing_run(name: str, base: dict, speed: float, remanence_sign: float, doma
     out = {k: np.asarray(v) for k, v in rec.items()}
     i0, i1 = np.searchsorted(out["t"], SETTLE), np.searchsorted(out["t"], t_pass)
     out.update(speed=speed, t_pass=t_pass, wall_s=wall, dx=sim.model.dx, particles=int(len(mass)),
-               integrator="explicit" if implicit_step is None else "implicit", sample_s=sample,
-               integrator_stats=_integrator_stats(sim),
+               integrator=sim.integrator_info(), sample_s=sample,
                dy=float(out["cy"][i1] - out["cy"][i0]), mean_speed=float((out["cy"][i1] - out["cy"][i0]) / (t_pass - SETTLE)))
     ctx.log(f"  {label} at {speed * 1e3:.0f} mm/s: centroid moved {out['dy'] * 1e3:+.1f} mm along y in the pass "
             f"({wall:.0f} s wall)")

@@ -145,7 +145,8 @@ class BodiesComparison:
     """Levels against Hertz (SI). ``finite_body``: delta_fb(F_k); ``offset``: the fitted delta_0; ``indentation``:
     d_k; ``hertz``: F_H(d_k); ``error``: |F_k - F_H(d_k)| / F_H(d_k); ``constant``, ``hertz_constant``: the fitted
     a and 4/3 E* R^(1/2); ``model_force``: the model hemisphere's force at each clamp displacement (no offset);
-    ``bare``: the force over Hertz's at the clamp's displacement (no model term, no offset)."""
+    ``bare``: the force over Hertz's at the clamp's displacement (no model term, no offset); ``model``: the FE
+    hemisphere used."""
 
     setup: SphereOnBlock
     levels: list
@@ -158,6 +159,7 @@ class BodiesComparison:
     hertz_constant: float
     model_force: np.ndarray
     bare: np.ndarray
+    model: HemisphereFE
 
 
 def compare(setup: SphereOnBlock, levels: list[Pressed], fe: HemisphereFE | None = None) -> BodiesComparison:
@@ -174,7 +176,7 @@ def compare(setup: SphereOnBlock, levels: list[Pressed], fe: HemisphereFE | None
     ref = hertz_force(np.maximum(d, 0.0), R, e_star)
     model = np.array([fe.pressed(a / R)["reaction"] * e_sphere * R**2 for a in delta])
     return BodiesComparison(setup, levels, fb, float(offset), d, ref, np.abs(F - ref) / ref, float(c) ** -1.5,
-                            4.0 / 3.0 * e_star * math.sqrt(R), model, F / hertz_force(delta, R, e_star))
+                            4.0 / 3.0 * e_star * math.sqrt(R), model, F / hertz_force(delta, R, e_star), fe)
 
 
 def rows_of(comp: BodiesComparison, tolerance: float = TOLERANCE) -> list[Row]:
@@ -208,10 +210,10 @@ def plot_bodies(comp: BodiesComparison, path) -> Path:
     a.set_ylabel("contact force, N")
     a.legend(fontsize=8)
     delta = np.array([lv.approach for lv in comp.levels])
-    fe = HemisphereFE(elastic_moduli(*s.sphere)[0])
     e_sphere = elastic_moduli(*s.sphere)[2]
     line = np.linspace(0.0, 1.05 * float((delta - comp.offset).max()), 16)[1:]
-    b.plot(line / R, [fe.pressed(v / R)["reaction"] * e_sphere * R**2 for v in line], "k--", label="FE hemisphere held by its face")
+    b.plot(line / R, [comp.model.pressed(v / R)["reaction"] * e_sphere * R**2 for v in line], "k--",
+           label="FE hemisphere held by its face")
     b.plot(delta / R, F, "o", label="MPM")
     b.plot((delta - comp.offset) / R, F, "o", mfc="none", label="MPM, less the fitted offset")
     b.set_xlabel("clamp displacement / R")
