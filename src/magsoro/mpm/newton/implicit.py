@@ -217,6 +217,10 @@ class ImplicitIntegrator(StaticSolver):
         t = self.t + self._dt_a() if self._inertia is not None else self.t
         return self.solver.settings.damping_at(t)
 
+    def _check_held(self) -> None:
+        """Nothing to refuse: the mass term holds every part's step, so a body that starts free, loaded or not
+        (a gripper dropped onto its object, a block falling on a plate), moves under its loads."""
+
     def light_fraction(self) -> float:
         """No node is slaved: the mass term makes the step's tangent definite along the combinations of light nodes
         that move no particle (the static solver's reason to slave them in 3D), and slaving stiffens the body. The
