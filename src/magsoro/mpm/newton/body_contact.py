@@ -526,6 +526,12 @@ class BodyContact:
 
         return step_fraction(depth, max(STEP_DEPTH * self.dx, 1.01 * depth(0.0)), rounds=10)
 
+    def round_state(self):
+        """The active set of the current :meth:`revise` rounds (hashable; None before the first round)."""
+        if self._revision is None:
+            return None
+        return self._revision["current"].tobytes()
+
     def signature(self) -> tuple:
         """Which contacts the last evaluation had (to tell a change of the set)."""
         return (None if self._last is None else self._last["keys"].tobytes(),)

@@ -606,7 +606,7 @@ def integrator_summary(integrator: "ImplicitIntegrator | None", settings) -> dic
                    newton_iterations=integrator.newton_iterations, tangents=integrator.tangents,
                    linear_solver="+".join(sorted(integrator.linear_kinds)), linear_solves=integrator.linear_solves,
                    linear_iterations=integrator.linear_iterations, linear_setups=integrator.linear_setups,
-                   linear_fallbacks=integrator.linear_fallbacks,
+                   linear_fallbacks=integrator.linear_fallbacks, contact_round_cycles=integrator.round_cycles,
                    residual_evaluations=integrator.residual_evaluations,
                    unknowns=int(integrator.E.shape[1]))
     return out

@@ -389,6 +389,13 @@ class ColliderPenalty:
             return None
         return self.W.T @ df, self._springs(changes, free)
 
+    def round_state(self):
+        """The active set of the current :meth:`revise` rounds (hashable; None before the first round), so that the
+        rounds can tell a set they have had before."""
+        if self._revision is None:
+            return None
+        return tuple(None if d is None else np.sort(np.fromiter(d, np.int64, len(d))).tobytes() for d in self._revision)
+
     def _springs(self, entries, free: np.ndarray) -> sparse.csc_matrix:
         """-W^T K W on the free DOFs of the springs ``entries``: (points, blocks (P, dim, dim)) pairs."""
         dim = self.dim
@@ -488,6 +495,10 @@ class Contacts:
 
     def signature(self) -> tuple:
         return tuple(s for p in self.parts for s in p.signature())
+
+    def round_state(self) -> tuple:
+        """The parts' active sets in the current rounds of :meth:`revise` (hashable)."""
+        return tuple(p.round_state() for p in self.parts)
 
     def accept(self, u_nodes) -> None:
         for p in self.parts:
