@@ -117,7 +117,7 @@ def main(argv=None) -> int:
     closed = bool(np.all(past[last] > 0.0) and np.all(gap[last] / gap[0] <= 0.6))
     lifted = bool(height.max() >= LIFT_MARGIN_M)
     rise = zg - zg[min(int(np.searchsorted(t, DOWN_AT)), len(t) - 1)]
-    left = np.flatnonzero((rise > 2e-3) & (height < LIFT_MARGIN_M))
+    left = np.flatnonzero((t >= DOWN_AT) & (rise > 2e-3) & (height < LIFT_MARGIN_M))
     result = {"benchmark": "gripper_implicit", **provenance(), "preview": args.preview, "particles": int(sim.model.n_particles),
               "dx_m": float(sim.model.dx), "magnet_speed_mm_s": args.speed, "friction": args.friction,
               "magnet_path_times_s": times, "completed": bool(not message and t[-1] >= t_end - 1e-9), "message": message,
