@@ -7,9 +7,10 @@ The scene's sequence (scenes/gripper.toml) with two changes: the magnet and its 
 from 0.15 s at ``--speed`` mm/s (20 by default: 2 s), wait 0.05 s, rise the same 6 mm at that speed and stay,
 and the run goes on for 1.2 s after that; the integrator is implicit (backward Euler, first step 5 ms, at most
 20 ms, no mass damping, as a slow experiment has no grid drag). ``--friction``: Coulomb's coefficient between
-gripper and bead (the scene's [contact] friction, 1.0: dry silicone elastomers are tacky, with coefficients of
-about 1 on smooth counterfaces that depend on the contact pressure (Berthold et al. 2023 measure this for the
-silicone rubbers of soft robotics); no source gives silicone on silicone for these materials).
+gripper and bead (the scene's [contact] friction, 1.0 by default). Berthold et al. 2023 measured the friction
+coefficients of the silicone rubbers used in soft robots against several counterfaces and found that they depend
+on the contact pressure; no source gives silicone on silicone for these materials, so the scene's value is kept
+and stated as an assumption.
 
 Recorded every 10 ms: the arms' mean fold angle, the gap between opposite arm tips, how far the tips reach below the
 bead's centre, the bead's lowest point above the floor and the gripper's centroid height
