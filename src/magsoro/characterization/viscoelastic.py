@@ -41,7 +41,8 @@ from magsoro.mpm.laws.prony import MAX_PRONY_TERMS, prony_problem
 # g_inf is kept at least this large: the engine needs sum g_i < 1 (a solid), and a Prony fit on a finite window
 # cannot tell g_inf = 0 from a tiny positive one
 G_INF_MIN = 1e-6
-# a term whose g_i falls below this is dropped: the data do not support it
+# a term whose g_i falls below this, or that changes a relaxation record by less than this (of G0), is dropped: the
+# data do not support it
 G_MIN = 1e-6
 # terms whose relaxation times are closer than this factor are one term
 _MERGE_RATIO = 1.05
@@ -554,9 +555,17 @@ def _make_fit(prob: _Problem, data, n_requested: int, tau, c, method: str) -> Pr
             merged_tau.append(t)
             merged_mod.append(m)
     total = g_inf_mod + sum(merged_mod)
-    kept = [(m, t) for m, t in zip(merged_mod, merged_tau) if m / total >= G_MIN]
+    lo, hi = prob.tau_range
+    if isinstance(data, RelaxationData):
+        # what a term changes over the record, m (exp(-lo/tau) - exp(-hi/tau)): a term that relaxed before the first
+        # sample (or after the last) leaves the data unchanged however large its g; it is not supported either
+        seen = [m * (math.exp(-lo / t) - math.exp(-hi / t)) for m, t in zip(merged_mod, merged_tau)]
+    else:
+        seen = merged_mod
+    kept = [(m, t) for m, t, v in zip(merged_mod, merged_tau, seen) if m / total >= G_MIN and v / total >= G_MIN]
     if len(kept) < len(merged_mod):
-        notes.append(f"{len(merged_mod) - len(kept)} term(s) with g < {G_MIN:g} dropped: the data do not support them")
+        notes.append(f"{len(merged_mod) - len(kept)} term(s) with g < {G_MIN:g}, or changing the record by less than "
+                     f"{G_MIN:g} of G0, dropped: the data do not support them")
     if not kept:
         raise CharacterizationDataError(
             f"{data.source}: the data show no relaxation a Prony term could fit (every g_i is 0); check the column"
@@ -565,7 +574,6 @@ def _make_fit(prob: _Problem, data, n_requested: int, tau, c, method: str) -> Pr
     g = tuple(float(m / g0) for m, _ in kept)
     taus = tuple(float(t) for _, t in kept)
     g_inf = 1.0 - sum(g)
-    lo, hi = prob.tau_range
     for i, t in enumerate(taus, start=1):
         if not lo <= t <= hi:
             notes.append(f"tau_{i} = {t:.3g} s lies outside the range the data resolve ({lo:.3g} .. {hi:.3g} s): "
