@@ -81,7 +81,7 @@ def main(argv=None) -> int:
     print(f"gripper: {sim.model.n_particles} particles, dx {sim.model.dx * 1e3:g} mm, magnet {args.speed:g} mm/s "
           f"(down {times[0]:.2f}-{times[1]:.2f} s, up {times[2]:.2f}-{times[3]:.2f} s), to {t_end:.2f} s", flush=True)
     rows, shots = [], {}
-    shot_times = [0.0, DOWN_AT, None, t_end]  # the third: the frame before the gripper leaves the bead, or mid-hold
+    shot_times = [0.0, DOWN_AT, t_end]  # and "peak": when the gripper has risen 2 mm off the bead (below)
     wall0 = time.perf_counter()
     message = ""
     z_closed = None  # the gripper's centroid height when the magnet starts down
@@ -92,7 +92,7 @@ def main(argv=None) -> int:
             m = arms.measure(x)
             rows.append((sim.time, *m))
             for t_shot in shot_times:
-                if t_shot is not None and abs(sim.time - t_shot) < 0.5 * EVERY:
+                if abs(sim.time - t_shot) < 0.5 * EVERY:
                     shots[t_shot] = x.copy()
             if abs(sim.time - DOWN_AT) < 0.5 * EVERY:
                 z_closed = m[3]
