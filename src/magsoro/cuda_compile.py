@@ -295,6 +295,8 @@ def _catalogue() -> tuple:
         for contact in (False, True):
             label = f"engine 2D {sname} axisymmetric" + (" (contact)" if contact else "")
             groups += _groups_of(label, _fresh(make_p2g, 2, sc, contact, False, "axisymmetric"), seen)
+        # and the Newton solvers' tangent with its hoop terms
+        groups += _groups_of(f"static 2D {sname} axisymmetric", _fresh(make_static_kernels, 2, sc, "axisymmetric"), seen)
     field_funcs = _field_device_functions()
     for dim in DIMS:
         for sname in SCALAR_NAMES:

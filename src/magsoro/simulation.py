@@ -294,6 +294,12 @@ class Simulation:
         # a wall the scene may not mean to have
         self._wall_far = self._wall_distances(self.model.host["positions"]) > WALL_REACH_CELLS * self.model.dx
         self._wall_far &= (self.model.host["clamped"] == 0)[:, None]
+        # what the explicit engine cannot step (an axisymmetric scene's contact in the total form, its self-contact):
+        # refused when it steps, so that the Newton solvers, which take it, can
+        from magsoro.scene.build import axisymmetric_explicit_refusal
+
+        self._explicit_refusal = axisymmetric_explicit_refusal(scene, self.solver.settings.formulation,
+                                                               self.solver.contact_active, source)
         self._walls_reached: set = set()
         self._note_lattice_fill()
         self._note_thin_parts()
@@ -314,6 +320,11 @@ class Simulation:
         peaks = check_time_step(self, source)
         for text in plausibility_notes(self, peaks) + ([self.solver.threads_note] if self.solver.threads_note else []):
             self._note(text, scene=True)
+
+    def _check_explicit(self) -> None:
+        """Raise SimulationError where the explicit engine cannot step the scene (Simulation.__init__)."""
+        if self._explicit_refusal is not None:
+            raise SimulationError(self._explicit_refusal)
 
     def set_sources(self, sources) -> None:
         """Replace the field sources (call between steps) and bound the time step anew for the largest field they
@@ -491,6 +502,12 @@ class Simulation:
         # walls the bodies are within reach of at the start are the scene's (check_wall_reach)
         self._wall_far = self._wall_distances(np.asarray(data["x"])) > WALL_REACH_CELLS * self.model.dx
         self._wall_far &= (self.model.host["clamped"] == 0)[:, None]
+        # what the explicit engine cannot step (an axisymmetric scene's contact in the total form, its self-contact):
+        # refused when it steps, so that the Newton solvers, which take it, can
+        from magsoro.scene.build import axisymmetric_explicit_refusal
+
+        self._explicit_refusal = axisymmetric_explicit_refusal(scene, self.solver.settings.formulation,
+                                                               self.solver.contact_active, source)
         self.started_from = {"from": str(start_file(path, key)), "time": st.time, "step": st.step,
                              "precision": str(data["precision"]) if "precision" in data else str(data["x"].dtype)}
         for text in notes:
@@ -670,6 +687,7 @@ class Simulation:
         last_good.npz) is always one that passed the checks."""
         self._static_forces = None
         self._pair_forces = None  # (groups, groups, 3) N: the body contact's forces of the Newton solvers
+        self._check_explicit()
         try:
             self.solver.step(self.state, self._spare, self.control, dt)
         except SimulationError as exc:
@@ -691,6 +709,7 @@ class Simulation:
             self._advance_implicit(t_end, eps, callback, heartbeat)
             self.check_wall_reach()
             return
+        self._check_explicit()
         while self.state.time < t_end - eps:
             if self.check_every <= 1:
                 self._step(self._next_dt(t_end - self.state.time))
@@ -1009,6 +1028,7 @@ class Simulation:
         built in float32 that has not stepped is rebuilt so, keeping its state (one that has stepped relaxes in
         float32, noted). Returns a :class:`RelaxResult`; a SimulationError
         (invalid state) propagates."""
+        self._check_explicit()
         if self.model.np_scalar != np.float64 and not self.steps:
             self._rebuild(prepare_relax)  # float64, as magsoro run --equilibrium (prepare_relax)
         elif self.model.np_scalar != np.float64:

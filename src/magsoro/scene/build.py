@@ -687,13 +687,11 @@ AXIS_CONTACT_CELLS = 3.0
 
 def check_axisymmetric_contact(scene: Scene, X: np.ndarray, group: np.ndarray, names: list, body_id: np.ndarray,
                                source: str) -> None:
-    """Contact between bodies in an axisymmetric scene: the updated formulation, and no contact near the axis, where
-    the mirrored nodes carry one velocity field (AXIS_CONTACT_CELLS cells): at most one piece reaches there.
-    Self-contact is not built yet. Refused in one line naming the key."""
+    """Contact between bodies in an axisymmetric scene: no contact near the axis, where the mirrored nodes carry one
+    velocity field (AXIS_CONTACT_CELLS cells): at most one piece reaches there. Refused in one line naming the key.
+    What only the explicit engine lacks (the total form with contact, self-contact) is refused when it steps
+    (:func:`axisymmetric_explicit_refusal`): the Newton solvers take both."""
     sim = scene.simulation
-    if sim.formulation == "total":
-        raise SceneError(f"{source}: simulation.formulation: 'total' with contact is not built for an axisymmetric "
-                         f"scene; use 'updated' or 'auto'")
     near = X[:, 0] < AXIS_CONTACT_CELLS * sim.dx
     pieces = np.unique(group[near])
     if len(pieces) > 1:
@@ -701,9 +699,22 @@ def check_axisymmetric_contact(scene: Scene, X: np.ndarray, group: np.ndarray, n
         raise SceneError(f"{source}: bodies: {', '.join(repr(n) for n in who)} reach within {AXIS_CONTACT_CELLS:g} cells "
                          f"of the axis as separate pieces; contact that close to the axis is not built in an axisymmetric "
                          f"scene (keep all but one piece {AXIS_CONTACT_CELLS * sim.dx:g} m off it, or glue them)")
+
+
+def axisymmetric_explicit_refusal(scene: Scene, formulation: str, contact_active: bool, source: str) -> str | None:
+    """Why the explicit engine cannot step this axisymmetric scene with contact (None when it can): the total form
+    with contact and self-contact are built in the Newton solvers only (magsoro run --static,
+    simulation.integrator = 'implicit')."""
+    if scene.simulation.plane != "axisymmetric" or not contact_active:
+        return None
+    newton = "; the static solver (magsoro run --static) and the implicit integrator (simulation.integrator = 'implicit') take it"
     if scene.contact.self_contact:
-        raise SceneError(f"{source}: contact.self_contact: self-contact is not built yet in an axisymmetric scene "
-                         f"(contact between bodies is)")
+        return (f"{source}: contact.self_contact: the explicit engine has no self-contact in an axisymmetric scene "
+                f"(contact between bodies it has){newton}")
+    if formulation == "total":
+        return (f"{source}: simulation.formulation: the explicit engine has no contact in the total form in an "
+                f"axisymmetric scene; use 'updated' or 'auto'{newton}")
+    return None
 
 
 def contact_groups(scene: Scene, X: np.ndarray, body_id: np.ndarray, touching: list | None = None) -> np.ndarray:

@@ -417,8 +417,6 @@ def check_axisymmetric(scene: Scene, source: str) -> None:
         refuse("simulation.plane_z", "must be 0: the (r, z) half-plane is the x-y plane of the field sources, z = 0,")
     if sim.gravity is not None and sim.gravity[0] != 0.0:
         refuse("simulation.gravity", "must be along the axis, [0, g_z],")
-    if sim.integrator == "implicit":
-        refuse("simulation.integrator", "'implicit' is not built yet; use 'explicit'")
     if sim.magnetic_interaction != "none":
         refuse("simulation.magnetic_interaction", "'dipole' (the bodies' own field) is not built yet")
     for i, b in enumerate(scene.bodies):

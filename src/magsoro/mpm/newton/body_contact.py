@@ -129,7 +129,13 @@ class BodyContact:
         if not self_contact:
             np.fill_diagonal(allowed, False)
         self.allowed = allowed
-        spacing = (np.asarray(h["volumes"], dtype=np.float64) / thickness) ** (1.0 / self.dim)
+        # an axisymmetric scene's particles are rings: the section's spacing, and a penalty per unit length of the
+        # ring times its length 2 pi R (the colliders' rule, magsoro.mpm.newton.static_contact)
+        circumference = 1.0
+        self.ring = model.plane == "axisymmetric"
+        if self.ring:
+            thickness, circumference = 1.0, 2.0 * np.pi * np.asarray(h["positions"], dtype=np.float64)[:, 0]
+        spacing = (np.asarray(h["volumes"], dtype=np.float64) / circumference / thickness) ** (1.0 / self.dim)
         self.X = np.asarray(h["positions"], dtype=np.float64)
         free = np.asarray(h["clamped"]) == 0
         surf, normals = surface_normals(self.X, self.group, spacing)
@@ -138,7 +144,7 @@ class BodyContact:
         self.radius = 0.5 * spacing
         self.reach = MASTER_REACH * float(np.max(spacing))
         # the penalty per unit P-wave modulus; a contact's modulus is the softer of its two groups' (pair_wave)
-        self.k = 0.5 * PENALTY / self.dx * spacing ** (self.dim - 1) * thickness
+        self.k = 0.5 * PENALTY / self.dx * spacing ** (self.dim - 1) * thickness * circumference
         wave = static.model.p_wave_modulus()
         softest = np.array([wave[self.group == g].min() for g in range(self.n_groups)])
         self.pair_wave = np.minimum(softest[:, None], softest[None, :])
@@ -412,6 +418,8 @@ class BodyContact:
         total = force + fn_signed[:, None] * n
         gs, gm = self.group[slave], keys % self.n_groups
         for k in range(dim):
+            if k == 0 and self.ring:  # the radial forces on a ring cancel round it (net force along the axis only)
+                continue
             np.add.at(self.pair_force[:, :, k], (gm, gs), total[:, k])
             np.add.at(self.pair_force[:, :, k], (gs, gm), -total[:, k])
         self._tangent_parts = (G, kc, (C @ self.P).tocsr(), blocks)

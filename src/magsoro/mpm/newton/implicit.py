@@ -202,7 +202,14 @@ class ImplicitIntegrator(StaticSolver):
         from scipy import sparse
 
         free_mass = np.repeat(self.node_mass[self.free], self.dim)
-        self.mass_matrix = (self.E.T @ sparse.diags(free_mass) @ self.E).tocsc()  # on the unknowns
+        mass_matrix = self.E.T @ sparse.diags(free_mass) @ self.E  # on the unknowns
+        # an unknown that moves no node (an axisymmetric axis node's radial one, :meth:`_slaving`) carries no mass:
+        # a unit-scale mass there keeps M regular; its force is zero, so it stays at rest
+        idle = mass_matrix.diagonal() <= 0.0
+        if np.any(idle):
+            scale = float(np.median(free_mass[free_mass > 0])) if np.any(free_mass > 0) else 1.0
+            mass_matrix = mass_matrix + sparse.diags(idle * scale)
+        self.mass_matrix = mass_matrix.tocsc()
         self.v_nodes = np.zeros_like(self.u_nodes)
         self.a_nodes = np.zeros_like(self.u_nodes)
         self.steps = self.rejected = self.newton_iterations = self.tangents = 0

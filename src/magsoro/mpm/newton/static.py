@@ -223,7 +223,12 @@ def make_static_kernels(dim: int, scalar, plane: str = "strain", two_fields: boo
         x[p] = X[p] + disp
         F[p] = wp.identity(n=dim, dtype=scalar) + (scalar(4.0) * inv_dx) * (S - wp.outer(disp, fx))
 
-    body_elastic_stress = make_body_elastic(dim, scalar, plane).body_elastic_stress
+    axisymmetric = plane == "axisymmetric"
+    body = make_body_elastic(dim, scalar, plane)
+    # an axisymmetric particle's law is evaluated at diag(F, r / R) (body_elastic_stress3); plane strain's in-plane
+    # law stands in for the 2D one so that the kernels below compile in every mode
+    body_elastic_stress = make_body_elastic(dim, scalar, "strain").body_elastic_stress if axisymmetric else body.body_elastic_stress
+    body_elastic_stress3 = body.body_elastic_stress3 if axisymmetric else None
     Bodies = t.Bodies
 
     @wp.kernel
@@ -234,20 +239,51 @@ def make_static_kernels(dim: int, scalar, plane: str = "strain", two_fields: boo
         P[p] = body_elastic_stress(F[p], bodies[0], p)
 
     @wp.kernel
-    def material_tangent(F: wp.array(dtype=mat), bodies: wp.array(dtype=Bodies), h: scalar, A: wp.array(dtype=mat)):
+    def material_tangent(F: wp.array(dtype=mat), x: wp.array(dtype=vec), bodies: wp.array(dtype=Bodies), h: scalar,
+                         A: wp.array(dtype=mat), hoop_A: wp.array(dtype=mat), hoop_c: wp.array(dtype=scalar)):
         """dP/dF of every particle's own law at its F by central differences of step ``h``: A[p dim^2 + b dim + d]
-        holds dP_ac/dF_bd over (a, c); zero for clamped particles (they keep F = I whatever the nodes do)."""
+        holds dP_ac/dF_bd over (a, c); zero for clamped particles (they keep F = I whatever the nodes do).
+
+        Axisymmetric: the law at diag(F, r / R) (r the current radius x[p][0], R the reference one), and its
+        derivatives along the hoop stretch too: hoop_A[2 p] = dP_ac/d(r/R), hoop_A[2 p + 1] = dP_tt/dF_bd (the
+        hoop stress's change with the in-plane F), hoop_c[p] = dP_tt/d(r/R). Not read otherwise."""
         p = wp.tid()
         F0 = F[p]
         held = bodies[0].clamped[p] != 0
-        for b in range(dim):
-            for d in range(dim):
-                E = mat()
-                E[b, d] = h
-                dP = mat()
-                if not held:
-                    dP = (body_elastic_stress(F0 + E, bodies[0], p) - body_elastic_stress(F0 - E, bodies[0], p)) / (scalar(2.0) * h)
-                A[p * dim * dim + b * dim + d] = dP
+        if wp.static(axisymmetric):
+            R = bodies[0].radius0[p]
+            h0 = x[p][0] / R
+            Et = mat()
+            for b in range(dim):
+                for d in range(dim):
+                    E = mat()
+                    E[b, d] = h
+                    dP = mat()
+                    if not held:
+                        d3 = (body_elastic_stress3(F0 + E, h0, bodies[0], p)
+                              - body_elastic_stress3(F0 - E, h0, bodies[0], p)) / (scalar(2.0) * h)
+                        dP = mat(d3[0, 0], d3[0, 1], d3[1, 0], d3[1, 1])
+                        Et[b, d] = d3[2, 2]
+                    A[p * dim * dim + b * dim + d] = dP
+            Dh = mat()
+            ch = scalar(0.0)
+            if not held:
+                d3 = (body_elastic_stress3(F0, h0 + h, bodies[0], p)
+                      - body_elastic_stress3(F0, h0 - h, bodies[0], p)) / (scalar(2.0) * h)
+                Dh = mat(d3[0, 0], d3[0, 1], d3[1, 0], d3[1, 1])
+                ch = d3[2, 2]
+            hoop_A[2 * p] = Dh
+            hoop_A[2 * p + 1] = Et
+            hoop_c[p] = ch
+        else:
+            for b in range(dim):
+                for d in range(dim):
+                    E = mat()
+                    E[b, d] = h
+                    dP = mat()
+                    if not held:
+                        dP = (body_elastic_stress(F0 + E, bodies[0], p) - body_elastic_stress(F0 - E, bodies[0], p)) / (scalar(2.0) * h)
+                    A[p * dim * dim + b * dim + d] = dP
 
     @wp.struct
     class FieldTerms:
@@ -263,13 +299,18 @@ def make_static_kernels(dim: int, scalar, plane: str = "strain", two_fields: boo
 
     @wp.kernel
     def assemble_tangent(X: wp.array(dtype=vec), block: Block, bodies: wp.array(dtype=Bodies), A: wp.array(dtype=mat),
+                         hoop_A: wp.array(dtype=mat), hoop_c: wp.array(dtype=scalar),
                          fterms: FieldTerms, ct: wp.array(dtype=ContactGrid), dof: wp.array(dtype=wp.int32),
                          indptr: wp.array(dtype=wp.int32), slots: wp.array(dtype=wp.int32), data: wp.array(dtype=scalar)):
         """Adds the dim x dim blocks of one particle's stencil node s (thread p 3^dim + s) against every node t of
         its stencil to the CSC values ``data`` (column pointers ``indptr``; ``slots[(p 3^dim + s) 3^dim + t]``: where
         the rows of node s start in the columns of node t, counted from each column's start, -1 where either node
         is not free). Block (s a, t b): -V0 A_acbd g_s^c g_t^d, and with a field G_ab (Br . g_s) w_t V0/mu0 + w_s
-        G_ba (Br . g_t) V0/mu0 + w_s w_t H_ab (g the reference weight gradients, w the weights)."""
+        G_ba (Br . g_t) V0/mu0 + w_s w_t H_ab (g the reference weight gradients, w the weights).
+
+        Axisymmetric (the hoop stretch r / R = 1 + sum_t w_t u_t,r / R): the hoop terms of -dW/du too,
+        -V0 [e_b,r (w_t / R) dP_ac/d(r/R) g_s^c + e_a,r (w_s / R) dP_tt/dF_bd g_t^d + e_a,r e_b,r (w_s w_t / R^2)
+        dP_tt/d(r/R)] (material_tangent's hoop_A and hoop_c)."""
         tid = wp.tid()
         p = tid // NS
         s = tid - p * NS
@@ -302,6 +343,15 @@ def make_static_kernels(dim: int, scalar, plane: str = "strain", two_fields: boo
                 Y1 = Yb
             else:
                 Y2 = Yb
+        Dgs = vec()  # axisymmetric: (dP/d(r/R)) g_s, the hoop stretch's column, and the ring's terms
+        Et = mat()
+        ring_c = scalar(0.0)
+        inv_R = scalar(0.0)
+        if wp.static(axisymmetric):
+            inv_R = scalar(1.0) / bodies[0].radius0[p]
+            Dgs = hoop_A[2 * p] * gs
+            Et = hoop_A[2 * p + 1]
+            ring_c = hoop_c[p]
         G = mat()
         H = mat()
         c = scalar(0.0)
@@ -329,6 +379,9 @@ def make_static_kernels(dim: int, scalar, plane: str = "strain", two_fields: boo
                 unit_b = vec()
                 unit_b[b] = scalar(1.0)
                 kb = (-V0) * (Yb * gt) + Kf * unit_b
+                if wp.static(axisymmetric):
+                    kb[0] = kb[0] - V0 * ws * inv_R * (wp.dot(Et[b], gt) + wt * inv_R * ring_c * unit_b[0])
+                    kb = kb - (V0 * wt * inv_R * unit_b[0]) * Dgs
                 lo = indptr[col * dim + b] + slot  # the rows of node s in column (t, b); rows rs dim + a follow
                 for a in range(dim):
                     wp.atomic_add(data, lo + a, kb[a])
@@ -347,17 +400,19 @@ def launch_place_particles(kernels, n, *, X, u, block, clamped, clamp_shift, con
                      inputs=[X, u, block, clamped, clamp_shift, contact, x, F])
 
 
-def launch_material_tangent(kernels, n, *, F, bodies, h, A, device, record=False):
-    """``material_tangent`` over ``n`` particles: dP/dF by central differences of step ``h`` into ``A``."""
-    return wp.launch(kernels["material_tangent"], dim=n, device=device, record_cmd=record, inputs=[F, bodies, h, A])
+def launch_material_tangent(kernels, n, *, F, x, bodies, h, A, hoop_A, hoop_c, device, record=False):
+    """``material_tangent`` over ``n`` particles: dP/dF by central differences of step ``h`` into ``A`` (and an
+    axisymmetric scene's hoop derivatives into ``hoop_A``, ``hoop_c``, at the current positions ``x``)."""
+    return wp.launch(kernels["material_tangent"], dim=n, device=device, record_cmd=record,
+                     inputs=[F, x, bodies, h, A, hoop_A, hoop_c])
 
 
-def launch_assemble_tangent(kernels, n, *, X, block, bodies, A, field_terms, contact, dof, indptr, slots, data, device,
-                            record=False):
+def launch_assemble_tangent(kernels, n, *, X, block, bodies, A, hoop_A, hoop_c, field_terms, contact, dof, indptr, slots,
+                            data, device, record=False):
     """``assemble_tangent`` over ``n`` = particles x 3^dim: the tangent's entries into ``data`` (CSC pattern of
     ``indptr`` and ``slots``)."""
     return wp.launch(kernels["assemble_tangent"], dim=n, device=device, record_cmd=record,
-                     inputs=[X, block, bodies, A, field_terms, contact, dof, indptr, slots, data])
+                     inputs=[X, block, bodies, A, hoop_A, hoop_c, field_terms, contact, dof, indptr, slots, data])
 
 
 @dataclass
@@ -413,18 +468,12 @@ def check_supported(sim, who: str = "the static solver", viscous: bool = False) 
     """Raise SimulationError naming what the static solver cannot take in ``sim`` (form, contact, colliders, the
     bodies' own field, moments that follow R); ``who`` names the solver in the messages."""
     solver = sim.solver
-    if sim.model.plane == "axisymmetric":
-        raise SimulationError(f"{who} is not built for axisymmetric scenes yet (simulation.dim = 'axisymmetric'); use "
-                              "--equilibrium (relax) for their equilibrium")
     if solver.settings.formulation != "total":
         raise SimulationError(f"{who} works on the total-Lagrangian form (simulation.formulation = 'total' or 'auto')")
     if np.any(sim.model.host["magnetization_follows"] != 0):
         # its tangent takes the magnetic stress and the moment as Zhao's law has them (F Br); the R law's dP/dF is not in it
         raise SimulationError(f"{who} has no magnetization_follows = 'R' yet (its tangent carries the moment "
                               "with F); give the materials magnetization_follows = 'F', or use --equilibrium (relax)")
-    if any(c.mode == "symmetry" for c in sim.control.colliders):
-        raise SimulationError(f"{who} has no symmetry colliders (mirror planes) yet; give them mode = "
-                              "'slip' if the body presses on them, or use --equilibrium (relax)")
     if sim.model.viscous and not viscous:
         # the equilibrium under held loads is the relaxed one: the law with its isochoric moduli scaled by g_inf
         raise SimulationError(f"{who} has no viscoelastic (prony) materials; the equilibrium under held loads "
@@ -509,6 +558,7 @@ class StaticSolver:
         self.grid = wp.array([grid], dtype=k["GridArrays"], device=self.dev)
         src = k["Particles"]()  # p2g reads the reference positions, no motion, and the trial F
         src.x, src.v, src.C, src.F = model.X0, self.zero_v, self.zero_C, self.F
+        src.x_now = self.x  # the placed particles' positions: an axisymmetric ring's hoop stretch r / R
         self.src = wp.array([src], dtype=k["Particles"], device=self.dev)
         g = np.zeros(self.dim)
         g[:] = np.asarray(st.gravity, dtype=np.float64).ravel()[: self.dim]
@@ -631,6 +681,8 @@ class StaticSolver:
             net = fn.sum(axis=0)
             arm = xn - centre
             couple = (arm[:, 0] * fn[:, 1] - arm[:, 1] * fn[:, 0]).sum() if self.dim == 2 else np.cross(arm, fn).sum(axis=0)
+            if self.model.plane == "axisymmetric":  # a ring body's only rigid motion: along the axis
+                net, couple = net[1:], 0.0
             size = float(np.max(np.linalg.norm(arm, axis=1))) + float(self.model.dx)
             gross = float(np.abs(fn).sum()) + 1e-300
             if np.linalg.norm(net) > 1e-6 * gross or np.linalg.norm(couple) > 1e-6 * gross * size:
@@ -868,7 +920,12 @@ class StaticSolver:
         its particles' centroid (exact for any affine displacement: rigid motions and uniform strains). Left as
         unknowns, such nodes reach only one or two particles and have more unknowns than those particles have
         strains: combinations of them that move no particle are null modes of the tangent (in 3D with two cells
-        across a section, 168 of 3150 unknowns), and those that barely move one stall Newton."""
+        across a section, 168 of 3150 unknowns), and those that barely move one stall Newton.
+
+        Axisymmetric: the displacement field is mirror-symmetric about the axis (u_r odd, u_z even), as the
+        engine's grid update makes the velocities. A node at r = -k dx (the stencils of particles next to the axis
+        reach it) takes its mirror's displacement with u_r reversed, and a node on the axis moves along it only:
+        its radial column of E is zero (the tangent's null shift keeps that unknown at zero)."""
         from scipy import sparse
 
         dim = self.dim
@@ -880,6 +937,14 @@ class StaticSolver:
         X = (self.model.domain_lo + self.solver.org * self.model.dx) + self.coords * self.model.dx
         light = np.zeros(self.n_nodes, bool)
         light[self.free] = mass[self.free] < self.light_fraction() * mass.max()
+        self.n_light = int(light.sum())
+        ones = np.ones(dim)
+        axis = None  # an axisymmetric scene's axis: its column of nodes in the block
+        if self.model.plane == "axisymmetric":
+            axis = int(round(-(self.model.domain_lo[0] + self.solver.org[0] * self.model.dx) / self.model.dx))
+            light[self.coords[:, 0] < axis] = True  # mirror nodes: never unknowns
+        mirror_sign = np.where(np.arange(dim) == 0, -1.0, 1.0)
+        along_axis = np.where(np.arange(dim) == 0, 0.0, 1.0)
         unknown = self.free[~light[self.free]]
         column = np.full(self.n_nodes, -1, dtype=np.int64)
         column[unknown] = np.arange(len(unknown))
@@ -889,8 +954,25 @@ class StaticSolver:
         slot_group = self._slot_groups()
 
         def combination(node: int, depth: int = 0) -> dict:
+            """The node's displacement as {unknown: per-component coefficients}."""
+            if axis is None:
+                return extrapolated(node, depth)
+            c = self.coords[node]
+            if c[0] < axis:  # a mirror node: its mirror's displacement, u_r reversed
+                q = c.copy()
+                q[0] = 2 * axis - c[0]
+                if q[0] >= shape[0]:
+                    return {}
+                partner = int(self._slot_of(slot_group[node], np.ravel_multi_index(tuple(q), shape)))
+                return {k: v * mirror_sign for k, v in combination(partner, depth + 1).items()}
+            out = extrapolated(node, depth)
+            if c[0] == axis:  # on the axis: along it only
+                out = {k: v * along_axis for k, v in out.items()}
+            return out
+
+        def extrapolated(node: int, depth: int = 0) -> dict:
             if column[node] >= 0:
-                return {int(column[node]): 1.0}
+                return {int(column[node]): ones}
             if held[node] or mass[node] <= 0.0 or depth > 8:
                 return {}  # a held node does not move; an empty one is not reached
             if node not in memo:
@@ -915,10 +997,10 @@ class StaticSolver:
         for k, node in enumerate(self.free):
             for col, v in combination(int(node)).items():
                 for a in range(dim):
-                    rows.append(k * dim + a)
-                    cols.append(col * dim + a)
-                    vals.append(v)
-        self.n_light = int(light.sum())
+                    if v[a] != 0.0:
+                        rows.append(k * dim + a)
+                        cols.append(col * dim + a)
+                        vals.append(v[a])
         self.unknown_nodes = unknown  # the node of each unknown's dim components, in their order
         return sparse.csr_matrix((vals, (rows, cols)), shape=(len(self.free) * dim, len(unknown) * dim))
 
@@ -1046,11 +1128,15 @@ class StaticSolver:
         dim, n, k, dev = self.dim, self.model.n_particles, self.model.kernels, self.dev
         indices, indptr, d_slots, d_indptr = self._pattern()
         if getattr(self, "_tangent_arrays", None) is None:
+            ring = self.model.plane == "axisymmetric"  # the hoop derivatives: read in that mode only
             self._tangent_arrays = (wp.zeros(n * dim * dim, dtype=k["mat"], device=dev),
                                     wp.array(self.dof_of_node.astype(np.int32), dtype=wp.int32, device=dev),
-                                    wp.zeros(len(indices), dtype=self.sc, device=dev))
-        A, dof, data = self._tangent_arrays
-        launch_material_tangent(self.kk, n, F=self.F, bodies=self.bodies, h=self.sc(F_STEP), A=A, device=dev)
+                                    wp.zeros(len(indices), dtype=self.sc, device=dev),
+                                    wp.zeros(2 * n if ring else 1, dtype=k["mat"], device=dev),
+                                    wp.zeros(n if ring else 1, dtype=self.sc, device=dev))
+        A, dof, data, hoop_A, hoop_c = self._tangent_arrays
+        launch_material_tangent(self.kk, n, F=self.F, x=self.x, bodies=self.bodies, h=self.sc(F_STEP), A=A,
+                                hoop_A=hoop_A, hoop_c=hoop_c, device=dev)
         self._add_material_tangent(A)
         fterms = self.kk["FieldTerms"]()
         terms = self._field_terms(field_level)
@@ -1067,7 +1153,7 @@ class StaticSolver:
             fterms.H = wp.array(np.einsum("pbae,pb->pae", dG, m).astype(npsc), dtype=k["mat"], device=dev)
         data.zero_()
         launch_assemble_tangent(self.kk, n * 3 ** dim, X=self.model.X0, block=self.block, bodies=self.bodies, A=A,
-                                field_terms=fterms, contact=self.ct, dof=dof, indptr=d_indptr, slots=d_slots, data=data, device=dev)
+                                hoop_A=hoop_A, hoop_c=hoop_c, field_terms=fterms, contact=self.ct, dof=dof, indptr=d_indptr, slots=d_slots, data=data, device=dev)
         n_dof = len(self.free) * dim
         J = sparse.csc_matrix((data.numpy().astype(np.float64), indices, indptr), shape=(n_dof, n_dof))
         if self.contact is not None:  # the colliders' springs at u (the scatter above evaluated them)

@@ -26,7 +26,11 @@ stiff body's penalty could not lift off the floor at all. The penetration left a
 f_n / k, so about p / (PENALTY (K + 4G/3)) cells for a contact pressure p: 1e-3 cells for p = 1 % of the P-wave
 modulus. Every level reports the largest penetration (m) it left.
 
-Tangential: "slip" colliders push along the normal only. "friction" and "sticky" ones tie a node that touches to
+A "symmetry" collider (a mirror plane: half of a symmetric body, or the planes that hold an axisymmetric tube long)
+holds the points within touching reach of it at the start on their level for good, pushing or pulling along its
+normal (a two-sided spring that is never released); others that come to it later touch it as a slip collider.
+
+Tangential: "slip" and "symmetry" colliders push along the normal only. "friction" and "sticky" ones tie a node that touches to
 an anchor, the point of the surface under the node where it first touched (its position at the last converged
 load increment, moved with the collider's path), by a spring k along the surface. With "friction" the tangential
 force is capped at mu |f_n| (Coulomb): past the cap the node slides and its anchor follows it at the end of the
@@ -138,6 +142,12 @@ class ColliderPenalty:
         h = model.host
         p_wave = model.p_wave_modulus()
         thickness = depth if self.dim == 2 else 1.0
+        # an axisymmetric scene's points are rings: their penalty is per unit length of the ring times its length
+        # 2 pi r (a particle's r its reference radius R, a node's the mass-weighted R of its particles)
+        ring = model.plane == "axisymmetric"
+        self.ring = ring
+        if ring:
+            thickness = 1.0
         n_nodes = static.n_nodes
         if points == "nodes":
             # the engine's law: nodes at X + W u touch from the skin down
@@ -147,16 +157,21 @@ class ColliderPenalty:
             node_wave = np.zeros(n_nodes)
             np.maximum.at(node_wave, P.col[P.data > 0.0], p_wave[P.row[P.data > 0.0]])
             self.k = PENALTY * node_wave * self.dx ** (self.dim - 2) * thickness
+            if ring:
+                m_nodes = P.T @ h["mass"]
+                radius = (P.T @ (h["mass"] * h["positions"][:, 0])) / np.where(m_nodes > 0, m_nodes, 1.0)
+                self.k = self.k * 2.0 * np.pi * radius
         elif points == "particles":
             # the body's surface: each particle (x = X + P u, as the total form places it) is a ball of half its
             # lattice spacing, touching when its centre comes within that of the collider; the penalty per particle is
             # the nodes' per unit area (PENALTY (K + 4G/3) / dx) times the particle's share of the surface
-            spacing = (h["volumes"] / thickness) ** (1.0 / self.dim)
+            circumference = 2.0 * np.pi * h["positions"][:, 0] if ring else 1.0
+            spacing = (h["volumes"] / circumference / thickness) ** (1.0 / self.dim)
             self.touchable = np.flatnonzero(h["clamped"] == 0)
             self.W = static.interpolation()
             self.X = np.asarray(h["positions"], dtype=np.float64)
             reach = 0.5 * spacing[self.touchable]
-            self.k = PENALTY * p_wave / self.dx * spacing ** (self.dim - 1) * thickness
+            self.k = PENALTY * p_wave / self.dx * spacing ** (self.dim - 1) * thickness * circumference
         else:
             raise ValueError(f"points must be 'nodes' or 'particles', not {points!r}")
         # the level each point is held at: its reach, or where it starts when it starts closer (the engine stops a
@@ -170,7 +185,14 @@ class ColliderPenalty:
         # the active set (module docstring): nodes held by each collider's normal spring during a Newton solve; they
         # join when they reach their level and leave only at a converged state where they pull
         self.held = [np.zeros(0, np.int64) for _ in self.colliders]
-        self._held_accepted = [np.zeros(0, np.int64) for _ in self.colliders]
+        #: per collider: the points a symmetry collider (a mirror plane) holds on their level for good, pulling or
+        #: pushing: those within touching reach of it at the start (the body's face on the plane)
+        self.bound = [np.zeros(0, np.int64) for _ in self.colliders]
+        for ci, c in enumerate(self.colliders):
+            if c.mode_code == ColliderMode.SYMMETRY:
+                self.bound[ci] = self.touchable[self.distance(c, X_touch, 0.0) <= self.level[ci] + self.touch]
+                self.held[ci] = self.bound[ci].copy()
+        self._held_accepted = [h.copy() for h in self.held]
         #: per collider: the points within touching reach of it (level + touch) at the last forces() evaluation
         self.touching = [np.zeros(0, np.int64) for _ in self.colliders]
         self._gaps = [None for _ in self.colliders]
@@ -227,7 +249,8 @@ class ColliderPenalty:
             nodes = self.touchable
             phi = self.distance(c, xt[nodes])
             mode = c.mode_code
-            tied = np.array(list(self.anchor[ci]), dtype=np.int64) if mode != ColliderMode.SLIP else np.zeros(0, np.int64)
+            normal_only = mode in (ColliderMode.SLIP, ColliderMode.SYMMETRY)  # no tangential law
+            tied = np.array(list(self.anchor[ci]), dtype=np.int64) if not normal_only else np.zeros(0, np.int64)
             touching = nodes[phi <= self.level[ci] + self.touch]
             act = np.union1d(touching, self.held[ci])
             if mode == ColliderMode.STICKY:
@@ -248,7 +271,7 @@ class ColliderPenalty:
             blocks = kc[:, None, None] * np.einsum("pi,pj->pij", n, n)
             fn_mag = np.maximum(fn_mag, 0.0)
             inside = gap >= -self.touch  # touching (a body placed on the collider: to rounding)
-            if mode != ColliderMode.SLIP:
+            if not normal_only:
                 # the tangential law, on every point at once (module docstring)
                 origin = self._origin(c)
                 dim = self.dim
@@ -281,6 +304,8 @@ class ColliderPenalty:
                 self.sticking[ci] = {int(node): bool(s) for node, s in zip(act, stuck)}
             f[act] += force
             self.reaction[ci, : self.dim] = -force.sum(axis=0)
+            if self.ring:  # the radial forces on a ring cancel round it: a body of revolution feels none net
+                self.reaction[ci, 0] = 0.0
             self._active.append((act, blocks, force))
         self._revision = None  # a new state: revise() starts from this evaluation's contacts
         return self.W.T @ f
@@ -303,6 +328,7 @@ class ColliderPenalty:
                 continue
             act, gap = entry
             pulling = act[gap < -RELEASE * self.dx]
+            pulling = pulling[~np.isin(pulling, self.bound[ci])]  # a mirror plane's own points stay
             if len(pulling):
                 self.held[ci] = np.setdiff1d(self.held[ci], pulling)
                 changed = True
@@ -357,6 +383,7 @@ class ColliderPenalty:
             predicted = self.level[ci] - self.distance(c, x_new[nodes])  # > 0: past the level after the step
             leaving = np.array([p for p in current if predicted[np.searchsorted(nodes, p)] < -RELEASE * self.dx],
                                dtype=np.int64)
+            leaving = leaving[~np.isin(leaving, self.bound[ci])]
             joining = nodes[predicted > self.touch]
             joining = joining[~np.isin(joining, np.fromiter(current, np.int64, len(current)))]
             if len(leaving) == 0 and len(joining) == 0:
@@ -422,7 +449,7 @@ class ColliderPenalty:
         xt = self.positions(u_nodes)
         for ci, c in enumerate(self.colliders):
             mode = c.mode_code
-            if mode == ColliderMode.SLIP:
+            if mode in (ColliderMode.SLIP, ColliderMode.SYMMETRY):
                 continue
             origin = self._origin(c)
             phi = self.distance(c, xt[self.touchable])
