@@ -799,15 +799,16 @@ class StaticSolver:
         positions alone leaves them free, and a state at rest came back out of balance (the 3D strip of
         benchmarks/implicit_vs_explicit.py, settled: its light nodes 4 cells, its face nodes 0.13 cells from where
         they were, |R| from 6e-9 to 1e-2 N; with the gradients it came back to 1e-10 cells). Needs a solver that
-        slaves no node (the implicit integrator; the static solver in 2D)."""
+        slaves no node (the implicit integrator; the static solver in 2D). An axisymmetric scene's mirror and axis
+        nodes follow the unknowns through the map E (:meth:`_slaving`): its fit is one least-squares problem per
+        component on E's block of that component."""
         from scipy import sparse
 
+        if self.E.shape[0] != self.E.shape[1]:
+            return self._fit_nodes_mapped(values, gradients)
         if self._projector is None:
             # without slaved nodes the unknowns are the free nodes' components and the fit splits into one scalar
             # least-squares problem per component, with the same matrix
-            if self.E.shape[0] != self.E.shape[1]:
-                raise ValueError("fit_nodes: the solver slaves light nodes (3D static solver); the fit takes free "
-                                 "nodes only")
             P = self.interpolation()[:, self.free]
             nodes, _, grad = self._stencil()
             rows = np.repeat(np.arange(self.model.n_particles), nodes.shape[1])
@@ -834,6 +835,48 @@ class StaticSolver:
             x = x + lu.solve(QtW @ (data - Q @ x))
         out = np.zeros((self.n_nodes, self.dim))
         out[self.free] = x
+        return out
+
+    def _fit_nodes_mapped(self, values: np.ndarray, gradients: np.ndarray) -> np.ndarray:
+        """:meth:`fit_nodes` through the map E from the unknowns to the free nodes, whose components do not mix (the
+        mirror nodes of an axisymmetric scene): per component a, the free nodes' values are E_a y_a."""
+        from scipy import sparse
+
+        dim, dx = self.dim, float(self.model.dx)
+        if self._projector is None:
+            if self.model.plane != "axisymmetric":
+                raise ValueError("fit_nodes: the solver slaves light nodes (3D static solver); the fit takes free "
+                                 "nodes only")
+            P = self.interpolation()[:, self.free]
+            nodes, _, grad = self._stencil()
+            rows = np.repeat(np.arange(self.model.n_particles), nodes.shape[1])
+            column = np.full(self.n_nodes, -1)
+            column[self.free] = np.arange(len(self.free))
+            cols, keep = column[nodes.ravel()], column[nodes.ravel()] >= 0
+            Q = sparse.vstack([P] + [sparse.csr_matrix((dx * grad[:, :, b].ravel()[keep], (rows[keep], cols[keep])),
+                                                       shape=P.shape) for b in range(dim)], format="csr")
+            mass = np.where(self.model.host["clamped"] != 0, 0.0, self.model.host["mass"].astype(np.float64))
+            weights = sparse.diags(np.tile(mass, dim + 1))
+            E = self.E.tocsr()
+            parts = []
+            for a in range(dim):
+                Ea = E[a::dim, a::dim]
+                Qa = (Q @ Ea).tocsr()
+                QtWa = (Qa.T @ weights).tocsr()
+                Aa = (QtWa @ Qa).tocsc()
+                diag = np.abs(Aa.diagonal())
+                shift = PROJECT_SHIFT * float(np.median(diag[diag > 0])) if np.any(diag > 0) else 1.0
+                # an unknown that moves no node (an axis node's radial one) has an empty column: the shift keeps it 0
+                parts.append((Ea, Qa, QtWa, factor((Aa + shift * sparse.identity(Aa.shape[0], format="csc")).tocsc())))
+            self._projector = parts
+        gradients = np.asarray(gradients, dtype=np.float64)
+        out = np.zeros((self.n_nodes, dim))
+        for a, (Ea, Qa, QtWa, lu) in enumerate(self._projector):
+            data = np.concatenate([np.asarray(values, dtype=np.float64)[:, a]] + [dx * gradients[:, a, b] for b in range(dim)])
+            y = np.zeros(Qa.shape[1])
+            for _ in range(PROJECT_REFINEMENTS + 1):
+                y = y + lu.solve(QtWa @ (data - Qa @ y))
+            out[self.free, a] = Ea @ y
         return out
 
     def interpolation(self):

@@ -326,9 +326,13 @@ class ColliderPenalty:
         for ci, entry in enumerate(self._gaps):
             if entry is None:
                 continue
+            if self.colliders[ci].mode_code == ColliderMode.STICKY:
+                continue  # a sticky collider's points cannot leave it
             act, gap = entry
             pulling = act[gap < -RELEASE * self.dx]
-            pulling = pulling[~np.isin(pulling, self.bound[ci])]  # a mirror plane's own points stay
+            # points of the active set only (a point still touching is in the evaluation whether held or not, and
+            # would be "released" again at every call), and not a mirror plane's own points
+            pulling = pulling[np.isin(pulling, self.held[ci]) & ~np.isin(pulling, self.bound[ci])]
             if len(pulling):
                 self.held[ci] = np.setdiff1d(self.held[ci], pulling)
                 changed = True
