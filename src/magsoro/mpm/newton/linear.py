@@ -90,6 +90,9 @@ FACTOR_CHECK = 1.0e-9
 #: an Ordering serves matrices whose number of entries differs from the pattern it was found for by at most this
 #: fraction
 PATTERN_DRIFT = 0.05
+#: a kept order is forgotten when a factorisation in it fills more than this many times what it was kept for
+#: (Ordering.check_fill)
+FILL_GROWTH = 1.5
 
 
 def factor(J, ordering: "Ordering | None" = None):
@@ -115,6 +118,7 @@ def factor(J, ordering: "Ordering | None" = None):
         perm = ordering.permutation(J) if ordering is not None else None
         if perm is not None:
             lu = PermutedLU(splu(J[perm][:, perm].tocsc(), permc_spec="NATURAL", **symmetric), perm)
+            ordering.check_fill(int(lu.L.nnz + lu.U.nnz))
         else:
             lu = splu(J, permc_spec="MMD_AT_PLUS_A", **symmetric)
             if ordering is not None:
@@ -159,6 +163,7 @@ class Ordering:
         self.kind = ""
         self.fill = self.nnz = 0
         self.weighed = False  # whether reverse Cuthill-McKee was weighed against minimum degree
+        self.relearnt = 0  # orders forgotten because they filled too much (check_fill)
 
     def permutation(self, J) -> "np.ndarray | None":
         """The ordering kept for J's pattern, or None when it has none for it. Any symmetric ordering gives the
@@ -170,6 +175,16 @@ class Ordering:
         if not self.weighed:
             self._weigh(J)
         return self.perm
+
+    def check_fill(self, fill: int) -> None:
+        """After a factorisation in the kept order: forget the order when it filled more than FILL_GROWTH times what
+        it was kept for, so that the next tangent learns one for its own pattern. Springs between the layers of a
+        fold (self-contact) couple nodes far apart in the reference lattice, a few entries that the kept order
+        (learnt without them) turns into fill: on the everting tube (scenes/everting_tube.toml) that made the
+        factorisations 84 % of a step."""
+        if self.fill and fill > FILL_GROWTH * self.fill:
+            self.perm, self.kind, self.fill, self.nnz = None, "", 0, 0
+            self.relearnt += 1
 
     def learn(self, J, lu) -> None:
         """Keep the minimum-degree ordering of J's pattern from ``lu``, J's factorisation in that order."""
