@@ -502,12 +502,6 @@ class Simulation:
         # walls the bodies are within reach of at the start are the scene's (check_wall_reach)
         self._wall_far = self._wall_distances(np.asarray(data["x"])) > WALL_REACH_CELLS * self.model.dx
         self._wall_far &= (self.model.host["clamped"] == 0)[:, None]
-        # what the explicit engine cannot step (an axisymmetric scene's contact in the total form, its self-contact):
-        # refused when it steps, so that the Newton solvers, which take it, can
-        from magsoro.scene.build import axisymmetric_explicit_refusal
-
-        self._explicit_refusal = axisymmetric_explicit_refusal(scene, self.solver.settings.formulation,
-                                                               self.solver.contact_active, source)
         self.started_from = {"from": str(start_file(path, key)), "time": st.time, "step": st.step,
                              "precision": str(data["precision"]) if "precision" in data else str(data["x"].dtype)}
         for text in notes:
