@@ -63,8 +63,8 @@ import numpy as np
 from scipy import sparse
 from scipy.spatial import cKDTree
 
-from magsoro.mpm.newton.static_contact import (PENALTY, RELEASE, SLIP_CELLS, STEP_DEPTH, TOUCH_CELLS, regularised_coulomb,
-                                        step_fraction)
+from magsoro.mpm.newton.static_contact import (PENALTY, RELEASE, SLIP_CELLS, STEP_DEPTH, TOUCH_CELLS, particle_sections,
+                                        regularised_coulomb, step_fraction)
 
 #: a particle's same-group neighbours within this many of its spacings (reference) tell whether it is on a surface
 SURFACE_REACH = 1.8
@@ -120,7 +120,6 @@ class BodyContact:
         self.static = static
         self.dim, self.dx = model.dim, float(model.dx)
         self.t = 0.0  # the colliders' time (Contacts sets it on every part); no use here
-        thickness = depth if self.dim == 2 else 1.0
         self.group = np.asarray(h["contact_group"], dtype=np.int64)
         self.n_groups = int(self.group.max()) + 1
         fr = np.asarray(friction, dtype=np.float64)[: self.n_groups, : self.n_groups]
@@ -130,12 +129,9 @@ class BodyContact:
             np.fill_diagonal(allowed, False)
         self.allowed = allowed
         # an axisymmetric scene's particles are rings: the section's spacing, and a penalty per unit length of the
-        # ring times its length 2 pi R (the colliders' rule, magsoro.mpm.newton.static_contact)
-        circumference = 1.0
+        # ring times its length 2 pi R (the colliders' rule)
         self.ring = model.plane == "axisymmetric"
-        if self.ring:
-            thickness, circumference = 1.0, 2.0 * np.pi * np.asarray(h["positions"], dtype=np.float64)[:, 0]
-        spacing = (np.asarray(h["volumes"], dtype=np.float64) / circumference / thickness) ** (1.0 / self.dim)
+        spacing, length = particle_sections(model, depth)
         self.X = np.asarray(h["positions"], dtype=np.float64)
         free = np.asarray(h["clamped"]) == 0
         surf, normals = surface_normals(self.X, self.group, spacing)
@@ -144,7 +140,7 @@ class BodyContact:
         self.radius = 0.5 * spacing
         self.reach = MASTER_REACH * float(np.max(spacing))
         # the penalty per unit P-wave modulus; a contact's modulus is the softer of its two groups' (pair_wave)
-        self.k = 0.5 * PENALTY / self.dx * spacing ** (self.dim - 1) * thickness * circumference
+        self.k = 0.5 * PENALTY / self.dx * spacing ** (self.dim - 1) * length
         wave = static.model.p_wave_modulus()
         softest = np.array([wave[self.group == g].min() for g in range(self.n_groups)])
         self.pair_wave = np.minimum(softest[:, None], softest[None, :])

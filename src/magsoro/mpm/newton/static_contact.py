@@ -129,6 +129,19 @@ def node_positions_map(static):
     return carrying, W, X
 
 
+def particle_sections(model, depth: float = 1.0):
+    """Per particle of ``model``: its lattice spacing h in the plane the contacts work in, and the length its contact
+    acts along, so that h^dim times that length is its volume: 1 in 3D, the scene's ``depth`` in 2D, and its ring's
+    2 pi R in an axisymmetric scene (a penalty per unit length of the ring times its length). Returns (h, length)."""
+    h = model.host
+    volumes = np.asarray(h["volumes"], dtype=np.float64)
+    if model.plane == "axisymmetric":
+        length = 2.0 * np.pi * np.asarray(h["positions"], dtype=np.float64)[:, 0]
+    else:
+        length = np.full(len(volumes), depth if model.dim == 2 else 1.0)
+    return (volumes / length) ** (1.0 / model.dim), length
+
+
 class ColliderPenalty:
     """The colliders' node forces and their tangent for a :class:`~magsoro.mpm.newton.static.StaticSolver`."""
 
@@ -165,13 +178,12 @@ class ColliderPenalty:
             # the body's surface: each particle (x = X + P u, as the total form places it) is a ball of half its
             # lattice spacing, touching when its centre comes within that of the collider; the penalty per particle is
             # the nodes' per unit area (PENALTY (K + 4G/3) / dx) times the particle's share of the surface
-            circumference = 2.0 * np.pi * h["positions"][:, 0] if ring else 1.0
-            spacing = (h["volumes"] / circumference / thickness) ** (1.0 / self.dim)
+            spacing, length = particle_sections(model, depth)
             self.touchable = np.flatnonzero(h["clamped"] == 0)
             self.W = static.interpolation()
             self.X = np.asarray(h["positions"], dtype=np.float64)
             reach = 0.5 * spacing[self.touchable]
-            self.k = PENALTY * p_wave / self.dx * spacing ** (self.dim - 1) * thickness * circumference
+            self.k = PENALTY * p_wave / self.dx * spacing ** (self.dim - 1) * length
         else:
             raise ValueError(f"points must be 'nodes' or 'particles', not {points!r}")
         # the level each point is held at: its reach, or where it starts when it starts closer (the engine stops a
