@@ -392,3 +392,30 @@ def test_a_free_body_falls_under_gravity(scheme):
     assert sim.steps == n
     assert drop.mean() == pytest.approx(expected, rel=1e-6)
     assert np.ptp(drop) < 1e-6 * expected
+
+
+def test_max_move_sizes_the_steps_by_how_far_the_body_moves():
+    """implicit.max_move: after each step dt is scaled by max_move over the largest particle motion of that step.
+    A block falling freely under backward Euler moves v_n+1 dt in a step, with v_n+1 = g t_n+1 exactly, so the next
+    step is max_move dx / (g t): at t = 0.1 s and max_move 0.5 cells of 0.5 mm, 0.255 ms (to Newton's tolerance),
+    where without max_move the steps stay at dt_max = 1 ms."""
+    from magsoro.scene import parse_scene
+    from magsoro.simulation import Simulation
+
+    g, dx, t_end = 9.81, 5e-4, 0.1
+
+    def run(implicit):
+        scene = {"simulation": {"dim": 2, "dx": dx, "domain_lo": [-0.01, -0.06], "domain_hi": [0.01, 0.01],
+                                "duration": t_end, "gravity": [0.0, -g], "precision": "float64", "integrator": "implicit"},
+                 "implicit": {"scheme": "backward_euler", "dt": 1e-3, "dt_max": 1e-3, **implicit},
+                 "bodies": [{"name": "block", "shape": {"type": "rectangle", "center": [0.0, 0.004], "size": [4e-3, 2e-3]},
+                             "material": {"density": 1100.0, "shear_modulus": 3e5}}],
+                 "output": {"particles": False}}
+        sim = Simulation(parse_scene(scene))
+        sim.advance_to(t_end)
+        return sim
+
+    plain, moved = run({}), run({"max_move": 0.5})
+    assert plain.dt == pytest.approx(1e-3) and plain.steps == 100
+    assert moved.dt == pytest.approx(0.5 * dx / (g * t_end), rel=1e-5)
+    assert moved.steps > 150  # the steps shrank once the block moved 0.5 cells in 1 ms (t = 0.026 s): about 200

@@ -738,6 +738,7 @@ class Simulation:
             dt = min(self.dt, remaining)
             if remaining - dt < 1e-3 * dt:
                 dt = remaining
+            u_before = integ.u_nodes
             while True:
                 result = integ.try_step(dt)
                 if result.converged:
@@ -759,8 +760,16 @@ class Simulation:
             self._pair_forces = None if integ.body_contact is None else integ.body_contact.pair_force.copy()
             if not all(np.isfinite(np.asarray(integ.u_nodes)).ravel()):
                 raise SimulationError("the implicit step produced non-finite displacements", self.steps, self.state.time)
+            nxt = self.dt
             if result.iterations <= cfg.easy_iterations and dt >= self.dt * (1 - 1e-9):
-                self.dt = min(self.dt * cfg.grow, self.implicit_dt_max)
+                nxt = self.dt * cfg.grow
+            if cfg.max_move is not None:  # the step sized by how far the particles moved in this one (not the
+                # nodes: a light node at a body's edge carries little of the body and may swing far)
+                du = integ.interpolation() @ (np.asarray(integ.u_nodes) - np.asarray(u_before))
+                move = float(np.abs(du).max(initial=0.0)) / self.model.dx
+                if move > 0.0:
+                    nxt = min(nxt, max(0.5 * dt, dt * cfg.max_move / move))
+            self.dt = min(max(nxt, self.implicit_dt_min), self.implicit_dt_max)
             if callback is not None:
                 callback(self)
             if heartbeat is not None:

@@ -114,6 +114,8 @@ class BodyContact:
     interface is :class:`~magsoro.mpm.newton.static_contact.ColliderPenalty`'s, so :class:`~magsoro.mpm.newton.static_contact.Contacts`
     takes it as one more part."""
 
+    between_bodies = True  # Contacts.revise(bodies=False) leaves it out
+
     def __init__(self, static, friction: np.ndarray, self_contact: bool, depth: float = 1.0):
         model = static.model
         h = model.host

@@ -1350,7 +1350,7 @@ class StaticSolver:
                 return u_nodes, False, it + 1, norm, "the line search found no step that lowers the residual"
         return u_nodes, False, self.max_iterations, norm, f"no convergence in {self.max_iterations} Newton iterations"
 
-    def _settle_contacts(self, u_nodes, J, r, du, lin, rtol):
+    def _settle_contacts(self, u_nodes, J, r, du, lin, rtol, bodies: bool = True):
         """The contacts' active set settled on the linearised problem before a Newton step is taken (rounds of
         :meth:`Contacts.revise <magsoro.mpm.newton.static_contact.Contacts.revise>`, at most ACTIVE_SET_ROUNDS): points
         the step ``du`` would lift leave, points it would push into a collider join, and the step is solved again
@@ -1360,11 +1360,12 @@ class StaticSolver:
         the residual, the linear solver of the last round and whether the set changed (the step is then held to
         ROUND_STEP cells). A round that brings back a set of an earlier round ends them (the rounds cycle: the
         gripper of scenes/gripper.toml pulled off its bead, 7 to 9 contacts between the bodies flipping through
-        the same four sets for all 30 rounds of every Newton iteration)."""
+        the same four sets for all 30 rounds of every Newton iteration). ``bodies`` False: the colliders' set
+        only (the implicit integrator; contacts between bodies change at the iterates)."""
         changed = False
         seen = set()
         for _ in range(ACTIVE_SET_ROUNDS):
-            change = self.contact.revise(u_nodes, self._expand(du), self.free)
+            change = self.contact.revise(u_nodes, self._expand(du), self.free, bodies=bodies)
             if change is None:
                 break
             changed = True

@@ -529,9 +529,11 @@ class Contacts:
     def step_limit(self, u_nodes, step) -> float:
         return min(p.step_limit(u_nodes, step) for p in self.parts)
 
-    def revise(self, u_nodes, step, free):
-        """The parts' :meth:`ColliderPenalty.revise` rounds added up (None when none changes)."""
-        changes = [c for c in (p.revise(u_nodes, step, free) for p in self.parts) if c is not None]
+    def revise(self, u_nodes, step, free, bodies: bool = True):
+        """The parts' :meth:`ColliderPenalty.revise` rounds added up (None when none changes); ``bodies`` False
+        leaves out the contact between bodies (a part with ``between_bodies``)."""
+        parts = [p for p in self.parts if bodies or not getattr(p, "between_bodies", False)]
+        changes = [c for c in (p.revise(u_nodes, step, free) for p in parts) if c is not None]
         if not changes:
             return None
         return sum(c[0] for c in changes), sum(c[1] for c in changes)
