@@ -8,8 +8,13 @@ Two measurements.
   in the field, and the clamp's axial force on the tail is what keeps the front where it is. By virtual work the
   tail's end moves twice as far as the front (the front advances by dl, the tail gives up dl of material and the
   wall grows by dl), so the force N the front pushes with is -2 times the clamp's force along the axis (positive:
-  the front would advance). N is linear in the field: its slope is the flip term of the axially magnetised wall,
-  2 |Br| pi (B^2 - A^2) / mu0 per tesla (docs/actuation.md), and the threshold is where N crosses zero.
+  the front would advance). With both ends held (the clamp, and the everted end on its sticky floor) the field's
+  energy, -|Br| B pi (B^2 - A^2) / mu0 times the distance between the ends for a remanence carried by F, cannot
+  change: the field loads the two ends and leaves the held shape as it is. So N = N_el + 2 |Br| pi (B^2 - A^2) B /
+  mu0, the flip term (docs/actuation.md), where N_el is the held shape's elastic push (the clamp's force with the
+  field's forces left out), and growth starts at B = -N_el / (2 |Br| pi (B^2 - A^2) / mu0). Held runs at two
+  fields check both halves: N - N_el against the flip term, N_el the same at both. Growth runs with the tail free
+  below and above that field check it directly.
 - Growth: the tail free, the field above the threshold, the front (the body's top) followed in time until the tail
   is used up; its speed is set by the mass damping of the scene (the model has no air, no friction and no other
   losses), so it is a pace, not a prediction of the seed's growth rate.
@@ -32,11 +37,11 @@ NAME = "everting_tube"
 
 A, B = 0.8e-3, 0.9e-3            # m, the tube's inner and outer radius (seed 004: 1.8 mm diameter, 100 um wall)
 SEED_FIELD = 0.043               # T, seed 004 sec IV-B: the smallest field that grew the robot
-#: T, held-tail runs (the threshold's line: N is linear in the field, its slope the flip term's) and growth runs;
-#: the same fields in the preview. A full run at 8 cells through the wall takes about 5 s per implicit step once the
-#: wall rests on the tail (20 factorisations a step in the contact rounds), so one growth run is what fits an hour.
+#: T, held-tail runs (N_el, the held shape's elastic push, from each: it should not depend on the field) and growth
+#: runs with the tail free, one below the threshold the held runs give (about 29 mT) and two above; the same fields
+#: in the preview
 HOLD_FIELDS = (0.0, 0.04)
-GROW_FIELDS = (0.045,)
+GROW_FIELDS = (0.025, 0.035, 0.045)
 PREVIEW_HOLD = HOLD_FIELDS
 PREVIEW_GROW = GROW_FIELDS
 SAMPLES = 40                     # records per run (each run lasts the scene's duration: the field ramped over 5 ms, then held)
@@ -77,7 +82,8 @@ def _front(sim) -> float:
 
 def held_tail(ctx: Context, field: float) -> dict:
     """The tube in ``field`` with its tail's end clamped: the clamp's axial force (N) on the tail over the run's last
-    quarter, and N = -2 F (the front's push)."""
+    quarter, N = -2 F (the front's push), and its elastic part N_el: the same with the field's forces left out at
+    each recorded state (the rest, N - N_el, is the field's end loads, the flip term exactly)."""
     data = _with_field(scene_data(NAME), field)
     data.setdefault("output", {})["particles"] = False
     end = _tail_end(data)
@@ -93,15 +99,18 @@ def held_tail(ctx: Context, field: float) -> dict:
         if integ is None:  # the start, before the integrator's first step
             return
         f = integ.node_forces(integ.u_nodes, 1.0, 1.0)  # the balance at the current state (no inertia)
-        forces.append((s.time, -float(f[integ.held_nodes, 1].sum())))  # the clamp's force on the tail
+        f_el = integ.node_forces(integ.u_nodes, 0.0, 1.0)  # the same without the field
+        held = integ.held_nodes
+        forces.append((s.time, -float(f[held, 1].sum()), -float(f_el[held, 1].sum())))  # the clamp's force on the tail
 
     duration = sim.scene.simulation.duration
     res = sim.run(duration, record=clamp_force, record_every=duration / SAMPLES)
     if res.status != "completed":
         raise RobotError(f"{NAME}: held tail at {field * 1e3:g} mT: run {res.status}: {res.message}")
-    t, F = np.array(forces).T
+    t, F, F_el = np.array(forces).T
     late = t >= 0.75 * duration
     return {"field": field, "time": t, "clamp_force": F, "N": -2.0 * float(F[late].mean()),
+            "N_el": -2.0 * float(F_el[late].mean()), "N_el_spread": 2.0 * float(np.ptp(F_el[late])),
             "drift": float(np.ptp(F[late])), "particles": sim.model.n_particles, "steps": res.steps,
             "wall_s": res.wall_time, "dx": sim.scene.simulation.dx, "front": _front(sim)}
 
@@ -195,12 +204,18 @@ def reproduce(ctx: Context) -> ReproduceResult:
     for field in (PREVIEW_HOLD if ctx.preview else HOLD_FIELDS):
         r = held_tail(ctx, field)
         held.append(r)
-        ctx.log(f"{NAME}: tail held at {field * 1e3:g} mT: N = {r['N'] * 1e3:.3f} mN ({r['particles']} particles, "
-                f"{r['steps']} steps, {r['wall_s']:.0f} s)")
+        ctx.log(f"{NAME}: tail held at {field * 1e3:g} mT: N = {r['N'] * 1e3:.3f} mN, its elastic part "
+                f"{r['N_el'] * 1e3:.3f} mN ({r['particles']} particles, {r['steps']} steps, {r['wall_s']:.0f} s)")
     Bs = np.array([r["field"] for r in held])
     Ns = np.array([r["N"] for r in held])
-    slope, intercept = np.polyfit(Bs, Ns, 1)
-    threshold = -intercept / slope
+    Nel = np.array([r["N_el"] for r in held])
+    # With both ends held (the clamp, the sticky floor) the field's energy -|Br| B pi (B^2 - A^2) / mu0 times the
+    # ends' distance is fixed: the field adds the ends' loads, the flip term, and leaves the held shape as it is.
+    # So N = N_el + slope_closed B, N_el the held shape's elastic push, and growth starts at -N_el / slope_closed.
+    n_el_sim = float(Nel.mean())
+    threshold = -n_el_sim / slope_closed
+    flip_error = float(np.max(np.abs((Ns - Nel) - slope_closed * Bs))) / (slope_closed * float(np.max(Bs)))
+    spread = float(np.ptp(Nel) / abs(n_el_sim)) if len(held) > 1 else 0.0
 
     grown = []
     frames = FrameRecorder(axes=(0, 1))
@@ -214,12 +229,15 @@ def reproduce(ctx: Context) -> ReproduceResult:
                 f"{r['speed'] * 1e3:.1f} mm/s ({r['steps']} steps, {r['wall_s']:.0f} s)")
 
     csv = write_csv(ctx.out / f"{NAME}.csv", {"field_mT": Bs * 1e3, "front_force_N_mN": Ns * 1e3,
+                                              "elastic_part_N_el_mN": Nel * 1e3,
                                               "clamp_force_mN": np.array([-0.5 * n for n in Ns]) * 1e3})
-    png = plot_curve(ctx.out / f"{NAME}.png", Bs * 1e3, {"front force N (tail held)": Ns * 1e3},
+    grid = np.linspace(0.0, max(0.05, float(Bs.max())), 11)
+    png = plot_curve(ctx.out / f"{NAME}.png", grid * 1e3, {"N = N_el + flip term": (n_el_sim + slope_closed * grid) * 1e3},
                      "axial field against the tail's remanence (mT)", "N, the front's push (mN)",
                      "Everting tube: growth threshold (seed 004)",
-                     note=f"N = 0 where growth starts: the runs' line crosses it at {threshold * 1e3:.1f} mT",
-                     points={"reduced model (magsoro evert: rigid tail, no friction)": ([model_field * 1e3], [0.0])},
+                     note=f"N = 0 where growth starts: {threshold * 1e3:.1f} mT (N_el from the held-tail runs)",
+                     points={"held-tail runs": (Bs * 1e3, Ns * 1e3),
+                             "reduced model (magsoro evert: rigid tail, no friction)": ([model_field * 1e3], [0.0])},
                      paper={"seed 004: grows from 43 mT": ([SEED_FIELD * 1e3], [0.0])})
     grow_csv = write_csv(ctx.out / f"{NAME}_growth.csv", {
         "field_mT": [r["field"] * 1e3 for r in grown], "advance_mm": [r["advance"] * 1e3 for r in grown],
@@ -251,24 +269,31 @@ def reproduce(ctx: Context) -> ReproduceResult:
                            lims=((0.5, 1.3), (-0.2, (last["front"].max() + 0.2e-3) * 1e3)))
 
     case = f"robot-{NAME}"
+    wrong_side = [r for r in grown if (r["field"] < threshold and r["advance"] > B - A)
+                  or (r["field"] > threshold and r["advance"] < 2 * B)]
     dx = held[0]["dx"]
     inp = {"dx_um": round(dx * 1e6, 3), "cells_through_wall": round((B - A) / dx, 2)}
     rows = [
-        Row(case, "slope dN/dB of the held-tail runs vs the flip term 2 |Br| pi (B^2 - A^2) / mu0 (relative)", inp,
-            slope_closed, float(slope), abs(slope / slope_closed - 1.0), 0.05),
+        Row(case, "the field's part of the held tail's push, N - N_el, vs the flip term 2 |Br| pi (B^2 - A^2) B / mu0 "
+            "(largest error over the runs, relative to the strongest field's)", inp, 0.0, flip_error, flip_error, 1e-3),
+        Row(case, "the held shape's elastic push N_el does not depend on the field (spread over the runs / |mean|)",
+            dict(inp, fields_mT=[round(b * 1e3, 3) for b in Bs]), 0.0, spread, spread, 0.1),
         Row(case, f"front advances past one tube diameter ({2 * B * 1e3:.1f} mm) at {last['field'] * 1e3:g} mT, "
             "mm (at least)", dict(inp, field_mT=last["field"] * 1e3), 2 * B * 1e3, last["advance"] * 1e3,
             max(0.0, 2 * B * 1e3 - last["advance"] * 1e3), 0.0),
+        Row(case, "growth runs on their side of the threshold: runs below it whose front advances more than a wall "
+            "thickness, runs above it whose front does not pass one tube diameter (count)",
+            dict(inp, fields_mT=[round(r["field"] * 1e3, 3) for r in grown], threshold_mT=round(threshold * 1e3, 2)),
+            0.0, float(len(wrong_side)), float(len(wrong_side)), 0.0),
         Row(case, "no tearing: smallest det F over the growth runs (above 0) ", inp, 0.0,
             min(r["det_min"] for r in grown), 0.0 if min(r["det_min"] for r in grown) > 0 else 1.0, 0.0),
     ]
     if ctx.preview:
-        rows = rows[:1] + rows[2:]  # the preview's tube is the full one at half the resolution: growth is checked in full
+        rows = rows[:2] + rows[3:]  # the preview's tube is the full one at half the resolution: growth is checked in full
     summary = (f"Seed 004's tube (1.8 mm, 100 um wall, |Br| {br:g} T along the tail) in axisymmetric MPM at "
-               f"{(B - A) / dx:.0f} cells through the wall, implicit: with the tail's end held, the front's push N "
-               f"rises with the field by {slope * 1e3 / 1e3:.4f} mN/mT (the flip term's closed form "
-               f"{slope_closed * 1e3 / 1e3:.4f}) from {intercept * 1e3:.2f} mN at zero field (reduced model, wall on a "
-               f"rigid tail: {n_el * 1e3:.2f} mN), so growth starts at "
+               f"{(B - A) / dx:.0f} cells through the wall, implicit: with the tail's end held, the front's push N is "
+               f"the held shape's elastic push N_el = {n_el_sim * 1e3:.2f} mN (reduced model, wall on a rigid tail: "
+               f"{n_el * 1e3:.2f} mN) plus the flip term, {slope_closed * 1e3 / 1e3:.4f} mN/mT, so growth starts at "
                f"{threshold * 1e3:.1f} mT without friction, against the reduced model's {model_field * 1e3:.1f} mT and "
                f"the seed's measured {SEED_FIELD * 1e3:.0f} mT. With the tail free the front advances "
                + ", ".join(f"{r['advance'] * 1e3:.2f} mm at {r['field'] * 1e3:g} mT" for r in grown)
@@ -276,10 +301,12 @@ def reproduce(ctx: Context) -> ReproduceResult:
                f"{min(r['det_min'] for r in grown):.2f}).")
     info = {"particles": held[0]["particles"], "dx_m": dx, "threshold_T": round(float(threshold), 5),
             "reduced_model_threshold_T": round(model_field, 5), "seed_threshold_T": SEED_FIELD,
-            "slope_N_per_T": round(float(slope), 6), "flip_slope_closed_N_per_T": round(slope_closed, 6),
-            "front_force_at_zero_field_N": round(float(intercept), 7),
+            "flip_slope_closed_N_per_T": round(slope_closed, 6),
+            "elastic_push_N_el_N": round(n_el_sim, 7),
             "reduced_model_front_force_at_zero_field_N": round(n_el, 7),
-            "held": {f"{r['field'] * 1e3:g} mT": {"N_N": round(r["N"], 7), "drift_N": round(r["drift"], 8),
+            "held": {f"{r['field'] * 1e3:g} mT": {"N_N": round(r["N"], 7), "N_el_N": round(r["N_el"], 7),
+                                                  "N_el_spread_N": round(r["N_el_spread"], 8),
+                                                  "drift_N": round(r["drift"], 8),
                                                   "steps": r["steps"], "wall_s": round(r["wall_s"], 1)} for r in held},
             "growth": {f"{r['field'] * 1e3:g} mT": {"advance_m": round(r["advance"], 7), "speed_m_per_s": round(r["speed"], 5),
                                                     "det_F_min": round(r["det_min"], 4),
