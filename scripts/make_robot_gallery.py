@@ -51,7 +51,9 @@ sweeps were solved by the static solver along the magnet's path (triangle at com
 speeds under the moving magnet by the dynamics, as before): triangle 2069 s
 against 2184 s (the sweep 123 s against 243 s; W_t and H_t within 1.2 % of the dynamic sweep's from 15 to 45 mT,
 W_t 22 % and 5 % below at 5 and 10 mT), cross 791 s against 886 s (the two sweeps 70 s against 143 s); every check
-still passes. Engine changes committed after a result was made are not in it.
+still passes. everting_tube (seed 004's tube everted in axisymmetric MPM) was made on 2026-11-30 at commit
+a0da799, the implicit integrator without contact rounds on self-contact: 1820 s, with the test suite running on the
+second core for most of it. Engine changes committed after a result was made are not in it.
 
 The 3D robots' entries also show a picture and an animation drawn by `magsoro render` from one run of the robot's
 scene (`magsoro run scenes/NAME.toml`): `magsoro reproduce` keeps no particle frames, so that run is separate from
