@@ -167,6 +167,7 @@ def test_fixed_direction_plan_loads_as_a_scene_dipole():
         assert np.allclose(loaded.B(pts, t), source.B(pts, t), rtol=1e-12)
 
 
+@pytest.mark.slow
 def test_plan_cli_replays_in_the_mpm_engine(tmp_path, capsys):
     """Retroflexion after insertion with a magnetic tip: three growth steps (4, 7, 10 links) and three bending
     steps to 180 degrees, planned on the PRB and replayed by the MPM engine (2D plane strain, dx = 1.5 mm,

@@ -44,6 +44,7 @@ def test_beam_robot_carries_youngs_modulus(planned):
     assert beam.link_length == robot.link_length and np.array_equal(beam.link_moments, robot.link_moments)
 
 
+@pytest.mark.slow
 def test_free_3d_replay_grows_in_the_plane_and_then_leaves_it(planned):
     """dx = 3 mm (two cells across the 6 mm section, 768 particles). While the robot grows straight the magnet
     lies far on its axis (B_z = 0 on the robot): the tip follows the plan to 0.1 mm and stays in the plane. When
@@ -60,6 +61,7 @@ def test_free_3d_replay_grows_in_the_plane_and_then_leaves_it(planned):
     assert r.step_end_in_plane_errors[4] > 0.03  # measured 74 mm: the planar plan does not hold for a free robot
 
 
+@pytest.mark.slow
 def test_plan_cli_replays_in_3d_on_a_floor(tmp_path, capsys):
     """The CLI's [replay] dim = 3, floor = true at dx = 3 mm: files, summary keys, the z column; on the floor the
     tip stays within a few millimetres of the plane and of the plan."""
@@ -111,6 +113,7 @@ def test_planar_pair_has_the_magnets_in_plane_field_on_the_plane_and_no_bz(plann
             assert np.allclose(Gp[:, :2, 2], 0.0, atol=1e-10 * gscale) and np.allclose(Gp[:, 2, :2], 0.0, atol=1e-10 * gscale)
 
 
+@pytest.mark.slow
 def test_free_3d_replay_in_the_planar_field_stays_in_the_plane(planned):
     """In the pair's field (symmetric about the plane) the free robot stays in the plane, and it follows the beam
     PRB (dx = 3 mm: 2.2, 2.6, 7.5 mm at 60, 120, 180 degrees; dx = 1.5 mm: 2.2, 0.8, 4.8 mm)."""

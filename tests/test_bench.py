@@ -5,6 +5,7 @@ import subprocess
 import sys
 
 import numpy as np
+import pytest
 
 from tests.conftest import run_solver
 
@@ -62,6 +63,7 @@ def test_regional_field_device_matches_host_and_refuses_bad_regions():
         Regional([([0, 0, 0], [1, 1, 1], [1e-3, 0, 0])])
 
 
+@pytest.mark.slow
 def test_sweep_batch_copies_move_like_the_walker_alone():
     """The batched sweep scene is 8 independent walkers: copy 0 (5 Hz) moves exactly like the walker scene
     (5 Hz) run on its own, and copy 7 (12 Hz) like the walker driven at 12 Hz; the two copies differ."""

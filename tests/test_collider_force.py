@@ -124,6 +124,7 @@ def test_static_squeeze_moves_the_plate_along_its_path():
         assert r["plate"] == pytest.approx(r["reference"], rel=0.05), f"static: {r['plate']:.5g} N at {r['stretch']:.5f}"
 
 
+@pytest.mark.slow
 def test_validation_case_rows_pass():
     """`magsoro validate collider_force`: every row passes (the weight on the tilted friction floor in both forms,
     the squeezed layer in both forms' dynamics and by the static solver)."""

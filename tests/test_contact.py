@@ -149,6 +149,7 @@ def test_block_on_slope_friction_07_stays(support):
     assert abs(xs[-1, 0] - xs[0, 0]) < 0.25 * DX
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("mu", [0.2, pytest.param(0.4, marks=pytest.mark.slow), 0.7])
 def test_block_started_touching_the_slab_slides_by_coulomb(mu):
     """The block drawn resting on the slab (no gap: its bottom particle row one particle spacing above the slab's

@@ -26,6 +26,7 @@ def test_eq10_is_the_incompressible_limit_of_the_engine_law(a, lz):
         assert 0.95 < ratio < 0.975
 
 
+@pytest.mark.slow
 def test_free_everted_wall_settles_at_eq10_radius():
     """MPM, 4 cells through the 100 um wall: the everted ring built 46 um too wide settles at eq 10's P = 0
     radius a0 (0.8041 mm) to 0.1 % (measured +0.09 %), i.e. within a twentieth of a cell."""

@@ -172,6 +172,7 @@ def test_a_lone_block_feels_no_self_torque(tmp_path):
             assert abs(raw) > 1e-2 * energy  # what the correction removes
 
 
+@pytest.mark.slow
 def test_preview_reproduction(tmp_path):
     """The CI reproduction (preview grid, ~20 s): every check passes, the chain folds (the outer hinges pass 90
     degrees) and closes (the end blocks' gap falls from 6.6 mm to below two cells), and the files are written."""

@@ -78,6 +78,7 @@ def _gap_closing(tmp_path, factor):
     return gap0 - (v["b_x"] - v["a_x"])
 
 
+@pytest.mark.slow
 def test_cubes_snap_together_inside_the_friction_distance(tmp_path):
     assert D_STAR == pytest.approx(15.32e-3, rel=1e-3)
     closer, farther = _gap_closing(tmp_path, 0.9), _gap_closing(tmp_path, 1.1)

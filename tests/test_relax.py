@@ -3,12 +3,14 @@
 import json
 
 import numpy as np
+import pytest
 
 from magsoro.scene import parse_scene
 from magsoro.simulation import Simulation
 from magsoro.validation.beam import BeamSetup, rod_reference, settle_beam
 
 
+@pytest.mark.slow
 def test_relaxed_beam_matches_the_rod_and_the_damped_run_in_fewer_steps():
     """Zhao beam (L/t = 20.5, t/dx = 2, float64) under a perpendicular field Br B/(mu0 G) = 0.0005 applied at
     once. Relaxed: 0.2044 L, 10.3k steps; settled by the grid damping of the validation runs (1.5 omega_1) under

@@ -35,6 +35,7 @@ def test_scene_file_is_the_plans_robot_under_its_last_pose():
     assert data["colliders"][0]["point"][2] == pytest.approx(robot.plane_z - 0.5 * strip.depth)
 
 
+@pytest.mark.slow
 def test_preview_reproduction(tmp_path):
     """The preview (dx 3 mm, two cells across the section, about 25 s): growth follows the plan, the bends at 60
     and 120 degrees lie within 10 % of the length of the beam PRB, the tip stays near the floor; free in space

@@ -121,6 +121,7 @@ def _ring_slope(dx: float) -> tuple[float, float]:
     return slope, closed
 
 
+@pytest.mark.slow
 def test_rig_crushes_a_thin_ring_like_the_closed_form_preview():
     """Two cells through the wall (the preview): measured +8.6 % (2D MPM bends stiff at so few cells)."""
     slope, closed = _ring_slope(5e-5)

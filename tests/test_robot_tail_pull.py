@@ -90,6 +90,7 @@ def _pressed_ring(dx: float, p: float):
     return sim
 
 
+@pytest.mark.slow
 def test_contact_force_reading_on_a_pressed_ring():
     """int T dphi of the wall under a pressure p equals p times the bore's current perimeter times the depth: the
     loads the reading stands for (measured +2.3 % at two cells through the wall)."""

@@ -93,6 +93,7 @@ def _check(res):
     assert res.animation.stat().st_size < 1.5e6
 
 
+@pytest.mark.slow
 def test_obstacle_beam_preview(tmp_path):
     """CI robot: the preview passes its checks; the pin stops the obstacle twin well short of the free twin, and
     the free twin's delta_max / L is within 15 % of the Kirchhoff rod at 2 cells through the thickness. The curve

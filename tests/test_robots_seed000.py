@@ -33,6 +33,7 @@ def _check_walker(res):
     assert res.animation.stat().st_size < 1.5e6
 
 
+@pytest.mark.slow
 def test_walker_preview_walks_and_speeds_up_with_field(tmp_path):
     _check_walker(reproduce("walker", out=tmp_path, preview=True))
 

@@ -110,6 +110,7 @@ def test_speed_helpers():
     assert magnet_speed_for(15.0, [50, 100], [20.0, 10.0]) is None      # not growing with the magnet's speed
 
 
+@pytest.mark.slow
 def test_triangle_preview_warps(tmp_path):
     _check_triangle(reproduce("triangle", out=tmp_path, preview=True))
 

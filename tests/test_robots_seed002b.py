@@ -53,6 +53,7 @@ def test_strip_elastica_small_field_matches_beam_theory():
     assert chord == pytest.approx(math.degrees(q * L ** 2 / (3 * EI)), rel=1e-3)
 
 
+@pytest.mark.slow
 def test_pentahedron_preview(tmp_path):
     """The CI reproduction: coarse, levels 0 and 45 mT. Its checks must pass, and the side squares must fold by
     a sizeable, symmetric angle below vertical."""

@@ -64,6 +64,7 @@ def test_tip_against_the_kirchhoff_rod(solved):
         assert err < 0.005, err
 
 
+@pytest.mark.slow
 def test_scene_static_tip_matches_its_dynamic_relaxation(solved):
     """Issue acceptance ("the cantilever scene: --static tip within 1 % of --equilibrium"): the engine's dynamic
     relaxation of the same scene from rest (float64, kinetic damping, Simulation.relax) settles 0.004 % of the
@@ -588,6 +589,7 @@ def test_static_times_sweep_along_the_path(tmp_path):
         assert run.returncode == 2 and len(ours) == 1 and key in ours[0] and "wrong.toml" in ours[0], run.stderr
 
 
+@pytest.mark.slow
 def test_a_stall_at_the_rounding_floor_says_to_loosen_the_tolerance():
     """Zhao's cantilever under gravity alone (2 m/s^2, plane strain, float64): the internal forces' rounding sits just
     above the default tolerance 1e-8 of the small weight (measured: |R| stalls at 1.07e-8), and the message says to

@@ -87,6 +87,7 @@ def test_rigid_motion_is_exact_in_both_formulations(dim):
     assert np.abs(final["total"] - final["updated"]).max() < 1e-12
 
 
+@pytest.mark.slow
 def test_total_lagrangian_beam_settles_at_the_rod():
     """The Zhao beam (t/dx = 3) under a perpendicular field Br B/(mu0 G) = 0.001, held 14/omega_1: the
     total-Lagrangian engine comes to rest (tip moves < 3e-4 of itself over the last 2/omega_1; measured 6e-5)
