@@ -109,6 +109,7 @@ def test_run_duration_override_is_checked_before_the_output_folder(duration, tmp
     assert not out.exists()
 
 
+@pytest.mark.slow
 def test_first_time_step_counts_the_initial_velocity():
     """A body sent at 500 m/s crossed 2.5 cells in its first step (finding 9): the first step's CFL bound now
     includes the initial speed, so it moves at most cfl cells."""

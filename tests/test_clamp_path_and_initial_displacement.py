@@ -140,6 +140,7 @@ def _mid_rise(sim):
     return float((sim.state.x.numpy()[mid, 1] - X[mid, 1]).mean())
 
 
+@pytest.mark.slow
 def test_arch_pre_buckled_by_a_moving_clamp_in_the_newton_solvers():
     """The arch below with the static solver ([static] times 0.02, 0.05, 0.075, 0.1 s: the clamp's nodes take its
     path, Newton starts from the projected imperfection; with the step from 0.05 to 0.1 s in one, the straight state

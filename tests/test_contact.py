@@ -92,6 +92,7 @@ def test_auto_formulation_runs_contact_scenes_in_the_updated_form():
 
 
 # -- physics ------------------------------------------------------------------------------------------------------
+@pytest.mark.slow
 def test_total_form_contact_pass_lets_a_block_slide_and_keeps_it_out_of_the_slab():
     """formulation = "total" with contact (the contact pass on a grid of the current configuration, bodies kept
     apart on the reference grid): the coarse frictionless block slides down the slab, measured 4.68 m/s^2 against

@@ -76,7 +76,7 @@ def test_particle_stress_is_the_law_on_the_elastic_part_and_the_energy_derivativ
     Gp, Kp, code, prm = model.host["shear_modulus"][0], model.host["bulk_modulus"][0], law.code, law.pack(params)
     for p, st in enumerate(stimuli):
         lam, f = st.values(0.0)
-        inv, c = st.tensors(lam, f, dim)
+        inv, c, _ = st.tensors(lam, f, dim)
         assert c == pytest.approx(f * (lam**dim if st.direction is None else lam), rel=1e-15)
         Pe, We = _law_stress(dim, Fs[p] @ inv, code, prm, Gp, Kp)
         np.testing.assert_allclose(P[p], c * Pe @ inv.T, rtol=0, atol=1e-12 * np.abs(P[p]).max())

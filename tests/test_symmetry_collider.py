@@ -38,6 +38,7 @@ def _settled_bore(mode: str) -> tuple[float, np.ndarray]:
     return math.sqrt(float(np.mean(x[:, 0] ** 2 + x[:, 1] ** 2 + R * R - B * B))), x
 
 
+@pytest.mark.slow
 def test_quarter_tube_between_symmetry_planes_behaves_as_the_whole():
     """A quarter of an everted thick tube (A = 2, B = 3 mm, built with a 2.5 mm bore and the eversion's
     deformation gradient) between four symmetry planes settles at eq 10's pressure-free bore, 2.139 mm (measured

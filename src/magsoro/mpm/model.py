@@ -332,12 +332,15 @@ class Model:
         m = max(len(self.stimuli), 1)
         self.stretch_inv = wp.array(np.broadcast_to(np.eye(dim), (m, dim, dim)).astype(s), dtype=k["mat"], device=dev)
         self.stretch_scale = wp.ones(m, dtype=self.scalar, device=dev)
+        self.stretch_hoop_inv = wp.ones(m, dtype=self.scalar, device=dev)
+        ring = self.plane == "axisymmetric"  # the eigenstretch acts round the ring too (F_s is 3 x 3)
         # squared wave speed factor of each particle's stimulus over its reachable range (1: none)
-        bound = np.array([st.stiffening(dim) for st in self.stimuli] + [1.0])
+        bound = np.array([st.stiffening(dim, ring=ring) for st in self.stimuli] + [1.0])
         h["stiffening"] = bound[rows]
         self._stimulus_values = None  # (lambda, f) per stimulus as last uploaded
         # on the CPU the tables are written through numpy views of the same memory (a Warp copy costs more)
-        self._stimulus_views = (self.stretch_inv.numpy(), self.stretch_scale.numpy()) if wp.get_device(dev).is_cpu else None
+        self._stimulus_views = ((self.stretch_inv.numpy(), self.stretch_scale.numpy(), self.stretch_hoop_inv.numpy())
+                                if wp.get_device(dev).is_cpu else None)
         self.update_stimuli(0.0)
 
     def update_stimuli(self, t: float) -> bool:
@@ -348,14 +351,18 @@ class Model:
         values = tuple(st.values(t) for st in self.stimuli)
         if values == self._stimulus_values:
             return False
-        inv, scale = zip(*(st.tensors(lam, f, self.dim) for st, (lam, f) in zip(self.stimuli, values)))
+        ring = self.plane == "axisymmetric"
+        inv, scale, hoop = zip(*(st.tensors(lam, f, self.dim, ring=ring) for st, (lam, f) in zip(self.stimuli, values)))
         inv, scale = np.asarray(inv).astype(self.np_scalar), np.asarray(scale).astype(self.np_scalar)
+        hoop = np.asarray(hoop).astype(self.np_scalar)
         if self._stimulus_views is not None:
             self._stimulus_views[0][...] = inv
             self._stimulus_views[1][...] = scale
+            self._stimulus_views[2][...] = hoop
         else:
             self.stretch_inv.assign(inv)
             self.stretch_scale.assign(scale)
+            self.stretch_hoop_inv.assign(hoop)
         self._stimulus_values = values
         return True
 

@@ -133,6 +133,7 @@ def bodies_array(model: "Model", cut=lambda arr: arr, step: wp.array | None = No
     b.clamp_velocity = model.clamp_velocity  # indexed by clamp code, not by particle: never cut
     # the stimulus tables are indexed by each particle's stimulus row, not by particle: never cut
     b.stimulus, b.stretch_inv, b.stretch_scale = cut(model.stimulus), model.stretch_inv, model.stretch_scale
+    b.stretch_hoop_inv = model.stretch_hoop_inv
     b.n_stimuli = len(model.stimuli)
     # pressure loads: per particle its face area vector and row; the table of values is indexed by row
     b.pressure_area, b.pressure_row = cut(model.pressure_area), cut(model.pressure_row)

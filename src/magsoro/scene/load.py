@@ -425,8 +425,6 @@ def check_axisymmetric(scene: Scene, source: str) -> None:
         if isinstance(mag, list) and len(mag) == 3 and mag[2] != 0.0:
             refuse(f"{key}.magnetization", "has a hoop (third) component; give [B_r, B_z, 0] T")
         mat = b.material
-        if getattr(mat, "stimulus", None) is not None:
-            refuse(f"{key}.material.stimulus", "stimulus eigenstrain is not built yet")
         if getattr(mat, "prony", None) is not None:
             refuse(f"{key}.material.prony", "Prony viscoelasticity is not built yet")
     for i, f in enumerate(scene.fields):

@@ -98,6 +98,7 @@ def make_types(dim: int, scalar) -> SimpleNamespace:
         stimulus: wp.array(dtype=wp.int32)
         stretch_inv: wp.array(dtype=mat)
         stretch_scale: wp.array(dtype=scalar)
+        stretch_hoop_inv: wp.array(dtype=scalar)  # axisymmetric: 1 / F_s,tt per stimulus (1 elsewhere)
         n_stimuli: int
         pressure_area: wp.array(dtype=vec)
         pressure_row: wp.array(dtype=wp.int32)
@@ -215,8 +216,9 @@ def make_body_elastic(dim: int, scalar, plane: str = "strain") -> SimpleNamespac
 @functools.cache
 def _make_body_elastic_axisymmetric(dim: int, scalar) -> SimpleNamespace:
     """The axisymmetric form of :func:`make_body_elastic`: the law evaluated in 3D at F = diag(F_rz, r / R), with
-    the hoop stretch r / R of the particle's ring (current over reference radius). Stimulus eigenstrain is refused
-    by the scene check, so the particle's law alone:
+    the hoop stretch r / R of the particle's ring (current over reference radius), and the particle's stimulus
+    eigenstrain if any, F_s = diag(F_s,rz, F_s,tt) (:mod:`magsoro.mpm.laws.eigenstrain`: isotropic lambda I, or
+    along a direction in the (r, z) plane with F_s,tt = 1), P = f det F_s P_e(F F_s^-1) F_s^-T:
 
     - ``body_elastic_stress(F, b, p)``: not given (the in-plane block alone would leave out the hoop stress);
     - ``body_elastic_stress3(F, hoop, b, p)``: the 3 x 3 first Piola stress, [2, 2] the hoop component P_tt;
@@ -236,12 +238,30 @@ def _make_body_elastic_axisymmetric(dim: int, scalar) -> SimpleNamespace:
         return m3(F[0, 0], F[0, 1], z, F[1, 0], F[1, 1], z, z, z, hoop)
 
     @wp.func
+    def stimulus_row3(b: Bodies, p: int):
+        row = int(-1)
+        if b.n_stimuli > 0:
+            row = b.stimulus[p]
+        return row
+
+    @wp.func
     def body_elastic_stress3(F: mat, hoop: scalar, b: Bodies, p: int):
-        return stress3(ring(F, hoop), b.material_model[p], b.shear[p], b.bulk[p], b.material_params[p])
+        row = stimulus_row3(b, p)
+        F3 = ring(F, hoop)
+        if row >= 0:
+            inv = ring(b.stretch_inv[row], b.stretch_hoop_inv[row])
+            P = stress3(F3 * inv, b.material_model[p], b.shear[p], b.bulk[p], b.material_params[p])
+            return b.stretch_scale[row] * (P * wp.transpose(inv))
+        return stress3(F3, b.material_model[p], b.shear[p], b.bulk[p], b.material_params[p])
 
     @wp.func
     def body_elastic_energy3(F: mat, hoop: scalar, b: Bodies, p: int):
-        return energy3(ring(F, hoop), b.material_model[p], b.shear[p], b.bulk[p], b.material_params[p])
+        row = stimulus_row3(b, p)
+        F3 = ring(F, hoop)
+        if row >= 0:
+            inv = ring(b.stretch_inv[row], b.stretch_hoop_inv[row])
+            return b.stretch_scale[row] * energy3(F3 * inv, b.material_model[p], b.shear[p], b.bulk[p], b.material_params[p])
+        return energy3(F3, b.material_model[p], b.shear[p], b.bulk[p], b.material_params[p])
 
     return SimpleNamespace(body_elastic_stress=None, body_elastic_energy=None,
                            body_elastic_stress3=body_elastic_stress3, body_elastic_energy3=body_elastic_energy3)

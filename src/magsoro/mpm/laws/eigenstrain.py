@@ -17,6 +17,10 @@ A free body therefore takes F = F_s and carries no stress; lambda < 1 shrinks, >
 and the moment m = F Br V0 / mu0 are unchanged (the magnetic particles do not shrink with the matrix), and so is
 the mass: a hydrogel that expels water loses some, which only the inertia would see.
 
+Axisymmetric sections: the isotropic eigenstretch acts round the ring as well (F_s = lambda I in 3D, det F_s =
+lambda^3), so a free ring shrinks by lambda in r, z and its circumference alike; a directional one lies in the
+(r, z) plane.
+
 2D (plane strain): F_zz = 1 for the body, and the eigenstretch acts in the plane only (F_s is the 2 x 2 tensor,
 F_s,zz = 1), so a free 2D section shrinks by lambda along both in-plane axes, stress-free, and
 det F_s = lambda^2 (isotropic) or lambda (along an in-plane direction). (A 3D-isotropic lambda held at F_zz = 1
@@ -132,16 +136,18 @@ class Stimulus:
         f = 1.0 if self.modulus_factor is None else float(np.interp(s, self.modulus_factor[:, 0], self.modulus_factor[:, 1]))
         return lam, f
 
-    def tensors(self, lam: float, f: float, dim: int) -> tuple[np.ndarray, float]:
-        """F_s^-1 (dim x dim) and the stress factor f det F_s for the stretch ``lam`` and modulus factor ``f``."""
+    def tensors(self, lam: float, f: float, dim: int, ring: bool = False) -> tuple[np.ndarray, float, float]:
+        """F_s^-1 (dim x dim), the stress factor f det F_s and 1 / F_s,tt for the stretch ``lam`` and modulus factor
+        ``f``. ``ring``: an axisymmetric section (dim 2), whose isotropic eigenstretch acts round the ring too
+        (F_s,tt = lambda, det F_s = lambda^3); a directional one lies in the (r, z) plane (F_s,tt = 1)."""
         if self.direction is None:
-            return np.eye(dim) / lam, f * lam**dim
+            return np.eye(dim) / lam, f * lam ** (dim + 1 if ring else dim), 1.0 / lam if ring else 1.0
         if self.direction.size != dim:
             raise ValueError(f"direction has {self.direction.size} components, the model is {dim}D")
         a = self.direction
-        return np.eye(dim) + (1.0 / lam - 1.0) * np.outer(a, a), f * lam
+        return np.eye(dim) + (1.0 / lam - 1.0) * np.outer(a, a), f * lam, 1.0
 
-    def stiffening(self, dim: int) -> float:
+    def stiffening(self, dim: int, ring: bool = False) -> float:
         """An upper bound of f det F_s over the stimulus range the profile reaches: the factor by which the
         squared elastic wave speed grows (the time step's bound). The maximum of each piecewise-linear table over
         the range lies at a breakpoint inside it or at an end; the product of the two maxima bounds the maximum of
@@ -154,4 +160,4 @@ class Stimulus:
 
         lam = top(self.stretch)
         f = 1.0 if self.modulus_factor is None else top(self.modulus_factor)
-        return f * lam ** (dim if self.direction is None else 1)
+        return f * lam ** ((dim + 1 if ring else dim) if self.direction is None else 1)
