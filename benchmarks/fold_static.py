@@ -65,6 +65,8 @@ def main(argv=None) -> int:
     ap.add_argument("--dx", type=float, default=None, help="grid spacing, m (default the scene's)")
     ap.add_argument("--linear-solver", choices=["auto", "direct", "iterative"], default="auto")
     ap.add_argument("--preview", action="store_true", help="the scene's preview grid instead of its full one")
+    ap.add_argument("--soft-penalty", type=float, default=None,
+                    help="static.soft_penalty: the predictor chain's penalty fraction (default: off)")
     args = ap.parse_args(argv)
 
     from magsoro.robots import hexahedron as H
@@ -78,6 +80,8 @@ def main(argv=None) -> int:
     point = (0.0, 0.0, module.THICKNESS / 2.0)
     data = scene_data(args.robot)
     data.setdefault("static", {})["linear_solver"] = args.linear_solver
+    if args.soft_penalty is not None:
+        data["static"]["soft_penalty"] = args.soft_penalty
     if args.dx is not None:
         data["simulation"]["dx"] = args.dx
     magnet = P.magnet_entry(data)
@@ -109,6 +113,8 @@ def main(argv=None) -> int:
                "load_increments": int(res.increments), "linear_solver": res.linear_solver,
                "linear_solves": int(res.linear_solves), "linear_iterations": int(res.linear_iterations),
                "linear_setups": int(res.linear_setups), "linear_fallbacks": int(res.linear_fallbacks),
+               "predictor_iterations": int(res.predictor_iterations),
+               "predictor_linear_solves": int(res.predictor_linear_solves),
                "wall_s": round(now - clock["last"], 1), "mean_fold_deg": float(np.mean(list(angles.values()))),
                "fold_deg": angles, "max_displacement_m": float(np.abs(x - ref["X0"]).max())}
         clock["last"] = now
@@ -124,9 +130,10 @@ def main(argv=None) -> int:
     prov = provenance()
     out = {"benchmark": "fold_static", **prov, "robot": args.robot, "mode": args.mode, "dx_m": float(sim.model.dx), "scene": f"scenes/{args.robot}.toml",
            "preview": args.preview, "particles": int(sim.model.n_particles), "linear_solver": args.linear_solver,
+           "soft_penalty": args.soft_penalty,
            "levels_mT": args.levels, "sweep_wall_s": round(wall, 1), "rows": rows}
     name = (f"{prov['date'][:10]}-cpu-{prov['commit']}-fold-static-{args.robot}-{args.mode}"
-            f"{'-preview' if args.preview else ''}.json")
+            f"{'-preview' if args.preview else ''}{'-soft' if args.soft_penalty else ''}.json")
     path = ROOT / "benchmarks" / "results" / name
     path.write_text(json.dumps(out, indent=1) + "\n")
     print(f"{args.robot}: sweep {wall:.0f} s; wrote {path}")

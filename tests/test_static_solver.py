@@ -609,3 +609,39 @@ def test_a_stall_at_the_rounding_floor_says_to_loosen_the_tolerance():
     assert not stalled.converged  # if a better solver gets there, this test needs another stall to look at
     assert "loosen static.tolerance" in stalled.message and "insert intermediate" not in stalled.message
     assert solve(1e-7).converged
+
+
+def _block_3d(dx: float) -> dict:
+    return {"name": "block", "simulation": {"dim": 3, "dx": dx, "particles_per_cell": 2, "duration": 0.1,
+                                            "precision": "float64", "domain_lo": [-0.01, -0.01, -0.01],
+                                            "domain_hi": [0.01, 0.01, 0.01]},
+            "bodies": [{"name": "block", "shape": {"type": "box", "center": [0.0005, 0.0, 0.001], "size": [0.006, 0.003, 0.004]},
+                        "material": {"density": 1000.0, "shear_modulus": 30e3}}],
+            "output": {"particles": False}}
+
+
+def test_3d_fit_through_the_slaved_nodes_and_onto_a_finer_grid():
+    """The 3D static solver slaves its light nodes (linear extrapolation, exact for an affine field), so a state's
+    projection on its unknowns (fit_nodes, the start of --static --from) reproduces an affine displacement to
+    round-off; displacement_at evaluates that field at a finer grid's particles (value and gradient), whose own
+    fit reproduces it again (grid sequencing's transfer)."""
+    from magsoro.mpm.newton.static import StaticSolver
+    from magsoro.scene import parse_scene
+    from magsoro.simulation import Simulation
+
+    A = np.array([[0.01, 0.02, -0.005], [0.003, -0.01, 0.004], [0.0, 0.006, 0.02]])
+    b = np.array([1e-5, -2e-5, 3e-5])
+    coarse = StaticSolver(Simulation(parse_scene(_block_3d(1e-3))), 0.1)
+    assert coarse.E.shape[0] > coarse.E.shape[1]  # light nodes slaved
+    X = coarse.model.host["positions"].astype(np.float64)
+    coarse.u_nodes = coarse.fit_nodes(X @ A.T + b, np.broadcast_to(A, (len(X), 3, 3)))
+    assert np.abs(coarse.interpolation() @ coarse.u_nodes - (X @ A.T + b)).max() < 1e-15
+    fine = StaticSolver(Simulation(parse_scene(_block_3d(0.5e-3))), 0.1)
+    Y = fine.model.host["positions"].astype(np.float64)
+    u, grad = coarse.displacement_at(Y)
+    assert np.abs(u - (Y @ A.T + b)).max() < 1e-15
+    assert np.abs(grad - A).max() < 1e-13
+    fine.u_nodes = fine.fit_nodes(u, grad)
+    assert np.abs(fine.interpolation() @ fine.u_nodes - (Y @ A.T + b)).max() < 1e-15
+    with pytest.raises(ValueError, match="outside the solver's grid block"):
+        coarse.displacement_at(np.array([[0.009, 0.0, 0.0]]))

@@ -550,6 +550,12 @@ class Simulation:
         t0 = _time.perf_counter()
         solver = StaticSolver(self, t, tolerance=cfg.tolerance, max_iterations=cfg.max_iterations, arc_length=cfg.arc_length)
         self._static_guess(solver)
+        # static.soft_penalty: a predictor chain with a soft contact penalty, whose equilibrium starts each level
+        predictor = None
+        if cfg.soft_penalty is not None and solver.contact is not None:
+            predictor = StaticSolver(self, t, tolerance=cfg.tolerance, max_iterations=cfg.max_iterations,
+                                     penalty_scale=cfg.soft_penalty, check_stability=False)
+            self._static_guess(predictor)
         self.state.time = t
         if watch is not None:
             watch(solver)
@@ -560,7 +566,26 @@ class Simulation:
             if times is not None:
                 solver.move_to(times[k])
                 self.state.time = times[k]
+            guess, prev = None, (solver.u_nodes.copy(), solver.field_level, solver.gravity_level)
+            if predictor is not None:
+                if times is not None:
+                    predictor.move_to(times[k])
+                pre_from = predictor.u_nodes.copy()
+                pre = predictor.solve_level(level)
+                if pre.converged and k > 0:
+                    # the level starts from the last equilibrium moved by the predictor's step: the predictor's
+                    # states sink deeper into the colliders (its softer penalty), its steps carry the shape's change
+                    guess = solver.u_nodes + (predictor.u_nodes - pre_from)
+                    solver.start_from(predictor, guess)
+                elif not pre.converged:  # the chain goes on from its last equilibrium; the level from the solver's
+                    self._note(f"static.soft_penalty: the predictor did not converge at {'time' if times is not None else 'level'} "
+                               f"{times[k] if times is not None else level:g} ({pre.message}); the level started from the last equilibrium")
             res = solver.solve_level(level)
+            if predictor is not None:
+                res.predictor_iterations, res.predictor_linear_solves = pre.iterations, pre.linear_solves
+                res.predictor_converged = pre.converged
+                if not res.converged and guess is not None:  # the state stays the last equilibrium, not the guess
+                    solver.u_nodes, solver.field_level, solver.gravity_level = prev
             res.time = self.state.time
             out.levels.append(res)
             solver.write_state()
@@ -598,21 +623,14 @@ class Simulation:
         """A state away from the reference (one started from another run's, :meth:`start_from`, or bodies given an
         initial_displacement) is where the static solver's Newton iterations start: its displacements and
         deformation gradients projected on the grid nodes as the implicit integrator projects its start (least
-        squares), so that the solve stays on the state's branch (a pre-buckled arch, an imperfection). Where the
-        solver slaves light nodes (3D) there is no such projection yet: the solve starts from the reference, and
-        :attr:`notes` says so."""
+        squares; where the solver slaves light nodes, on the unknowns through the slaving map), so that the solve
+        stays on the state's branch (a pre-buckled arch, an imperfection)."""
         if self.started_from is None and "initial_displacement" not in self.model.host:
             return
         dim = self.dim
         x = self.state.x.numpy().astype(np.float64)[:, :dim]
         d = x - self.model.host["positions"][:, :dim]
         if not np.any(d != 0.0):
-            return
-        if solver.E.shape[0] != solver.E.shape[1]:
-            what = (f"the state of {self.started_from['from']}" if self.started_from is not None
-                    else "the bodies' initial_displacement")
-            self._note(f"the static solve starts from the reference configuration, not from {what}: the solver "
-                       "slaves light nodes here, which the projection of a state onto the nodes does not handle yet")
             return
         F = self.state.F.numpy().astype(np.float64)[:, :dim, :dim]
         # the implicit integrator's start, the same fit; the moving clamps' nodes where the clamps start

@@ -451,6 +451,11 @@ class LevelResult:
     linear_iterations: int = 0
     linear_setups: int = 0
     linear_fallbacks: int = 0
+    # the predictor's solve of the level (static.soft_penalty; Simulation.solve_static): its Newton iterations and
+    # linear solves, and whether it converged (the level starts from its equilibrium only then)
+    predictor_iterations: int = 0
+    predictor_linear_solves: int = 0
+    predictor_converged: bool | None = None
 
 
 @dataclass
@@ -491,8 +496,14 @@ class StaticSolver:
     takes_prony = False
 
     def __init__(self, sim, t: float, tolerance: float = 1e-8, max_iterations: int = 40, arc_length: bool = False,
-                 collider_contact: str | None = None, linear_solver: str | None = None):
+                 collider_contact: str | None = None, linear_solver: str | None = None, penalty_scale: float = 1.0,
+                 check_stability: bool = True):
         self.sim, self.t = sim, float(t)
+        # the contacts' penalty stiffness times this (static.soft_penalty's predictor: a soft penalty lets a peeling
+        # front move several cells per Newton iteration); check_stability False skips lowest_mode (a predictor's
+        # states are not the answer)
+        self.penalty_scale = float(penalty_scale)
+        self.check_stability = bool(check_stability)
         # how the Newton steps' linear systems are solved (static.linear_solver; magsoro.mpm.newton.linear): 'direct',
         # 'iterative' (multigrid-preconditioned Krylov) or 'auto' (direct up to linear.DIRECT_MAX_UNKNOWNS unknowns)
         self.linear_solver = getattr(sim.scene.static, "linear_solver", "auto") if linear_solver is None else linear_solver
@@ -614,6 +625,12 @@ class StaticSolver:
 
             self.body_contact = BodyContact(self, st.contact.friction, st.contact.self_contact, st.depth)
             self.contact = Contacts(([] if self.contact is None else self.contact.parts) + [self.body_contact])
+        if self.contact is not None and self.penalty_scale != 1.0:
+            from magsoro.mpm.newton.static_contact import ColliderPenalty
+
+            for part in self.contact.parts:
+                if isinstance(part, ColliderPenalty):
+                    part.k = part.k * self.penalty_scale
         if model.clamp_paths:  # so do the moving clamps, from where they stand at the start
             self._set_collider_time(0.0)
         self._check_held()
@@ -798,10 +815,10 @@ class StaticSolver:
         combinations of light nodes at a body's faces move no particle but change the particles' F, so a fit of the
         positions alone leaves them free, and a state at rest came back out of balance (the 3D strip of
         benchmarks/implicit_vs_explicit.py, settled: its light nodes 4 cells, its face nodes 0.13 cells from where
-        they were, |R| from 6e-9 to 1e-2 N; with the gradients it came back to 1e-10 cells). Needs a solver that
-        slaves no node (the implicit integrator; the static solver in 2D). An axisymmetric scene's mirror and axis
-        nodes follow the unknowns through the map E (:meth:`_slaving`): its fit is one least-squares problem per
-        component on E's block of that component."""
+        they were, |R| from 6e-9 to 1e-2 N; with the gradients it came back to 1e-10 cells). Where the solver slaves
+        nodes (the light nodes in 3D, an axisymmetric scene's mirror and axis nodes) they follow the unknowns
+        through the map E (:meth:`_slaving`): the fit is one least-squares problem per component on E's block of
+        that component."""
         from scipy import sparse
 
         if self.E.shape[0] != self.E.shape[1]:
@@ -839,14 +856,12 @@ class StaticSolver:
 
     def _fit_nodes_mapped(self, values: np.ndarray, gradients: np.ndarray) -> np.ndarray:
         """:meth:`fit_nodes` through the map E from the unknowns to the free nodes, whose components do not mix (the
-        mirror nodes of an axisymmetric scene): per component a, the free nodes' values are E_a y_a."""
+        light nodes of the 3D solver, extrapolated component by component; the mirror nodes of an axisymmetric
+        scene): per component a, the free nodes' values are E_a y_a."""
         from scipy import sparse
 
         dim, dx = self.dim, float(self.model.dx)
         if self._projector is None:
-            if self.model.plane != "axisymmetric":
-                raise ValueError("fit_nodes: the solver slaves light nodes (3D static solver); the fit takes free "
-                                 "nodes only")
             P = self.interpolation()[:, self.free]
             nodes, _, grad = self._stencil()
             rows = np.repeat(np.arange(self.model.n_particles), nodes.shape[1])
@@ -878,6 +893,21 @@ class StaticSolver:
                 y = y + lu.solve(QtWa @ (data - Qa @ y))
             out[self.free, a] = Ea @ y
         return out
+
+    def displacement_at(self, X: np.ndarray, groups: np.ndarray | None = None):
+        """The displacement field of the nodes' displacements ``u_nodes`` at reference points ``X`` (N, dim, m),
+        as the engine interpolates it (quadratic B-splines on the reference grid block): (u (N, dim) m, its
+        reference gradient (N, dim, dim), du_a/dX_b). Points must lie where the block's nodes carry mass. A block
+        split by contact groups needs each point's group (``groups``, as the model's contact_group). Used to start
+        a solve on a finer grid from this one's equilibrium (grid sequencing)."""
+        X = np.asarray(X, dtype=np.float64)[:, : self.dim]
+        nodes, w, grad = self._bspline_stencil(X)
+        if self.split:
+            if groups is None:
+                raise ValueError("displacement_at: the block is split by contact groups; give each point's group")
+            nodes = self._slot_of(np.asarray(groups)[:, None], nodes)
+        u_at = self.u_nodes[nodes]  # (N, S, dim)
+        return np.einsum("ps,psa->pa", w, u_at), np.einsum("psb,psa->pab", grad, u_at)
 
     def interpolation(self):
         """P (n_particles x n_nodes, sparse CSR): the particles' B-spline weights on the reference grid block, so
@@ -1115,19 +1145,27 @@ class StaticSolver:
         (N, 3^dim, dim) of the engine's quadratic B-splines on the reference grid block (MLS: grad w =
         (4/dx^2) w (x_i - x_p))."""
         if getattr(self, "_stencil_cache", None) is None:
-            m, dim = self.model, self.dim
-            X = m.host["positions"]
-            base, fx, w1d = host_bspline(X, m.domain_lo + self.solver.org * m.dx, m.dx)  # w1d: (3, N, dim)
-            offs = np.stack(np.meshgrid(*[np.arange(3)] * dim, indexing="ij"), axis=-1).reshape(-1, dim)  # (S, dim)
-            w = np.ones((len(X), len(offs)))
-            for a in range(dim):
-                w *= w1d[offs[:, a], :, a].T
-            nodes = np.ravel_multi_index(tuple((base[:, None, :] + offs[None]).transpose(2, 0, 1)), tuple(self.shape))
+            m = self.model
+            nodes, w, grad = self._bspline_stencil(m.host["positions"])
             if self.split:  # each particle's own group's slot (the kernels' slot_of)
                 nodes = self._slot_of(m.host["contact_group"][:, None], nodes)
-            grad = (4.0 / m.dx) * w[:, :, None] * (offs[None, :, :] - fx[:, None, :])
             self._stencil_cache = (nodes, w, grad)
         return self._stencil_cache
+
+    def _bspline_stencil(self, X: np.ndarray):
+        """Flat node indices in the unsplit block (N, 3^dim), weights and reference weight gradients of points
+        ``X`` (N, dim) on the reference grid block."""
+        m, dim = self.model, self.dim
+        base, fx, w1d = host_bspline(X[:, :dim], m.domain_lo + self.solver.org * m.dx, m.dx)  # w1d: (3, N, dim)
+        if np.any(base < 0) or np.any(base + 2 >= np.asarray(self.shape)[None, :]):
+            raise ValueError("points outside the solver's grid block")
+        offs = np.stack(np.meshgrid(*[np.arange(3)] * dim, indexing="ij"), axis=-1).reshape(-1, dim)  # (S, dim)
+        w = np.ones((len(X), len(offs)))
+        for a in range(dim):
+            w *= w1d[offs[:, a], :, a].T
+        nodes = np.ravel_multi_index(tuple((base[:, None, :] + offs[None]).transpose(2, 0, 1)), tuple(self.shape))
+        grad = (4.0 / m.dx) * w[:, :, None] * (offs[None, :, :] - fx[:, None, :])
+        return nodes, w, grad
 
     def _field_terms(self, field_level: float):
         """B, grad B (T, T/m; the model's in-plane part) at the particles' current positions and the gradient's
@@ -1433,6 +1471,7 @@ class StaticSolver:
     direct_max_unknowns = None
     _ordering = None  # the direct solver's fill-reducing ordering of the tangents' pattern (linear.Ordering)
     _projector = None  # (Q, Q^T W, factorisation) of fit_nodes' least squares, made once
+    _checked = None  # (u_nodes, lowest eigenvalue) of the last increment's stability check in this level
 
     def _linear_kind(self, unknowns: int) -> str:
         """'direct' or 'iterative': the scene's linear_solver, 'auto' decided by the number of unknowns."""
@@ -1701,10 +1740,11 @@ class StaticSolver:
                 u_new, ok, its, norm, message = self._newton(u.copy(), load[0], load[1], scale, slope=True)
                 iterations += its
             if ok:
-                if watch:
+                if watch and self.check_stability:
                     before = (self.u_nodes, self.field_level, self.gravity_level)
                     self.u_nodes, (self.field_level, self.gravity_level) = u_new, load
                     lam, mode = self.lowest_mode(self._last_tangent if its > 0 else None)
+                    self._checked = (u_new, lam)  # the level's end takes it if the state is still this one
                     if lam is not None and lam < 0.0:
                         self.u_nodes, self.field_level, self.gravity_level = before
                         return "unstable", iterations, increments, norm, s, "", load, lam, mode
@@ -1861,6 +1901,14 @@ class StaticSolver:
         self.u_nodes, (self.field_level, self.gravity_level) = u0, start
         return False, iterations, increments, norm, message or "the equilibrium stayed unstable after the largest imperfection"
 
+    def start_from(self, other: "StaticSolver", u_nodes: np.ndarray | None = None) -> None:
+        """Start the next solve from ``u_nodes`` (default: the equilibrium of ``other``) with the colliders' contact
+        state (active set, anchors) of ``other``, a solver of the same simulation (static.soft_penalty's
+        predictor)."""
+        self.u_nodes = self.hold(np.array(other.u_nodes if u_nodes is None else u_nodes, dtype=np.float64, copy=True))
+        if self.contact is not None and other.contact is not None:
+            self.contact.adopt(other.contact)
+
     def move_to(self, t: float) -> None:
         """Continue to the loads at time ``t`` (s): the next :meth:`solve_level` moves the fields and the colliders
         along their paths from where they stand to ``t`` with its load increments, from the last equilibrium (a
@@ -1885,6 +1933,7 @@ class StaticSolver:
 
     def _solve_level(self, level: float, gravity_level: float = 1.0) -> LevelResult:
         t0 = time.perf_counter()
+        self._checked = None
         target = (float(level), float(gravity_level))
         before = (self.u_nodes.copy(), self.field_level, self.gravity_level)
         # the force scale of the tolerance: the out-of-balance force of the undeformed body under the target load,
@@ -1937,7 +1986,13 @@ class StaticSolver:
                 return LevelResult(level, False, iterations, increments, norm, norm / scale, time.perf_counter() - t0,
                                    f"unstable equilibrium at field level {load[0]:.4g} (lowest stiffness {lam:.3g} N/m); the "
                                    f"switch to a stable branch did not converge: {message}", lam, True)
-        lam, _ = self.lowest_mode()
+        if not self.check_stability:
+            lam = None
+        elif self._checked is not None and self._checked[0] is self.u_nodes:
+            lam = self._checked[1]  # checked at the last increment (its last Newton tangent), not again
+        else:
+            lam, _ = self.lowest_mode()
+        self._checked = None
         r = self._reduce(self._scatter(self.u_nodes, *target))
         norm = float(np.abs(r).max()) if r.size else 0.0
         crossing = self.wall_crossing(self.u_nodes)

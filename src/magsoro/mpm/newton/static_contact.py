@@ -498,6 +498,18 @@ class ColliderPenalty:
         self._held_accepted = [h.copy() for h in self.held]
 
 
+    def adopt(self, other: "ColliderPenalty") -> None:
+        """Take the contact state of ``other``, the same colliders' penalty in another solver of the same scene
+        (static.soft_penalty's predictor): its active set, anchors, sticking points and accepted positions; this
+        part's penalty stays its own."""
+        self.held = [h.copy() for h in other.held]
+        self._held_accepted = [h.copy() for h in other._held_accepted]
+        self.anchor = [{k: np.array(v, copy=True) for k, v in a.items()} for a in other.anchor]
+        self.sticking = [dict(s) for s in other.sticking]
+        self.touching = [t.copy() for t in other.touching]
+        self._last_x = other._last_x.copy()
+
+
 class Contacts:
     """Several :class:`ColliderPenalty` sets (the scene's colliders at the particles, the modelled domain walls at
     the nodes) seen by the static solver as one: forces and tangents add, the active sets move together."""
@@ -548,3 +560,10 @@ class Contacts:
     def accept(self, u_nodes) -> None:
         for p in self.parts:
             p.accept(u_nodes)
+
+    def adopt(self, other: "Contacts") -> None:
+        """The colliders' contact state of ``other`` (another solver of the same scene; :meth:`ColliderPenalty.adopt`);
+        the contacts between bodies keep their own."""
+        for p, q in zip(self.parts, other.parts):
+            if isinstance(p, ColliderPenalty) and isinstance(q, ColliderPenalty):
+                p.adopt(q)
