@@ -573,9 +573,8 @@ class Simulation:
                 pre = predictor.solve_level(level)
                 if pre.converged and k > 0:
                     # from the second level on (the first starts from the reference, where the predictor's state
-                    # only adds its deeper sinking into the colliders); measured on the hexahedron's 9 mT level,
-                    # its state served better than the last equilibrium moved by its step (7 against 13 Newton
-                    # iterations; benchmarks/README.md)
+                    # only adds its deeper sinking into the colliders); the variants measured on the hexahedron
+                    # are in benchmarks/README.md, "Penalty continuation"
                     guess = predictor.u_nodes.copy()
                     solver.start_from(predictor)
                 elif not pre.converged:  # the chain goes on from its last equilibrium; the level from the solver's
