@@ -4,13 +4,14 @@ positions that give each field level at the robot's centre, one equilibrium per 
 
     python benchmarks/fold_static.py [--robot pentahedron|hexahedron] [--levels 0 9 18 27 36 45]
                                      [--mode path|scale] [--dx DX] [--linear-solver auto|direct|iterative]
-                                     [--preview]
+                                     [--preview] [--soft-penalty F]
 
 The scene is the robot's file (float64, the domain's floor lowered as for the triangle's static sweep,
 magsoro.robots.triangle.static_magnet_sweep; ``--dx`` replaces its grid spacing). ``--mode path``: the magnet
 moves along the path through the levels' positions ([static] times; the first level from the flat robot, which
 settles on the plate under gravity there). ``--mode scale``: the magnet stays at the highest level's position and
-its field is scaled to each level in turn ([static] levels; gravity settles the robot first). Records per level: Newton iterations, load increments, linear solves and Krylov
+its field is scaled to each level in turn ([static] levels; gravity settles the robot first). ``--soft-penalty F`` sets static.soft_penalty (the predictor's Newton iterations and linear solves are
+recorded too). Records per level: Newton iterations, load increments, linear solves and Krylov
 iterations, the level's wall time, the mean fold angle of the side squares (deg) and the particles' largest
 displacement; and the sweep's wall time. Writes
 benchmarks/results/<date>-cpu-<commit>-fold-static-<robot>.json with the machine and the commit.
