@@ -153,6 +153,22 @@ def make_types(dim: int, scalar) -> SimpleNamespace:
 
 
 @functools.cache
+@functools.cache
+def _make_stimulus_row(dim: int, scalar):
+    """The row of particle ``p`` in the Bodies' stimulus table, -1 without a stimulus (shared by the plane and
+    axisymmetric forms of :func:`make_body_elastic`)."""
+    Bodies = make_types(dim, scalar).Bodies
+
+    @wp.func
+    def stimulus_row(b: Bodies, p: int):
+        row = int(-1)
+        if b.n_stimuli > 0:
+            row = b.stimulus[p]
+        return row
+
+    return stimulus_row
+
+
 def make_body_elastic(dim: int, scalar, plane: str = "strain") -> SimpleNamespace:
     """The elastic stress and energy of a particle of the model, the one place where a particle's law, moduli and
     stimulus eigenstrain (:mod:`magsoro.mpm.laws.eigenstrain`) meet; every kernel that needs a particle's elastic
@@ -181,12 +197,7 @@ def make_body_elastic(dim: int, scalar, plane: str = "strain") -> SimpleNamespac
     else:
         raise ValueError(f"plane must be 'strain', 'stress' or 'axisymmetric', got {plane!r}")
 
-    @wp.func
-    def stimulus_row(b: Bodies, p: int):
-        row = int(-1)
-        if b.n_stimuli > 0:
-            row = b.stimulus[p]
-        return row
+    stimulus_row = _make_stimulus_row(dim, scalar)
 
     @wp.func
     def body_elastic_stress(F: mat, b: Bodies, p: int):
@@ -237,16 +248,11 @@ def _make_body_elastic_axisymmetric(dim: int, scalar) -> SimpleNamespace:
         z = scalar(0.0)
         return m3(F[0, 0], F[0, 1], z, F[1, 0], F[1, 1], z, z, z, hoop)
 
-    @wp.func
-    def stimulus_row3(b: Bodies, p: int):
-        row = int(-1)
-        if b.n_stimuli > 0:
-            row = b.stimulus[p]
-        return row
+    stimulus_row = _make_stimulus_row(dim, scalar)
 
     @wp.func
     def body_elastic_stress3(F: mat, hoop: scalar, b: Bodies, p: int):
-        row = stimulus_row3(b, p)
+        row = stimulus_row(b, p)
         F3 = ring(F, hoop)
         if row >= 0:
             inv = ring(b.stretch_inv[row], b.stretch_hoop_inv[row])
@@ -256,7 +262,7 @@ def _make_body_elastic_axisymmetric(dim: int, scalar) -> SimpleNamespace:
 
     @wp.func
     def body_elastic_energy3(F: mat, hoop: scalar, b: Bodies, p: int):
-        row = stimulus_row3(b, p)
+        row = stimulus_row(b, p)
         F3 = ring(F, hoop)
         if row >= 0:
             inv = ring(b.stretch_inv[row], b.stretch_hoop_inv[row])
