@@ -555,7 +555,7 @@ class Simulation:
         if cfg.soft_penalty is not None and solver.contact is not None:
             predictor = StaticSolver(self, t, tolerance=cfg.tolerance, max_iterations=cfg.max_iterations,
                                      penalty_scale=cfg.soft_penalty, check_stability=False)
-            self._static_guess(predictor)
+            predictor.u_nodes = solver.u_nodes.copy()  # the same unknowns: the solver's start, not fitted again
         self.state.time = t
         if watch is not None:
             watch(solver)
@@ -566,7 +566,7 @@ class Simulation:
             if times is not None:
                 solver.move_to(times[k])
                 self.state.time = times[k]
-            guess, prev = None, (solver.u_nodes.copy(), solver.field_level, solver.gravity_level)
+            prev = None  # the last equilibrium, while the level starts from the predictor's
             if predictor is not None:
                 if times is not None:
                     predictor.move_to(times[k])
@@ -575,7 +575,7 @@ class Simulation:
                     # from the second level on (the first starts from the reference, where the predictor's state
                     # only adds its deeper sinking into the colliders); the variants measured on the hexahedron
                     # are in benchmarks/README.md, "Penalty continuation"
-                    guess = predictor.u_nodes.copy()
+                    prev = (solver.u_nodes.copy(), solver.field_level, solver.gravity_level)
                     solver.start_from(predictor)
                 elif not pre.converged:  # the chain goes on from its last equilibrium; the level from the solver's
                     self._note(f"static.soft_penalty: the predictor did not converge at {'time' if times is not None else 'level'} "
@@ -584,7 +584,7 @@ class Simulation:
             if predictor is not None:
                 res.predictor_iterations, res.predictor_linear_solves = pre.iterations, pre.linear_solves
                 res.predictor_converged = pre.converged
-                if not res.converged and guess is not None:  # the state stays the last equilibrium, not the guess
+                if not res.converged and prev is not None:  # the state stays the last equilibrium, not the start
                     solver.u_nodes, solver.field_level, solver.gravity_level = prev
             res.time = self.state.time
             out.levels.append(res)

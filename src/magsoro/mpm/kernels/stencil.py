@@ -153,7 +153,6 @@ def make_types(dim: int, scalar) -> SimpleNamespace:
 
 
 @functools.cache
-@functools.cache
 def _make_stimulus_row(dim: int, scalar):
     """The row of particle ``p`` in the Bodies' stimulus table, -1 without a stimulus (shared by the plane and
     axisymmetric forms of :func:`make_body_elastic`)."""
@@ -169,6 +168,7 @@ def _make_stimulus_row(dim: int, scalar):
     return stimulus_row
 
 
+@functools.cache
 def make_body_elastic(dim: int, scalar, plane: str = "strain") -> SimpleNamespace:
     """The elastic stress and energy of a particle of the model, the one place where a particle's law, moduli and
     stimulus eigenstrain (:mod:`magsoro.mpm.laws.eigenstrain`) meet; every kernel that needs a particle's elastic

@@ -1901,11 +1901,10 @@ class StaticSolver:
         self.u_nodes, (self.field_level, self.gravity_level) = u0, start
         return False, iterations, increments, norm, message or "the equilibrium stayed unstable after the largest imperfection"
 
-    def start_from(self, other: "StaticSolver", u_nodes: np.ndarray | None = None) -> None:
-        """Start the next solve from ``u_nodes`` (default: the equilibrium of ``other``) with the colliders' contact
-        state (active set, anchors) of ``other``, a solver of the same simulation (static.soft_penalty's
-        predictor)."""
-        self.u_nodes = self.hold(np.array(other.u_nodes if u_nodes is None else u_nodes, dtype=np.float64, copy=True))
+    def start_from(self, other: "StaticSolver") -> None:
+        """Start the next solve from the equilibrium of ``other``, a solver of the same simulation (static.soft_penalty's
+        predictor), with its colliders' contact state (active set, anchors)."""
+        self.u_nodes = self.hold(other.u_nodes.copy())
         if self.contact is not None and other.contact is not None:
             self.contact.adopt(other.contact)
 

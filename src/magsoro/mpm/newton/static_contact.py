@@ -497,7 +497,6 @@ class ColliderPenalty:
         self._last_x = xt
         self._held_accepted = [h.copy() for h in self.held]
 
-
     def adopt(self, other: "ColliderPenalty") -> None:
         """Take the contact state of ``other``, the same colliders' penalty in another solver of the same scene
         (static.soft_penalty's predictor): its active set, anchors, sticking points and accepted positions; this
