@@ -14,7 +14,8 @@ its field is scaled to each level in turn ([static] levels; gravity settles the 
 recorded too). Records per level: Newton iterations, load increments, linear solves and Krylov
 iterations, the level's wall time, the mean fold angle of the side squares (deg) and the particles' largest
 displacement; and the sweep's wall time. Writes
-benchmarks/results/<date>-cpu-<commit>-fold-static-<robot>.json with the machine and the commit.
+benchmarks/results/<date>-cpu-<commit>-fold-static-<robot>-<mode>.json with the machine and the commit, after
+every level ("complete": false until the sweep has ended, so a stopped run keeps the levels it finished).
 """
 
 import argparse
@@ -92,6 +93,23 @@ def main(argv=None) -> int:
 
     rows, ref = [], {}
     log = []
+    prov = provenance()
+    name = (f"{prov['date'][:10]}-cpu-{prov['commit']}-fold-static-{args.robot}-{args.mode}"
+            f"{'-preview' if args.preview else ''}{'-soft' if args.soft_penalty else ''}.json")
+    path = ROOT / "benchmarks" / "results" / name
+    t0 = time.perf_counter()
+
+    def write(sim, complete):
+        """The result file, rewritten after every level: ``complete`` False until the sweep has ended, so a run
+        stopped by hand or by a limit leaves the levels it finished, marked as such."""
+        out = {"benchmark": "fold_static", **prov, "robot": args.robot, "mode": args.mode,
+               "dx_m": float(sim.model.dx), "scene": f"scenes/{args.robot}.toml", "preview": args.preview,
+               "particles": int(sim.model.n_particles), "linear_solver": args.linear_solver,
+               "soft_penalty": args.soft_penalty, "levels_mT": args.levels, "complete": complete,
+               "sweep_wall_s": round(time.perf_counter() - t0, 1), "rows": rows}
+        tmp = path.with_suffix(".part")
+        tmp.write_text(json.dumps(out, indent=1) + "\n")
+        tmp.replace(path)
 
     def say(msg):
         log.append(msg)
@@ -121,23 +139,14 @@ def main(argv=None) -> int:
         clock["last"] = now
         rows.append(row)
         say(json.dumps(row))
+        write(sim, complete=False)
 
-    t0 = time.perf_counter()
     if args.mode == "path":
         sim, _ = static_magnet_sweep(ctx, args.robot, data, magnet, offsets, args.levels, [], on_read, on_start)
     else:
         sim = scale_sweep(args, data, magnet, offsets, on_read, on_start)
-    wall = time.perf_counter() - t0
-    prov = provenance()
-    out = {"benchmark": "fold_static", **prov, "robot": args.robot, "mode": args.mode, "dx_m": float(sim.model.dx), "scene": f"scenes/{args.robot}.toml",
-           "preview": args.preview, "particles": int(sim.model.n_particles), "linear_solver": args.linear_solver,
-           "soft_penalty": args.soft_penalty,
-           "levels_mT": args.levels, "sweep_wall_s": round(wall, 1), "rows": rows}
-    name = (f"{prov['date'][:10]}-cpu-{prov['commit']}-fold-static-{args.robot}-{args.mode}"
-            f"{'-preview' if args.preview else ''}{'-soft' if args.soft_penalty else ''}.json")
-    path = ROOT / "benchmarks" / "results" / name
-    path.write_text(json.dumps(out, indent=1) + "\n")
-    print(f"{args.robot}: sweep {wall:.0f} s; wrote {path}")
+    write(sim, complete=True)
+    print(f"{args.robot}: sweep {time.perf_counter() - t0:.0f} s; wrote {path}")
     return 0
 
 

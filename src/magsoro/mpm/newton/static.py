@@ -44,6 +44,7 @@ negative one nearest zero, which an increment that went well past a bifurcation 
 """
 
 import functools
+import logging
 import math
 import time
 from dataclasses import dataclass, field
@@ -62,6 +63,9 @@ from magsoro.mpm.settings import NodeClass
 from magsoro.mpm.runtime import block_struct, bodies_array, contact_grid
 from magsoro.mpm.kernels.stencil import host_bspline, make_body_elastic, make_stencil
 from magsoro.mpm.laws.viscous import viscous_struct
+
+#: per Newton iteration: |R|, the step taken, the contacts' set (logging.DEBUG)
+log = logging.getLogger("magsoro.static")
 
 # No kernel here runs under wp.Tape (only magsoro.diff's rollout does): Warp need not build their adjoints.
 wp.set_module_options({"enable_backward": False})
@@ -1307,6 +1311,7 @@ class StaticSolver:
                 if self.contact is None or not self.contact.release():
                     return u_nodes, True, it, norm, ""
                 # nodes that pull left the colliders' active set: solve again without them
+                log.debug("newton %d: converged, pulling points released: contacts %d", it, self.contact.count())
                 peeling = PEEL
                 forcing = (None, None)
                 r_full = self._scatter(u_nodes, field_level, gravity_level)
@@ -1352,6 +1357,7 @@ class StaticSolver:
             biggest = float(np.abs(step).max()) if step.size else 0.0
             longest = ROUND_STEP if settled else MAX_STEP
             alpha = min(1.0, longest * self.model.dx / biggest) if biggest > 0.0 else 1.0
+            capped = alpha < 1.0  # the trust region cut the step: it moves a node `longest` cells, whatever |R| does
             if self.contact is not None:
                 alpha = min(alpha, self.contact.step_limit(u_nodes, alpha * step) * alpha)
             first = alpha
@@ -1373,6 +1379,10 @@ class StaticSolver:
                     if math.isfinite(n_try) and (n_try < GROWTH * best or changed):
                         u_nodes, r_full, r, norm = trial, r_try_full, r_try, n_try
                         best = norm if changed else min(best, norm)  # new contacts: a new problem, a new reference
+                        if capped and alpha == first:
+                            # a full trust-region step is progress though |R| may rise (a wall folding a long way
+                            # in 2-cell steps, each followed by a short correction): the stall check starts again
+                            bests = []
                         if self.contact is not None:
                             self.contact.commit()
                             if peeling and self.contact.release():
@@ -1382,6 +1392,11 @@ class StaticSolver:
                                 r = self._reduce(r_full)
                                 norm = best = float(np.abs(r).max())
                                 bests = []
+                        if log.isEnabledFor(logging.DEBUG):
+                            log.debug("newton %d: |R| %.3e, step %.3g of %.3g cells (first %.3g)%s%s", it + 1, norm,
+                                      alpha, biggest / self.model.dx, first,
+                                      ", rounds changed the set" if settled else "",
+                                      f", contacts {self.contact.count()}" if self.contact is not None else "")
                         break
                 alpha *= 0.5
             else:
@@ -1727,6 +1742,7 @@ class StaticSolver:
             s_try = s + ds
             load = tuple(a + s_try * (b - a) for a, b in zip(start, target))
             self._load_times(times0, s_try)
+            log.debug("increment to %.4g of the level (ds %.3g)", s_try, ds)
             u_new, ok, its, norm, message = self._newton(u.copy(), load[0], load[1], scale)
             iterations += its
             if not ok and self.contact is None and self.dim == 3:

@@ -552,6 +552,10 @@ class Contacts:
     def signature(self) -> tuple:
         return tuple(s for p in self.parts for s in p.signature())
 
+    def count(self) -> int:
+        """How many points the parts' active sets hold."""
+        return sum(sum(len(h) for h in getattr(p, "held", [])) for p in self.parts)
+
     def round_state(self) -> tuple:
         """The parts' active sets in the current rounds of :meth:`revise` (hashable)."""
         return tuple(p.round_state() for p in self.parts)
