@@ -635,6 +635,7 @@ class StaticSolver:
             for part in self.contact.parts:
                 if isinstance(part, ColliderPenalty):
                     part.k = part.k * self.penalty_scale
+                    part.step_depth = part.step_depth / self.penalty_scale
         if model.clamp_paths:  # so do the moving clamps, from where they stand at the start
             self._set_collider_time(0.0)
         self._check_held()
