@@ -560,7 +560,10 @@ class Contacts:
 
     def count(self) -> int:
         """How many points the parts' active sets hold."""
-        return sum(sum(len(h) for h in getattr(p, "held", [])) for p in self.parts)
+        def size(held):  # a collider part's is a list per collider, the body contact's one array
+            return len(held) if isinstance(held, np.ndarray) else sum(len(h) for h in held)
+
+        return sum(size(getattr(p, "held", [])) for p in self.parts)
 
     def round_state(self) -> tuple:
         """The parts' active sets in the current rounds of :meth:`revise` (hashable)."""
