@@ -86,6 +86,20 @@ def test_static_prints_each_level_then_the_summary(tmp_path):
     assert lines[-1].startswith("equilibrium: converged at every level (2)")
 
 
+def test_verbose_shows_each_newton_iteration(tmp_path):
+    """-v: each load increment's Newton iterations on stderr, one line each with |R| and the step (no colliders
+    here: no contact counts); as many lines per increment as the level's summary line counts iterations."""
+    run = _magsoro("run", _static_scene(tmp_path), "--static", "-v", "--out", tmp_path / "s")
+    assert run.returncode == 0, run.stderr[-2000:]
+    blocks = [b.splitlines()[1:] for b in run.stderr.split("increment to ")[1:]]
+    newton = [[ln.strip() for ln in b if ln.strip().startswith("newton ")] for b in blocks]
+    assert len(newton) == 2 and all(newton)
+    assert all("|R| " in ln and " cells" in ln and "contacts" not in ln for b in newton for ln in b)
+    counts = [int(ln.split(" Newton iteration")[0].split()[-1]) for ln in run.stdout.splitlines()
+              if ln.startswith("level ")]
+    assert [len(b) for b in newton] == counts
+
+
 def test_report_of_a_static_run_plots_the_levels(tmp_path):
     from magsoro.viz.report import run_content
 

@@ -43,13 +43,26 @@ def register(sub):
                    help="print nothing when the run succeeds: no progress, notes (run.json keeps them) or summary; "
                         "errors and failures still go to stderr")
     p.add_argument("-v", "--verbose", action="store_true",
-                   help="also show Warp's start-up banner, its devices and its kernel compile and load lines "
-                        "(hidden by default)")
+                   help="also show each Newton iteration of the static solver and the implicit integrator (|R|, the "
+                        "step in cells, the contacts held) and Warp's start-up banner, its devices and its kernel "
+                        "compile and load lines (hidden by default)")
     p.add_argument("--allow-large", action="store_true",
                    help="run even when the scene is estimated to need more than 90 %% of the available memory, or more "
                         "than 1e8 time steps (without it such a run is refused before it starts, naming the key that "
                         "causes it)")
     p.set_defaults(func=run)
+
+
+def _show_newton_iterations() -> None:
+    """--verbose: the Newton solvers' per-iteration lines (the 'magsoro.static' logger, DEBUG) on stderr."""
+    import logging
+
+    log = logging.getLogger("magsoro.static")
+    handler = logging.StreamHandler(sys.stderr)
+    handler.setFormatter(logging.Formatter("  %(message)s"))
+    log.addHandler(handler)
+    log.setLevel(logging.DEBUG)
+    log.propagate = False
 
 
 def run(args) -> int:
@@ -63,6 +76,8 @@ def run(args) -> int:
     from magsoro.console import configure_warp
 
     configure_warp(verbose=getattr(args, "verbose", False))  # before Warp starts: its banner and load lines
+    if getattr(args, "verbose", False):
+        _show_newton_iterations()
     if args.device is not None and not (args.device == "cpu" or args.device.startswith("cuda")):
         raise SceneError(f"--device: '{args.device}' is not allowed; use cpu, cuda or cuda:N")
     if args.duration is not None and not (args.duration > 0 and math.isfinite(args.duration)):

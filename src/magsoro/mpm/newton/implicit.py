@@ -36,6 +36,7 @@ is retried at half the step; steps grow after easy ones (:class:`magsoro.simulat
 size from the ``[implicit]`` table).
 """
 
+import logging
 import math
 from dataclasses import dataclass
 
@@ -43,7 +44,7 @@ import numpy as np
 import warp as wp
 
 from magsoro.errors import SimulationError
-from magsoro.mpm.newton.static import StaticSolver, check_supported
+from magsoro.mpm.newton.static import StaticSolver, check_supported, log
 
 #: the step's force scale is never below the force of this strain over one cell face of the stiffest material
 #: ((K + 4G/3) dx^(dim-1), 2D times the depth): with the default tolerance 1e-6 Newton then resolves the node forces of
@@ -563,6 +564,10 @@ class ImplicitIntegrator(StaticSolver):
             best = min(best, norm)
             if contact is not None:
                 contact.commit()
+            if log.isEnabledFor(logging.DEBUG):
+                log.debug("newton %d: |R| %.3e, step %.3g of %.3g cells, %s tangent%s", it, norm, alpha,
+                          biggest / self.model.dx, "new" if fresh else "kept",
+                          f", contacts {contact.count()}" if contact is not None else "")
             if slow:
                 self._kept = None  # Newton's own rate is lost: the next iteration makes the tangent anew
             fresh = False
