@@ -2,13 +2,15 @@
 rigid plate it ships with (a friction collider), timed in one run.
 
     python benchmarks/contact_static_cross.py [--plate-modulus 6.67e5] [--plate-thickness 0.002] [--max-iterations 40]
+                                              [--soft-penalty F]
 
 scenes/cross.toml lies on a friction half-space (mu 0.5), the plate of seed 002 sec 4.1. Here the plate is also
 drawn as an elastic body under the robot (its bottom face clamped, its top where the half-space was, the same
 friction 0.5 through `[contact]`; the cross's five parts bonded into one piece by `[[contact.pairs]]`), so the
 static solver carries its unknowns and the body contact between the two. Both solve the equilibria at the
 magnet's holds (-5 to -45 mT at the centre), each from the last. Reported: wall times, their ratio, Newton
-iterations, and the centre's rise and the arm tip's height at each hold in both.
+iterations, and the centre's rise and the arm tip's height at each hold in both. ``--soft-penalty F`` sets
+static.soft_penalty in both (the predictor scales the collider's and the bodies' contact penalty).
 
 Writes benchmarks/results/<date>-cpu-<commit>-contact-static-cross.json with the machine and the commit.
 """
@@ -55,11 +57,13 @@ def run(plate: bool, args) -> dict:
 
     sc = scene(plate, args.plate_modulus, args.plate_thickness)
     sc.static.max_iterations = args.max_iterations
+    sc.static.soft_penalty = args.soft_penalty
     sim = Simulation(sc)
     rows = []
     t0 = time.perf_counter()
     def hold(s, r):
         rows.append({"time": r.time, "iterations": r.iterations, "increments": r.increments,
+                     "predictor_iterations": r.predictor_iterations,
                      "centre_z_mm": 1e3 * s.probe_values()["centre_z"], "tip_z_mm": 1e3 * s.probe_values()["tip_px_z"],
                      "wall_s": round(r.wall_time, 2)})
         print(rows[-1], flush=True)
@@ -76,16 +80,17 @@ def main(argv=None) -> int:
     p.add_argument("--plate-modulus", type=float, default=6.67e5, help="the elastic plate's shear modulus, Pa (default 10 x the robot's)")
     p.add_argument("--plate-thickness", type=float, default=0.002, help="the elastic plate's thickness, m")
     p.add_argument("--max-iterations", type=int, default=40, help="static.max_iterations for both (a peeling level may need more)")
+    p.add_argument("--soft-penalty", type=float, default=None, help="static.soft_penalty for both (default: off)")
     args = p.parse_args(argv)
     collider = run(False, args)
     print(f"collider: {collider['wall_s']} s, {collider['newton_iterations']} Newton iterations", flush=True)
     body = run(True, args)
     print(f"elastic plate: {body['wall_s']} s, {body['newton_iterations']} Newton iterations", flush=True)
     result = {"benchmark": "contact_static_cross", **provenance(), "scene": "scenes/cross.toml",
-              "max_iterations": args.max_iterations,
+              "max_iterations": args.max_iterations, "soft_penalty": args.soft_penalty,
               "plate_shear_modulus_pa": args.plate_modulus, "plate_thickness_m": args.plate_thickness,
               "ratio": round(body["wall_s"] / collider["wall_s"], 2), "collider": collider, "elastic_plate": body}
-    name = f"{result['date'][:10]}-cpu-{result['commit']}-contact-static-cross.json"
+    name = f"{result['date'][:10]}-cpu-{result['commit']}-contact-static-cross{'-soft' if args.soft_penalty else ''}.json"
     out = ROOT / "benchmarks" / "results" / name
     out.write_text(json.dumps(result, indent=1))
     print(f"ratio {result['ratio']}x; {out}")

@@ -241,6 +241,42 @@ def _peel_on_slab_scene(dx: float) -> dict:
             "output": {"particles": False}}
 
 
+def test_soft_penalty_predictor_softens_the_contact_between_bodies(monkeypatch):
+    """static.soft_penalty scales the body contact's penalty too, and the level adopts its set, patches and slips:
+    the strip peeling off the stiff slab at two field levels ends where the plain sweep does: the end's rise to 1e-5
+    of it (measured 3.6e-6, 0.7 nm: the two paths leave the sticking contacts at different elastic slips, each
+    within the friction law's 5e-3 cells, 2.5 um here; the colliders' version of this test agrees to 1e-6). The
+    predictor's contact is the softer one: its body-contact springs are 1e-4 of the level's."""
+    from magsoro.mpm.newton.static import StaticSolver
+
+    made = []
+    init = StaticSolver.__init__
+
+    def spy(self, *args, **kwargs):
+        init(self, *args, **kwargs)
+        made.append(self)
+
+    monkeypatch.setattr(StaticSolver, "__init__", spy)
+    lifts, results = [], []
+    for soft in (None, 1e-4):
+        data = _peel_on_slab_scene(5e-4)
+        if soft is not None:
+            data["static"] = {"soft_penalty": soft}
+        sim = Simulation(parse_scene(data))
+        res = sim.solve_static(levels=[0.5, 1.0])
+        assert res.converged, res.message
+        X0, body = sim.model.host["positions"], sim.model.host["body"]
+        end = (body == 0) & (X0[:, 0] > X0[body == 0, 0].max() - 1e-9)
+        lifts.append(float((sim.state.x.numpy()[end, 1] - X0[end, 1]).mean()))
+        results.append(res)
+    assert lifts[1] == pytest.approx(lifts[0], rel=1e-5)
+    assert all(lv.predictor_converged and lv.predictor_iterations > 0 for lv in results[1].levels)
+    solver, predictor = made[-2:]
+    assert predictor.penalty_scale == 1e-4 and solver.penalty_scale == 1.0
+    assert np.allclose(predictor.body_contact.k, 1e-4 * solver.body_contact.k, rtol=1e-12)
+    assert predictor.body_contact.step_depth == pytest.approx(1e4 * solver.body_contact.step_depth)
+
+
 @pytest.mark.parametrize("dx", [5e-4, 2.5e-4])
 def test_strip_peels_off_a_stiff_body_as_off_a_collider(dx, monkeypatch):
     """Free separation between bodies: the strip lifts off the stiff slab as it does off a rigid floor. Its end

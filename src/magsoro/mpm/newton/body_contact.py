@@ -149,6 +149,8 @@ class BodyContact:
         self.slip = SLIP_CELLS * self.dx
         self.touch = TOUCH_CELLS * self.dx
         self.skin = SKIN_CELLS * self.dx
+        #: a step's cut: no contact deeper than this (cells); scaled by 1/f with the penalty (static.soft_penalty)
+        self.step_depth = STEP_DEPTH
         self.P = static.interpolation()
         self._x_last = self.X.copy()
         #: per contact key, how far it starts inside the other body's plane (m, <= 0; the colliders' rule: a
@@ -524,13 +526,13 @@ class BodyContact:
         return df, dJ
 
     def step_limit(self, u_nodes: np.ndarray, step: np.ndarray) -> float:
-        """The largest fraction (<= 1) of ``step`` after which no contact is deeper than STEP_DEPTH cells (or than
-        the deepest one at ``u_nodes``, if that is deeper)."""
+        """The largest fraction (<= 1) of ``step`` after which no contact is deeper than :attr:`step_depth` cells (or
+        than the deepest one at ``u_nodes``, if that is deeper)."""
         def depth(alpha):
             cs = self._contacts(u_nodes + alpha * step, record=False)
             return 0.0 if cs is None else float(np.max(-cs["gap"][cs["cover"] > 0.0], initial=0.0))
 
-        return step_fraction(depth, max(STEP_DEPTH * self.dx, 1.01 * depth(0.0)), rounds=10)
+        return step_fraction(depth, max(self.step_depth * self.dx, 1.01 * depth(0.0)), rounds=10)
 
     def round_state(self):
         """The active set of the current :meth:`revise` rounds (hashable; None before the first round)."""
@@ -578,6 +580,24 @@ class BodyContact:
         self.patches = kept
         cs = self._contacts(u_nodes, self.held, record=True)
         self._patches_accepted = self.patches
+
+    def adopt(self, other: "BodyContact") -> None:
+        """Take the contact state of ``other``, the same scene's body contact in another solver (static.soft_penalty's
+        predictor): its active set, patches, friction slips and lagged normal forces, and accepted positions; this
+        part's penalty stays its own."""
+        def patches(p):
+            return None if p is None else {k: (v.copy() if isinstance(v, np.ndarray) else v) for k, v in p.items()}
+
+        self.held = other.held.copy()
+        self._held_accepted = other._held_accepted.copy()
+        self.touching = other.touching.copy()
+        self.patches, self._patches_accepted = patches(other.patches), patches(other._patches_accepted)
+        self._lever0 = {k: np.array(v, copy=True) for k, v in other._lever0.items()}
+        self.elastic = {k: np.array(v, copy=True) for k, v in other.elastic.items()}
+        self._fn_lag = dict(other._fn_lag)
+        self._x_last = other._x_last.copy()
+        self._last = None
+        self._revision = None
 
     def last_contacts(self) -> dict | None:
         """The contacts of the last :meth:`forces` evaluation (keys, slave particles, gaps, normals, ...), or None."""

@@ -630,12 +630,9 @@ class StaticSolver:
             self.body_contact = BodyContact(self, st.contact.friction, st.contact.self_contact, st.depth)
             self.contact = Contacts(([] if self.contact is None else self.contact.parts) + [self.body_contact])
         if self.contact is not None and self.penalty_scale != 1.0:
-            from magsoro.mpm.newton.static_contact import ColliderPenalty
-
-            for part in self.contact.parts:
-                if isinstance(part, ColliderPenalty):
-                    part.k = part.k * self.penalty_scale
-                    part.step_depth = part.step_depth / self.penalty_scale
+            for part in self.contact.parts:  # the colliders' and the bodies' penalties, and their step cuts
+                part.k = part.k * self.penalty_scale
+                part.step_depth = part.step_depth / self.penalty_scale
         if model.clamp_paths:  # so do the moving clamps, from where they stand at the start
             self._set_collider_time(0.0)
         self._check_held()

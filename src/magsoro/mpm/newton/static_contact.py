@@ -574,8 +574,8 @@ class Contacts:
             p.accept(u_nodes)
 
     def adopt(self, other: "Contacts") -> None:
-        """The colliders' contact state of ``other`` (another solver of the same scene; :meth:`ColliderPenalty.adopt`);
-        the contacts between bodies keep their own."""
+        """The contact state of ``other``, another solver of the same scene: each part's from its counterpart
+        (:meth:`ColliderPenalty.adopt`, :meth:`BodyContact.adopt <magsoro.mpm.newton.body_contact.BodyContact.adopt>`)."""
         for p, q in zip(self.parts, other.parts):
-            if isinstance(p, ColliderPenalty) and isinstance(q, ColliderPenalty):
+            if type(p) is type(q):
                 p.adopt(q)
