@@ -582,9 +582,11 @@ class BodyContact:
         self._patches_accepted = self.patches
 
     def adopt(self, other: "BodyContact") -> None:
-        """Take the contact state of ``other``, the same scene's body contact in another solver (static.soft_penalty's
-        predictor): its active set, patches, friction slips and lagged normal forces, and accepted positions; this
-        part's penalty stays its own."""
+        """Take the active set of ``other``, the same scene's body contact in another solver (static.soft_penalty's
+        predictor), with the patches its contacts use. The friction state (elastic slips, lagged normal forces,
+        the accepted positions) stays this part's own, so friction follows this solver's path of equilibria
+        (:meth:`ColliderPenalty.adopt <magsoro.mpm.newton.static_contact.ColliderPenalty.adopt>`); so does the
+        penalty."""
         def patches(p):
             return None if p is None else {k: (v.copy() if isinstance(v, np.ndarray) else v) for k, v in p.items()}
 
@@ -593,9 +595,6 @@ class BodyContact:
         self.touching = other.touching.copy()
         self.patches, self._patches_accepted = patches(other.patches), patches(other._patches_accepted)
         self._lever0 = {k: np.array(v, copy=True) for k, v in other._lever0.items()}
-        self.elastic = {k: np.array(v, copy=True) for k, v in other.elastic.items()}
-        self._fn_lag = dict(other._fn_lag)
-        self._x_last = other._x_last.copy()
         self._last = None
         self._revision = None
 

@@ -504,15 +504,15 @@ class ColliderPenalty:
         self._held_accepted = [h.copy() for h in self.held]
 
     def adopt(self, other: "ColliderPenalty") -> None:
-        """Take the contact state of ``other``, the same colliders' penalty in another solver of the same scene
-        (static.soft_penalty's predictor): its active set, anchors, sticking points and accepted positions; this
-        part's penalty stays its own."""
+        """Take the active set of ``other``, the same colliders' penalty in another solver of the same scene
+        (static.soft_penalty's predictor). The friction state (anchors, sticking points, the accepted positions new
+        contacts anchor under) stays this part's own, so friction follows this solver's path of equilibria, as
+        without the predictor: the predictor's soft floor lets points sink and slide where the full penalty
+        would not, and its anchors moved the cross's arch 1.5 % at 1e-4 of the penalty (benchmarks/README.md,
+        "Penalty continuation"). The penalty stays this part's own too."""
         self.held = [h.copy() for h in other.held]
         self._held_accepted = [h.copy() for h in other._held_accepted]
-        self.anchor = [{k: np.array(v, copy=True) for k, v in a.items()} for a in other.anchor]
-        self.sticking = [dict(s) for s in other.sticking]
         self.touching = [t.copy() for t in other.touching]
-        self._last_x = other._last_x.copy()
 
 
 class Contacts:
