@@ -242,11 +242,11 @@ def _peel_on_slab_scene(dx: float) -> dict:
 
 
 def test_soft_penalty_predictor_softens_the_contact_between_bodies(monkeypatch):
-    """static.soft_penalty scales the body contact's penalty too, and the level adopts its set, patches and slips:
-    the strip peeling off the stiff slab at two field levels ends where the plain sweep does: the end's rise to 1e-5
-    of it (measured 3.6e-6, 0.7 nm: the two paths leave the sticking contacts at different elastic slips, each
-    within the friction law's 5e-3 cells, 2.5 um here; the colliders' version of this test agrees to 1e-6). The
-    predictor's contact is the softer one: its body-contact springs are 1e-4 of the level's."""
+    """static.soft_penalty scales the body contact's penalty too, and the level adopts its active set and patches
+    but keeps its own friction state: the strip peeling off the stiff slab at two field levels ends where the plain
+    sweep does, the end's rise to 1e-6 of it as for the colliders (measured 6e-12; 3.6e-6 while the level also took
+    the predictor's elastic slips). The predictor's contact is the softer one: its body-contact springs are 1e-4 of
+    the level's."""
     from magsoro.mpm.newton.static import StaticSolver
 
     made = []
@@ -269,7 +269,7 @@ def test_soft_penalty_predictor_softens_the_contact_between_bodies(monkeypatch):
         end = (body == 0) & (X0[:, 0] > X0[body == 0, 0].max() - 1e-9)
         lifts.append(float((sim.state.x.numpy()[end, 1] - X0[end, 1]).mean()))
         results.append(res)
-    assert lifts[1] == pytest.approx(lifts[0], rel=1e-5)
+    assert lifts[1] == pytest.approx(lifts[0], rel=1e-6)
     assert all(lv.predictor_converged and lv.predictor_iterations > 0 for lv in results[1].levels)
     solver, predictor = made[-2:]
     assert predictor.penalty_scale == 1e-4 and solver.penalty_scale == 1.0

@@ -532,13 +532,17 @@ class BodyContact:
             cs = self._contacts(u_nodes + alpha * step, record=False)
             return 0.0 if cs is None else float(np.max(-cs["gap"][cs["cover"] > 0.0], initial=0.0))
 
-        return step_fraction(depth, max(self.step_depth * self.dx, 1.01 * depth(0.0)), rounds=10)
+        return step_fraction(depth, self.step_depth * self.dx, rounds=10)
 
     def round_state(self):
         """The active set of the current :meth:`revise` rounds (hashable; None before the first round)."""
         if self._revision is None:
             return None
         return self._revision["current"].tobytes()
+
+    def count(self) -> int:
+        """How many contacts the active set holds."""
+        return len(self.held)
 
     def signature(self) -> tuple:
         """Which contacts the last evaluation had (to tell a change of the set)."""

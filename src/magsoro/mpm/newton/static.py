@@ -1917,7 +1917,8 @@ class StaticSolver:
 
     def start_from(self, other: "StaticSolver") -> None:
         """Start the next solve from the equilibrium of ``other``, a solver of the same simulation (static.soft_penalty's
-        predictor), with its colliders' contact state (active set, anchors)."""
+        predictor), with its contacts' active set (:meth:`Contacts.adopt <magsoro.mpm.newton.static_contact.Contacts.adopt>`;
+        the friction state stays this solver's)."""
         self.u_nodes = self.hold(other.u_nodes.copy())
         if self.contact is not None and other.contact is not None:
             self.contact.adopt(other.contact)

@@ -100,8 +100,11 @@ def regularised_coulomb(force, blocks, dt, Pt, fn, dfn, mu, k, slip, active, tou
 
 def step_fraction(depth, limit: float, rounds: int) -> float:
     """The largest fraction (<= 1) of a Newton step after which ``depth(fraction)``, the deepest penetration (m),
-    stays within ``limit``: 1 when the whole step does, else bisection over ``rounds`` halvings, never below 1/256
-    (the colliders' and the body contact's step cut)."""
+    stays within ``limit``, or within the depth at the start where that is deeper (a state already past the limit,
+    as a soft penalty's can be, would otherwise have every step cut to the least fraction): 1 when the whole step
+    does, else bisection over ``rounds`` halvings, never below 1/256 (the colliders' and the body contact's step
+    cut)."""
+    limit = max(limit, 1.01 * depth(0.0))
     if depth(1.0) <= limit:
         return 1.0
     lo, hi = 0.0, 1.0
@@ -355,16 +358,19 @@ class ColliderPenalty:
 
     def step_limit(self, u_nodes: np.ndarray, step: np.ndarray) -> float:
         """The largest fraction (<= 1) of a Newton ``step`` from ``u_nodes`` after which no node lies deeper than
-        :attr:`step_depth` cells past its level, or deeper than the deepest is now (bisection): a step taken
-        without the contacts it would make is cut before it drives nodes, and the particles next to them, deep
-        into a collider. (Without the second bound a state already deeper than the limit, as a soft penalty's
-        can be, cut every step to the least fraction: the hexahedron's predictor at 1e-4 of the penalty halved
+        :attr:`step_depth` cells past its level, or deeper than the deepest is now (:func:`step_fraction`): a step
+        taken without the contacts it would make is cut before it drives nodes, and the particles next to them,
+        deep into a collider. (Without the second bound the hexahedron's predictor at 1e-4 of the penalty halved
         its 27 mT increment ten times at 1/256 steps.)"""
         def depth(alpha):
             xt = self.positions(u_nodes + alpha * step)[self.touchable]
             return max(float(np.max(lvl - self.distance(c, xt))) for c, lvl in zip(self.colliders, self.level))
 
-        return step_fraction(depth, max(self.step_depth * self.dx, 1.01 * depth(0.0)), rounds=12)
+        return step_fraction(depth, self.step_depth * self.dx, rounds=12)
+
+    def count(self) -> int:
+        """How many points the active set holds, over all colliders."""
+        return sum(len(h) for h in self.held)
 
     def signature(self) -> tuple:
         """Which nodes were in contact in the last :meth:`forces` evaluation (to tell a change of the set)."""
@@ -560,10 +566,7 @@ class Contacts:
 
     def count(self) -> int:
         """How many points the parts' active sets hold."""
-        def size(held):  # a collider part's is a list per collider, the body contact's one array
-            return len(held) if isinstance(held, np.ndarray) else sum(len(h) for h in held)
-
-        return sum(size(getattr(p, "held", [])) for p in self.parts)
+        return sum(p.count() for p in self.parts)
 
     def round_state(self) -> tuple:
         """The parts' active sets in the current rounds of :meth:`revise` (hashable)."""
