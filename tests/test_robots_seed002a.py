@@ -110,6 +110,25 @@ def test_speed_helpers():
     assert magnet_speed_for(15.0, [50, 100], [20.0, 10.0]) is None      # not growing with the magnet's speed
 
 
+def test_pass_path_with_an_approach_keeps_the_pass():
+    """A pass's magnet path with an approach: the magnet waits SETTLE s farther along +y, then moves at one speed
+    through PASS_FROM (at t_start) to PASS_TO (at t_pass); without one it is the explicit runs' path unchanged."""
+    from magsoro.robots import _seed002_speeds as sp
+
+    speed = 0.02
+    plain, t0, t1 = sp.pass_path(speed)
+    assert plain == {"times": [0.0, sp.SETTLE, t1], "positions": [[0.0, sp.PASS_FROM, sp.Z_TOP]] * 2
+                     + [[0.0, sp.PASS_TO, sp.Z_TOP]]} and t0 == sp.SETTLE
+    path, t_start, t_pass = sp.pass_path(speed, approach=0.06)
+    assert t_start == pytest.approx(sp.SETTLE + 3.0) and t_pass - t_start == pytest.approx(t1 - t0)
+    ts = np.array([0.0, sp.SETTLE, 1.0, t_start, 5.0, t_pass])
+    y = np.interp(ts, path["times"], [p[1] for p in path["positions"]])  # keyframes, linear in between
+    assert y[0] == y[1] == pytest.approx(sp.PASS_FROM + 0.06)
+    assert y[3] == pytest.approx(sp.PASS_FROM) and y[5] == pytest.approx(sp.PASS_TO)
+    moving = ts >= sp.SETTLE
+    assert np.allclose(y[moving], sp.PASS_FROM + 0.06 - speed * (ts[moving] - sp.SETTLE))  # one speed throughout
+
+
 @pytest.mark.slow
 def test_triangle_preview_warps(tmp_path):
     _check_triangle(reproduce("triangle", out=tmp_path, preview=True))

@@ -409,7 +409,7 @@ def reproduce(ctx: Context) -> ReproduceResult:
                + ("; the warping rate grows with the magnet's speed (the shape follows the magnet)"
                   if grows else "")
                + (f", the paper's 9 mm/s at a magnet rising at {match:.0f} mm/s" if match else "")
-               + f"; in a pass the robot goes along with the magnet at {along / (v_l * (sp['loco'][-1]['t_pass'] - MAGNET_WAIT)):.2f} "
+               + f"; in a pass the robot goes along with the magnet at {along / (v_l * (sp['loco'][-1]['t_pass'] - sp['loco'][-1]['t_start'])):.2f} "
                f"of its speed at {v_l:.0f} mm/s (paper 1.5 mm/s; scenes/triangle.toml describes how it is carried).")
     info = {"particles": int(len(X0)), "dx_m": sim.model.dx, "solver": "dynamics" if sweep is None else "static",
             "run_wall_s": round(wall, 1), "levels_mT": list(map(float, B)), "gif_bytes": gif.stat().st_size,
