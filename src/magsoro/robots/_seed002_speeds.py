@@ -142,7 +142,7 @@ def passing_run(name: str, base: dict, speed: float, remanence_sign: float, doma
     m = actuator(data, remanence_sign)
     m["path"], t_start, t_pass = pass_path(speed, approach)
     m["position"] = m["path"]["positions"][0]
-    pa = m["position"]
+    key_t, key_y = m["path"]["times"], [p[1] for p in m["path"]["positions"]]
     t_end = t_pass + PASS_AFTER
     S = data["simulation"]
     S["duration"], S["domain_lo"], S["domain_hi"] = t_end, list(domain[0]), list(domain[1])
@@ -156,7 +156,7 @@ def passing_run(name: str, base: dict, speed: float, remanence_sign: float, doma
             raise FloatingPointError(f"{label}: non-finite positions at t = {sim.time:.4f} s")
         c = (mass[:, None] * x).sum(0) / mass.sum()
         rec["t"].append(sim.time)
-        rec["magnet_y"].append(float(np.interp(sim.time, [0.0, SETTLE, t_pass], [pa[1], pa[1], PASS_TO])))
+        rec["magnet_y"].append(float(np.interp(sim.time, key_t, key_y)))  # the path's keyframes, linear between
         rec["cx"].append(c[0]), rec["cy"].append(c[1]), rec["cz"].append(c[2])
 
     wall = _sampled(sim, t_end, take, sample)
