@@ -75,6 +75,10 @@ ANDERSON_DEPTH = 5
 ANDERSON_MAX_GROWTH = 10.0
 #: the schemes of ``[implicit] scheme``
 SCHEMES = ("backward_euler", "generalized_alpha")
+#: light nodes (class LightNodes): a node whose particles fill less than this fraction of its cell is tied to the
+#: affine motion of its particles by a spring of up to LIGHT_STIFFNESS times a full cell's stiffness
+LIGHT_FILL = 1.0e-2
+LIGHT_STIFFNESS = 1.0e-3
 
 
 @dataclass(frozen=True)
@@ -146,6 +150,74 @@ class Anderson:
         self.last = alpha * self.taken
 
 
+class LightNodes:
+    """The light nodes' spring: E_L(u) = 1/2 sum_i k_i |u_i - (A u)_i|^2 over the nodes whose particles fill less
+    than LIGHT_FILL of their cell, with (A u)_i the displacement at node i of its particles' affine motion, as APIC's
+    transfer (Jiang et al. 2015) puts it there:
+
+        (A u)_i = sum_p m_p w_ip (u_p + grad u_p (X_i - X_p)) / m_i,  u_p = sum_j w_jp u_j,  grad u_p = sum_j u_j (x) grad w_jp.
+
+    A reproduces every displacement affine in X exactly (quadratic B-splines reproduce linear fields, and the MLS
+    gradient their gradients), so rigid motions, finite rotations included, and uniform strains cost nothing, and the
+    term is of the order of the displacement's second derivatives elsewhere, as a ghost penalty (Burman 2010) is.
+
+    Why: MLS weight gradients are proportional to the weights, so a node that only the far tails of its particles'
+    B-splines reach (weight w) has stiffness of order w^2 and lumped mass of order w: a mode of frequency about
+    sqrt(w) times a cell's, which for w ~ 1e-5 at dx 2 mm in silicone has a period of about 0.2 s. A step of
+    milliseconds resolves it, so backward Euler does not damp it, and each change of the stresses at a body's surface
+    sets such nodes swinging by several cells: the triangle of seed 002 lying still on its friction plate needed 5-12
+    Newton iterations per 12.5 ms step with them, its light nodes moving up to 16 cells in a step (benchmarks/README.md,
+    "Light nodes in implicit steps"). The explicit engine does not see the mode: its grid starts each step from the
+    particles' velocities, which is the affine motion above. The spring's stiffness, k_i = LIGHT_STIFFNESS
+    (1 - fill_i / LIGHT_FILL) (K + 4G/3)_i dx^(dim-2) (times the depth in 2D, the ring's length 2 pi r
+    axisymmetric), fades to zero at LIGHT_FILL, so nodes whose own particles hold them are left alone."""
+
+    def __init__(self, static):
+        from scipy import sparse
+
+        from magsoro.mpm.newton.static_contact import particle_sections
+
+        model, h = static.model, static.model.host
+        dim, dx, n_nodes = static.dim, float(model.dx), static.n_nodes
+        nodes, w, grad = static._stencil()
+        P = static.interpolation()
+        volumes = np.asarray(h["volumes"], dtype=np.float64)
+        _, length = particle_sections(model, float(static.solver.settings.depth) if dim == 2 else 1.0)
+        vol = P.T @ volumes
+        filled = vol > 0
+        fill = np.zeros(n_nodes)
+        fill[filled] = (P.T @ (volumes / length))[filled] / dx ** dim
+        light = np.flatnonzero(filled & (fill < LIGHT_FILL) & (static.node_mass > 0.0))
+        self.count = len(light)
+        if not len(light):
+            self.K = None
+            return
+        safe = np.where(filled, vol, 1.0)
+        p_wave = (P.T @ (volumes * model.p_wave_modulus()))[light] / safe[light]
+        ring = (P.T @ (volumes * length))[light] / safe[light]  # the depth, the ring's length, or 1 in 3D
+        k = LIGHT_STIFFNESS * (1.0 - fill[light] / LIGHT_FILL) * p_wave * dx ** (dim - 2) * ring
+        row_of = np.full(n_nodes, -1, dtype=np.int64)
+        row_of[light] = np.arange(len(light))
+        X_nodes = (model.domain_lo + static.solver.org * dx)[:dim] + static.coords * dx
+        X = np.asarray(h["positions"], dtype=np.float64)[:, :dim]
+        mass = np.asarray(h["mass"], dtype=np.float64)
+        p_idx, s_idx = np.nonzero(row_of[nodes] >= 0)  # (particle, stencil slot) pairs that reach a light node
+        node_i = nodes[p_idx, s_idx]
+        share = mass[p_idx] * w[p_idx, s_idx] / static.node_mass[node_i]
+        reach = np.einsum("ktd,kd->kt", grad[p_idx], X_nodes[node_i] - X[p_idx])
+        vals = share[:, None] * (w[p_idx] + reach)
+        rows = np.repeat(row_of[node_i], nodes.shape[1])
+        A = sparse.csr_matrix((vals.ravel(), (rows, nodes[p_idx].ravel())), shape=(len(light), n_nodes))
+        D = (sparse.csr_matrix((np.ones(len(light)), (np.arange(len(light)), light)), shape=(len(light), n_nodes)) - A)
+        self.K = (D.T @ sparse.diags(k) @ D).tocsr()  # on the nodes, per component
+        Kf = self.K[static.free][:, static.free]
+        self.tangent = (static.E.T @ sparse.kron(Kf, sparse.identity(dim), format="csr") @ static.E).tocsc()
+
+    def forces(self, u_nodes: np.ndarray) -> np.ndarray:
+        """-dE_L/du on the nodes (n_nodes, dim)."""
+        return -(self.K @ u_nodes)
+
+
 @dataclass
 class StepResult:
     """One attempted step: whether it converged, its Newton iterations, the final |R| relative to the step's force
@@ -179,6 +251,7 @@ class ImplicitIntegrator(StaticSolver):
     _scattered = None  # the node displacements of the last evaluation of a step's balance (None: another since)
     direct_max_unknowns = DIRECT_MAX_UNKNOWNS
     takes_prony = True
+    light = None  # the light nodes' spring (class LightNodes), None where no node is light
 
     """Steps a :class:`magsoro.simulation.Simulation` built in the total-Lagrangian form by the scheme ``scheme``
     (``"backward_euler"`` or ``"generalized_alpha"``, spectral radius ``rho_inf``). The fields and colliders follow
@@ -214,6 +287,9 @@ class ImplicitIntegrator(StaticSolver):
             scale = float(np.median(free_mass[free_mass > 0])) if np.any(free_mass > 0) else 1.0
             mass_matrix = mass_matrix + sparse.diags(idle * scale)
         self.mass_matrix = mass_matrix.tocsc()
+        self.light = LightNodes(self)
+        if self.light.K is None:
+            self.light = None
         self.v_nodes = np.zeros_like(self.u_nodes)
         self.a_nodes = np.zeros_like(self.u_nodes)
         self.steps = self.rejected = self.newton_iterations = self.tangents = 0
@@ -291,17 +367,21 @@ class ImplicitIntegrator(StaticSolver):
     def _scatter(self, u_nodes: np.ndarray, field_level: float, gravity_level: float) -> np.ndarray:
         self._scattered = None  # the step's balance last evaluated at (try_step)
         if self._inertia is None:
-            return super()._scatter(u_nodes, field_level, gravity_level)
+            f = super()._scatter(u_nodes, field_level, gravity_level)
+            return f if self.light is None else f + self.light.forces(u_nodes)
         self._scattered = u_nodes
         s, dt, u0, v0, a0 = self._inertia
         # the contacts act at the step's end, u_{n+1}, the rest at u_a: a penalty spring evaluated at u_a, with its
         # active set changing within the step, pumped energy into a block resting on a friction floor until it
         # jumped (generalised-alpha, mu = 0.7); at u_{n+1} the contact is a backward-Euler constraint force
         contact, self.contact = self.contact, None
+        u_a = (1.0 - s.alpha_f) * u_nodes + s.alpha_f * u0
         try:
-            f = super()._scatter((1.0 - s.alpha_f) * u_nodes + s.alpha_f * u0, field_level, gravity_level)
+            f = super()._scatter(u_a, field_level, gravity_level)
         finally:
             self.contact = contact
+        if self.light is not None:
+            f = f + self.light.forces(u_a)
         if contact is not None:
             f = f + contact.forces(u_nodes)
         a1, v1 = self._kinematics(u_nodes)
@@ -311,12 +391,15 @@ class ImplicitIntegrator(StaticSolver):
 
     def tangent(self, u_nodes, field_level, gravity_level):
         if self._inertia is None:
-            return super().tangent(u_nodes, field_level, gravity_level)
+            J = super().tangent(u_nodes, field_level, gravity_level)
+            return J if self.light is None else (J - self.light.tangent).tocsc()
         contact, self.contact = self.contact, None  # the contacts' part at u_{n+1}, unscaled (_scatter)
         try:
             J = super().tangent(u_nodes, field_level, gravity_level)
         finally:
             self.contact = contact
+        if self.light is not None:
+            J = J - self.light.tangent
         s, dt = self._inertia[0], self._inertia[1]
         c = (1.0 - s.alpha_m) / (s.beta * dt * dt) + self.damping * (1.0 - s.alpha_f) * s.gamma / (s.beta * dt)
         J = (1.0 - s.alpha_f) * J - c * self.mass_matrix
