@@ -165,7 +165,7 @@ class LightNodes:
     B-splines reach (weight w) has stiffness of order w^2 and lumped mass of order w: a mode of frequency about
     sqrt(w) times a cell's, which for w ~ 1e-5 at dx 2 mm in silicone has a period of about 0.2 s. A step of
     milliseconds resolves it, so backward Euler does not damp it, and each change of the stresses at a body's surface
-    sets such nodes swinging by several cells: the triangle of seed 002 lying still on its friction plate needed 5-12
+    sets such nodes swinging by several cells: the triangle of seed 002 lying still on its friction plate needed 6-12
     Newton iterations per 12.5 ms step with them, its light nodes moving up to 16 cells in a step (benchmarks/README.md,
     "Light nodes in implicit steps"). The explicit engine does not see the mode: its grid starts each step from the
     particles' velocities, which is the affine motion above. The spring's stiffness, k_i = LIGHT_STIFFNESS
