@@ -198,7 +198,7 @@ class LightNodes:
         k = LIGHT_STIFFNESS * (1.0 - fill[light] / LIGHT_FILL) * p_wave * dx ** (dim - 2) * ring
         row_of = np.full(n_nodes, -1, dtype=np.int64)
         row_of[light] = np.arange(len(light))
-        X_nodes = (model.domain_lo + static.solver.org * dx)[:dim] + static.coords * dx
+        X_nodes = static.node_positions()[2]  # the nodes' reference positions
         X = np.asarray(h["positions"], dtype=np.float64)[:, :dim]
         mass = np.asarray(h["mass"], dtype=np.float64)
         p_idx, s_idx = np.nonzero(row_of[nodes] >= 0)  # (particle, stencil slot) pairs that reach a light node
