@@ -367,19 +367,22 @@ def _triangle_on_its_plate(light: bool = True):
 
 
 def test_robot_set_down_on_its_friction_plate_settles():
-    """The triangle set down on its plate (_triangle_on_its_plate): every step converges (steps halved where Newton
-    needs it), none of the lowest particles sinks into the plate by a hundredth of a cell, and the plate settles:
-    its particles' largest displacement grows by less in the last 20 ms than in the second. Measured: 12 steps with
-    3 halved, 131 Newton iterations; the largest displacement 0.42, 0.69, 0.87, 0.96, 1.00 cells. Without the light
+    """The triangle set down on its plate (_triangle_on_its_plate): its 20 ms steps converge, in few Newton
+    iterations, none of the lowest particles sinks into the plate by a hundredth of a cell, and the plate settles:
+    its particles' largest displacement grows by less in the last 20 ms than in the second. Measured: 5 steps, none
+    halved, 34 Newton iterations; the largest displacement 0.42, 0.69, 0.85, 0.94, 0.99 cells. Without the light
     nodes' spring the light nodes ran off by 12 cells in the first step and 110 by 0.1 s, and dragged the particles
     on at 0.3 cells per step (0.57 to 1.98 cells), the plate never settling; without the contact set settled on
     each fresh tangent's linearised step (implicit.SETTLE_CONTACTS) the first step was halved eight times, to 78 us,
-    and the line search stalled at each length."""
+    and the line search stalled at each length. With a tangential stiffness on the points that the settled set
+    adds (static_contact.ColliderPenalty.revise), or a kept tangent's step taken because it changed the contact
+    set, it took 83 to 131 iterations and halved 1 to 3 steps."""
     sim, z0, reach = _triangle_on_its_plate()
     integ = sim.implicit
     assert integ.light is not None and integ.light.count > 0
     assert sim.state.time == pytest.approx(0.1)
-    assert integ.newton_iterations <= 200
+    assert integ.rejected <= 1
+    assert integ.newton_iterations <= 60
     z = sim.state.x.numpy()[:, 2]
     lowest = z0 < z0.min() + 1e-9
     assert np.all(z[lowest] > z0[lowest] - 0.01 * sim.model.dx)  # none pressed into the plate
