@@ -72,12 +72,16 @@ def slow_settings(data: dict, speed: float, implicit_step: float | None) -> floa
     """Make ``data`` a run of the implicit integrator when ``implicit_step`` (m of magnet travel per step) is given:
     backward Euler, steps of implicit_step / ``speed`` (the largest; halved where Newton needs it), no mass damping
     (the scene's damping settles the explicit engine; at the magnet's speed it would drag the robot with a force
-    of c m v). Returns the sampling interval: SAMPLE for the explicit engine, one step for the implicit one."""
+    of c m v), and the multigrid-preconditioned iterative linear solver: the robot's contacts with its plate change
+    the tangent at nearly every Newton iteration, so a sparse LU serves one iteration, not many, and the
+    factorisations took 87 % of a full-grid pass's time; the first 0.1 s of a pass with the field switched on at
+    once took 292 s iterative against 906 s direct (benchmarks/README.md, "Contact rounds and kept tangents in
+    implicit steps"). Returns the sampling interval: SAMPLE for the explicit engine, one step for the implicit one."""
     if implicit_step is None:
         return SAMPLE
     dt = float(implicit_step) / float(speed)
     data["simulation"].update(integrator="implicit", damping=0.0)
-    data["implicit"] = {"scheme": "backward_euler", "dt": dt, "dt_max": dt}
+    data["implicit"] = {"scheme": "backward_euler", "dt": dt, "dt_max": dt, "linear_solver": "iterative"}
     return dt
 
 
