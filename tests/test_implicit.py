@@ -392,6 +392,33 @@ def test_robot_set_down_on_its_friction_plate_settles():
     assert float(np.abs(integ.u_nodes[light]).max()) < 3.0 * float(sim.model.dx)
 
 
+def test_triangle_takes_its_first_step_as_the_passing_magnets_field_comes_on():
+    """The triangle of seed 002 (preview grid) on its friction plate with the pass's magnet at its start (y = 90 mm,
+    under the plate; its field on at t = 0, so the robot warps and most of its 404 contact points lift): backward
+    Euler's first 12.5 ms step converges at full length within 12 Newton iterations. Measured: 8 iterations. While
+    the contact rounds gave the points joining the set friction's tangential stiffness (static_contact.
+    ColliderPenalty.revise) the step stalled, each iteration's step shrinking 25-fold, and failed after 20
+    iterations; at half length it took 20 more."""
+    import copy
+
+    from magsoro.robots import _seed002_speeds as sp
+    from magsoro.robots.base import scene_data, simulation
+
+    data = copy.deepcopy(scene_data("triangle"))
+    magnet = sp.actuator(data, 1.0)
+    magnet.pop("path", None)
+    magnet["position"] = [0.0, sp.PASS_FROM, sp.Z_TOP]
+    S = data["simulation"]
+    S.update(duration=0.05, integrator="implicit", damping=0.0)
+    S["domain_lo"], S["domain_hi"] = [-0.036, -0.170, -0.014], [0.036, 0.110, 0.040]
+    data["implicit"] = {"dt": 0.0125, "dt_max": 0.0125, "scheme": "backward_euler", "linear_solver": "direct"}
+    sim = simulation("triangle", data, preview=True, device="cpu")
+    sim.advance_to(0.0125)
+    integ = sim.implicit
+    assert integ.steps == 1 and integ.rejected == 0
+    assert integ.newton_iterations <= 12
+
+
 @pytest.mark.slow
 def test_robot_on_its_plate_creeps_without_the_light_nodes_spring():
     """The counter-case of test_robot_set_down_on_its_friction_plate_settles: without the light nodes' spring the
