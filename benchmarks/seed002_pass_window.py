@@ -29,7 +29,7 @@ def main(argv=None) -> int:
     ap.add_argument("--duration", type=float, default=0.35, help="simulated time, s")
     ap.add_argument("--speed", type=float, default=20.0, help="magnet speed, mm/s")
     ap.add_argument("--step-mm", type=float, default=0.25, help="magnet travel per implicit step, mm")
-    ap.add_argument("--linear-solver", choices=["auto", "direct", "iterative"], default="iterative")
+    ap.add_argument("--linear-solver", choices=["auto", "direct", "iterative"], default="auto")
     args = ap.parse_args(argv)
     from magsoro.mpm.newton import implicit
     from magsoro.robots import _seed002_speeds as sp

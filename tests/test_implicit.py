@@ -514,3 +514,30 @@ def test_max_move_sizes_the_steps_by_how_far_the_body_moves():
     assert plain.dt == pytest.approx(1e-3) and plain.steps == 100
     assert moved.dt == pytest.approx(0.5 * dx / (g * t_end), rel=1e-5)
     assert moved.steps > 150  # the steps shrank once the block moved 0.5 cells in 1 ms (t = 0.026 s): about 200
+
+
+def test_auto_linear_solver_turns_iterative_only_where_tangents_are_not_kept(tmp_path, monkeypatch):
+    """implicit.linear_solver = 'auto' between the static solver's threshold and implicit.DIRECT_MAX_UNKNOWNS
+    (here the static threshold is lowered to 0 so the small block lies in between): the block sliding on its
+    friction floor keeps its factorisations (measured 5 setups in 209 Newton iterations) and stays direct; steps
+    that make a new linear solver at every iteration turn it iterative once they fill more than half of the last
+    REUSE_WINDOW iterations, for the rest of the run; below the static threshold it is direct whatever the steps do."""
+    from magsoro.mpm.newton import implicit, linear
+
+    monkeypatch.setattr(linear, "DIRECT_MAX_UNKNOWNS", 0)
+    ts, xs, sim = block_run(tmp_path, 0.2, "backward_euler")
+    integ = sim.implicit
+    n = integ.E.shape[1]
+    assert integ.linear_kinds == {"direct"} and integ.linear_setups < 0.1 * integ.newton_iterations
+    assert implicit.REUSE_WINDOW == 32 and implicit.REUSE_MAX == 0.5
+    for _ in range(2):  # with the block's last steps (one iteration each, no setup): 8 and 16 setups of 32
+        integ._note_reuse(8, 8)
+        assert integ._linear_kind(n) == "direct"
+    integ._note_reuse(8, 8)  # 24 of 32
+    assert integ._linear_kind(n) == "iterative"
+    for _ in range(implicit.REUSE_WINDOW):
+        integ._note_reuse(3, 0)
+    assert integ._linear_kind(n) == "iterative"
+    monkeypatch.setattr(linear, "DIRECT_MAX_UNKNOWNS", n)
+    assert integ._linear_kind(n) == "direct"
+    assert integ._linear_kind(implicit.DIRECT_MAX_UNKNOWNS + 1) == "iterative"

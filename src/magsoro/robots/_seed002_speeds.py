@@ -34,6 +34,7 @@ AFTER = 0.06           # s the run goes on after the magnet stops
 PASS_FROM, PASS_TO = 0.09, -0.08   # m: y of the magnet's centre at the start and end of a pass (triangle)
 IMPLICIT_ROOM = 0.01   # m: room added below the domain for the implicit integrator's passes (passing_run)
 PASS_AFTER = 0.05      # s after a pass
+PROGRESS = 0.005       # m of magnet travel between the progress lines of an implicit pass
 
 
 def actuator(data: dict, remanence_sign: float) -> dict:
@@ -70,18 +71,17 @@ def _sampled(sim, t_end: float, take, sample: float = SAMPLE) -> float:
 
 def slow_settings(data: dict, speed: float, implicit_step: float | None) -> float:
     """Make ``data`` a run of the implicit integrator when ``implicit_step`` (m of magnet travel per step) is given:
-    backward Euler, steps of implicit_step / ``speed`` (the largest; halved where Newton needs it), no mass damping
+    backward Euler, steps of implicit_step / ``speed`` (the largest; halved where Newton needs it) and no mass damping
     (the scene's damping settles the explicit engine; at the magnet's speed it would drag the robot with a force
-    of c m v), and the multigrid-preconditioned iterative linear solver: the robot's contacts with its plate change
-    the tangent at nearly every Newton iteration, so a sparse LU serves one iteration, not many, and the
-    factorisations took 87 % of a full-grid pass's time; the first 0.1 s of a pass with the field switched on at
-    once took 292 s iterative against 906 s direct (benchmarks/README.md, "Contact rounds and kept tangents in
+    of c m v). The linear solver is the integrator's 'auto': the robot's contacts with its plate change the
+    tangent at nearly every Newton iteration, which turns it iterative on the full grid (10,200 unknowns) and
+    leaves the preview's 3,108 to the direct one (benchmarks/README.md, "Contact rounds and kept tangents in
     implicit steps"). Returns the sampling interval: SAMPLE for the explicit engine, one step for the implicit one."""
     if implicit_step is None:
         return SAMPLE
     dt = float(implicit_step) / float(speed)
     data["simulation"].update(integrator="implicit", damping=0.0)
-    data["implicit"] = {"scheme": "backward_euler", "dt": dt, "dt_max": dt, "linear_solver": "iterative"}
+    data["implicit"] = {"scheme": "backward_euler", "dt": dt, "dt_max": dt}
     return dt
 
 
@@ -159,6 +159,7 @@ def passing_run(name: str, base: dict, speed: float, remanence_sign: float, doma
     sim = simulation(name, data, preview=ctx.preview, device=ctx.device)
     mass = sim.model.host["mass"].astype(np.float64)
     rec = {"t": [], "magnet_y": [], "cx": [], "cy": [], "cz": []}
+    w0, logged = time.perf_counter(), [np.inf]
 
     def take():
         x = sim.state.x.numpy().astype(np.float64)
@@ -168,6 +169,11 @@ def passing_run(name: str, base: dict, speed: float, remanence_sign: float, doma
         rec["t"].append(sim.time)
         rec["magnet_y"].append(float(np.interp(sim.time, key_t, key_y)))  # the path's keyframes, linear between
         rec["cx"].append(c[0]), rec["cy"].append(c[1]), rec["cz"].append(c[2])
+        if implicit_step is not None and logged[0] - rec["magnet_y"][-1] >= PROGRESS - 1e-12:
+            # a long run's course, line by line, so that a run stopped on the way still says where the robot went
+            logged[0] = rec["magnet_y"][-1]
+            ctx.log(f"    t {sim.time:.3f} s: magnet y {1e3 * rec['magnet_y'][-1]:+.1f} mm, centroid y "
+                    f"{1e3 * c[1]:+.2f} z {1e3 * c[2]:+.2f} mm ({time.perf_counter() - w0:.0f} s wall)")
 
     wall = _sampled(sim, t_end, take, sample)
     out = {k: np.asarray(v) for k, v in rec.items()}

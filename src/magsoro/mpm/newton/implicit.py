@@ -69,6 +69,14 @@ KEEP_DT_RTOL = 1.0e-6
 #: one factorisation for many solves: 7 ms a solve against 0.4 s a factorisation on the 3D strip's 8937 unknowns);
 #: the bound is the factorisation's memory (a 3D tangent of about 70,000 unknowns needed more than 23 GB)
 DIRECT_MAX_UNKNOWNS = 50_000
+#: ... but only while a factorisation serves several Newton iterations: between the static solver's threshold and
+#: DIRECT_MAX_UNKNOWNS, 'auto' turns to the iterative solver for the rest of the run once the steps made a new linear
+#: solver for more than REUSE_MAX of their last REUSE_WINDOW (or more, whole steps) Newton iterations: contacts that
+#: change the tangent at nearly every iteration (the triangle's pass on its friction plate at 10,200 unknowns took
+#: 906 s direct and 292 s iterative for its first 0.1 s, benchmarks/README.md, "Contact rounds and kept tangents in
+#: implicit steps"); a block sliding on a friction floor made 5 in its first 209
+REUSE_WINDOW = 32
+REUSE_MAX = 0.5
 #: Anderson acceleration of the iterations with a kept tangent (class Anderson): the iterates it mixes, and how many
 #: times longer than the plain step a mixed step may be
 ANDERSON_DEPTH = 5
@@ -293,6 +301,8 @@ class ImplicitIntegrator(StaticSolver):
         self.v_nodes = np.zeros_like(self.u_nodes)
         self.a_nodes = np.zeros_like(self.u_nodes)
         self.steps = self.rejected = self.newton_iterations = self.tangents = 0
+        self._reuse = []  # (Newton iterations, linear setups) of the steps of the last REUSE_WINDOW iterations ('auto')
+        self._per_iteration = False  # 'auto' saw a new linear solver at nearly every iteration (REUSE_MAX)
         self._kept = None  # (dt, LinearSolver of a tangent) reused across Newton iterations and steps
         self._start_from_state()
         self.a_nodes = self.consistent_acceleration()
@@ -507,6 +517,7 @@ class ImplicitIntegrator(StaticSolver):
         s = self.scheme
         self.begin_step(dt)
         scale = self._force_scale(self.field_time)
+        setups = self.linear_setups
         u0, v0, a0 = self.u_nodes, self.v_nodes, self.a_nodes
         # predictor: constant velocity (a_n's term can throw the lightest nodes at a body's edge, whose lumped masses
         # carry large accelerations, far enough to invert their particles' F)
@@ -522,6 +533,7 @@ class ImplicitIntegrator(StaticSolver):
         finally:
             self._inertia = None
         self.newton_iterations += its
+        self._note_reuse(its, self.linear_setups - setups)
         if not ok:
             self.rejected += 1
             self.end_step()
@@ -538,6 +550,31 @@ class ImplicitIntegrator(StaticSolver):
                 self._inertia = None
             self.contact.accept(u1)
         return StepResult(True, its, norm / scale)
+
+    def _note_reuse(self, iterations: int, setups: int):
+        """Keep the step's Newton iterations and linear setups for 'auto' (REUSE_WINDOW, REUSE_MAX)."""
+        self._reuse.append((iterations, setups))
+        while sum(i for i, _ in self._reuse[1:]) >= REUSE_WINDOW:
+            self._reuse.pop(0)
+        its = sum(i for i, _ in self._reuse)
+        if not self._per_iteration and its >= REUSE_WINDOW and sum(n for _, n in self._reuse) > REUSE_MAX * its:
+            self._per_iteration = True
+            log.info("implicit: a new linear solver at %d of the last %d Newton iterations; 'auto' solves "
+                     "iteratively from here", sum(n for _, n in self._reuse), its)
+
+    def _linear_kind(self, unknowns: int) -> str:
+        """'direct' or 'iterative': the scene's linear_solver; 'auto' direct up to the static solver's threshold
+        (linear.DIRECT_MAX_UNKNOWNS), iterative above ``direct_max_unknowns``, and in between direct until the
+        steps make a new linear solver at nearly every iteration (REUSE_MAX), iterative from then on."""
+        if self.linear_solver != "auto":
+            return self.linear_solver
+        from magsoro.mpm.newton import linear
+
+        if unknowns <= linear.DIRECT_MAX_UNKNOWNS:
+            return "direct"
+        if unknowns > self.direct_max_unknowns:
+            return "iterative"
+        return "iterative" if self._per_iteration else "direct"
 
     def _step_newton(self, u, scale):
         """Newton on the step's balance from ``u`` with a kept tangent (module docstring, "Newton"): the tangent of
