@@ -13,7 +13,8 @@ through the plate, where the total-Lagrangian form the integrator uses bends far
 check that the script runs, not a result); ``--dx``: another grid spacing (m). Records per run: the top vertex's largest rise rate (once the magnet has moved 5 mm) and its rise over the run
 (warping),
 the centroid's displacement along the pass and its mean speed (locomotion), the integrator's steps, rejected steps
-and Newton iterations, and the wall time. Writes
+and Newton iterations, and the wall time. A pass the engine stops keeps its series up to there with ``failed``
+(the engine's message) and no displacement. Writes
 benchmarks/results/<date>-cpu-<commit>-seed002-slow[-preview].json with the machine and the commit.
 """
 
@@ -76,12 +77,14 @@ def main(argv=None) -> int:
                          "t_s": r["t"].tolist(), "vertex_z_m": r["top"].tolist()})
         if args.motion in ("pass", "both"):
             r = sp.passing_run(triangle.NAME, data, v, +1.0, PASS_DOMAIN, ctx, "locomotion", implicit_step=step,
-                               approach=args.approach_mm * 1e-3)
+                               approach=args.approach_mm * 1e-3, keep_failed=True)
             runs.append({"motion": "pass", "magnet_speed_mm_s": v * 1e3, "approach_mm": args.approach_mm,
+                         "failed": r.get("failed"),
                          "centroid_along_magnet_mm": -1e3 * r["dy"],
                          "centroid_speed_along_magnet_mm_s": -1e3 * r["mean_speed"], "wall_s": round(r["wall_s"], 1),
                          "dx_m": r["dx"], "particles": r["particles"], "dt_s": r["sample_s"], "integrator": r["integrator"],
-                         "t_s": r["t"].tolist(), "centroid_y_m": r["cy"].tolist(), "centroid_z_m": r["cz"].tolist()})
+                         "t_s": r["t"].tolist(), "magnet_y_m": r["magnet_y"].tolist(), "centroid_x_m": r["cx"].tolist(),
+                         "centroid_y_m": r["cy"].tolist(), "centroid_z_m": r["cz"].tolist()})
         print({k: val for k, val in runs[-1].items() if not isinstance(val, (list, dict))}, flush=True)
     result = {"benchmark": "seed002_slow", **provenance(), "robot": triangle.NAME, "preview": args.preview,
               "step_mm": args.step_mm, "integrator": "implicit, backward Euler, no mass damping", "runs": runs}

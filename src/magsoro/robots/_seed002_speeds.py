@@ -23,6 +23,7 @@ import time
 
 import numpy as np
 
+from magsoro.errors import SimulationError
 from magsoro.robots.base import plot_curve, simulation, write_csv
 
 ACTUATOR_BR = 0.5099   # T: 50 mT at the face centre of the 100 mm x 10 mm disc (scenes/pentagram.toml)
@@ -134,14 +135,15 @@ def pass_path(speed: float, approach: float = 0.0) -> tuple[dict, float, float]:
 
 
 def passing_run(name: str, base: dict, speed: float, remanence_sign: float, domain, ctx, label: str,
-                implicit_step: float | None = None, approach: float = 0.0) -> dict:
+                implicit_step: float | None = None, approach: float = 0.0, keep_failed: bool = False) -> dict:
     """The magnet passes along y from PASS_FROM to PASS_TO under the plate at ``speed`` (m/s) in a domain widened
     to ``domain`` (lo, hi); the mass centre is sampled. ``implicit_step``: run by the implicit integrator
     (:func:`slow_settings`). ``approach`` (m): the magnet starts this much farther along +y and comes in at the same
     speed, so the robot meets its field growing instead of switched on at PASS_FROM (the implicit integrator
     could not start there at hand speeds: benchmarks/README.md); the displacement is still read from PASS_FROM
     to PASS_TO. Returns times, magnet y, centroid (m) and run facts (``t_start``, ``t_pass``: when the magnet is at
-    PASS_FROM and PASS_TO)."""
+    PASS_FROM and PASS_TO). ``keep_failed``: a run the engine stops (SimulationError) returns what it sampled up to
+    there with ``failed`` (the engine's message) and no displacement, instead of raising (benchmarks)."""
     data = copy.deepcopy(base)
     sample = slow_settings(data, speed, implicit_step)
     m = actuator(data, remanence_sign)
@@ -175,7 +177,17 @@ def passing_run(name: str, base: dict, speed: float, remanence_sign: float, doma
             ctx.log(f"    t {sim.time:.3f} s: magnet y {1e3 * rec['magnet_y'][-1]:+.1f} mm, centroid y "
                     f"{1e3 * c[1]:+.2f} z {1e3 * c[2]:+.2f} mm ({time.perf_counter() - w0:.0f} s wall)")
 
-    wall = _sampled(sim, t_end, take, sample)
+    try:
+        wall = _sampled(sim, t_end, take, sample)
+    except SimulationError as exc:
+        if not keep_failed:
+            raise
+        out = {k: np.asarray(v) for k, v in rec.items()}
+        out.update(speed=speed, t_start=t_start, t_pass=t_pass, wall_s=time.perf_counter() - w0, dx=sim.model.dx,
+                   particles=int(len(mass)), integrator=sim.integrator_info(), sample_s=sample,
+                   approach=float(approach), failed=str(exc), dy=float("nan"), mean_speed=float("nan"))
+        ctx.log(f"  {label} at {speed * 1e3:.0f} mm/s stopped at t = {sim.time:.3f} s: {exc}")
+        return out
     out = {k: np.asarray(v) for k, v in rec.items()}
     i0, i1 = np.searchsorted(out["t"], t_start), np.searchsorted(out["t"], t_pass)
     out.update(speed=speed, t_start=t_start, t_pass=t_pass, wall_s=wall, dx=sim.model.dx, particles=int(len(mass)),
