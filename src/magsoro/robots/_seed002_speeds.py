@@ -19,6 +19,7 @@ scenes/pentagram.toml, which moves it along the plate).
 from __future__ import annotations
 
 import copy
+import math
 import time
 
 import numpy as np
@@ -35,7 +36,7 @@ AFTER = 0.06           # s the run goes on after the magnet stops
 PASS_FROM, PASS_TO = 0.09, -0.08   # m: y of the magnet's centre at the start and end of a pass (triangle)
 IMPLICIT_ROOM = 0.01   # m: room added below the domain for the implicit integrator's passes (passing_run)
 PASS_AFTER = 0.05      # s after a pass
-PROGRESS = 0.005       # m of magnet travel between the progress lines of an implicit pass
+PROGRESS = 0.005       # m of magnet travel between the progress lines of an implicit run (_centroid_run)
 
 
 def actuator(data: dict, remanence_sign: float) -> dict:
@@ -134,6 +135,60 @@ def pass_path(speed: float, approach: float = 0.0) -> tuple[dict, float, float]:
     return {"times": [0.0, SETTLE, t_pass], "positions": [p0, p0, p1]}, t_start, t_pass
 
 
+def _centroid_run(name: str, base: dict, path: dict, t_end: float, speed: float, remanence_sign: float, domain,
+                  ctx, label: str, implicit_step: float | None, keep_failed: bool) -> dict:
+    """Scene ``name`` (table ``base``) with the actuator following ``path`` (keyframes: times, positions) until
+    ``t_end`` in a domain widened to ``domain`` (lo, hi), the mass centre sampled (the shared part of
+    :func:`passing_run` and :func:`stroke_run`; their arguments). Returns times, the magnet's position (from the
+    path's keyframes, linear between) and the centroid (m) with run facts; a run the engine stops raises, or with
+    ``keep_failed`` returns what it sampled with ``failed`` (the engine's message)."""
+    data = copy.deepcopy(base)
+    sample = slow_settings(data, speed, implicit_step)
+    m = actuator(data, remanence_sign)
+    m["path"] = path
+    m["position"] = list(path["positions"][0])
+    key_t, key_p = np.asarray(path["times"], float), np.asarray(path["positions"], float)
+    S = data["simulation"]
+    S["duration"], S["domain_lo"], S["domain_hi"] = t_end, list(domain[0]), list(domain[1])
+    if implicit_step is not None:
+        # the Newton solvers model a domain wall a body starts within reach of as a frictionless collider at the
+        # nodes; on the preview grid (dx 2 mm) the domain's floor, two cells under the plate, would carry the robot
+        # instead of its friction plate
+        S["domain_lo"][2] -= IMPLICIT_ROOM
+    sim = simulation(name, data, preview=ctx.preview, device=ctx.device)
+    mass = sim.model.host["mass"].astype(np.float64)
+    rec = {"t": [], "mx": [], "my": [], "mz": [], "cx": [], "cy": [], "cz": []}
+    w0, logged = time.perf_counter(), [None]
+
+    def take():
+        x = sim.state.x.numpy().astype(np.float64)
+        if not np.isfinite(x).all():
+            raise FloatingPointError(f"{label}: non-finite positions at t = {sim.time:.4f} s")
+        c = (mass[:, None] * x).sum(0) / mass.sum()
+        at = [float(np.interp(sim.time, key_t, key_p[:, k])) for k in range(3)]
+        rec["t"].append(sim.time)
+        for k, v in zip(("mx", "my", "mz", "cx", "cy", "cz"), (*at, *c)):
+            rec[k].append(float(v))
+        if implicit_step is not None and (logged[0] is None or np.linalg.norm(np.subtract(at, logged[0])) >= PROGRESS - 1e-12):
+            # a long run's course, line by line, so that a run stopped on the way still says where the robot went
+            logged[0] = at
+            ctx.log(f"    t {sim.time:.3f} s: magnet y {1e3 * at[1]:+.1f} z {1e3 * at[2]:+.1f} mm, centroid y "
+                    f"{1e3 * c[1]:+.2f} z {1e3 * c[2]:+.2f} mm ({time.perf_counter() - w0:.0f} s wall)")
+
+    failed = None
+    try:
+        _sampled(sim, t_end, take, sample)
+    except SimulationError as exc:
+        if not keep_failed:
+            raise
+        failed = str(exc)
+        ctx.log(f"  {label} at {speed * 1e3:.0f} mm/s stopped at t = {sim.time:.3f} s: {exc}")
+    out = {k: np.asarray(v) for k, v in rec.items()}
+    out.update(speed=speed, wall_s=time.perf_counter() - w0, dx=sim.model.dx, particles=int(len(mass)),
+               integrator=sim.integrator_info(), sample_s=sample, failed=failed)
+    return out
+
+
 def passing_run(name: str, base: dict, speed: float, remanence_sign: float, domain, ctx, label: str,
                 implicit_step: float | None = None, approach: float = 0.0, keep_failed: bool = False) -> dict:
     """The magnet passes along y from PASS_FROM to PASS_TO under the plate at ``speed`` (m/s) in a domain widened
@@ -144,57 +199,60 @@ def passing_run(name: str, base: dict, speed: float, remanence_sign: float, doma
     to PASS_TO. Returns times, magnet y, centroid (m) and run facts (``t_start``, ``t_pass``: when the magnet is at
     PASS_FROM and PASS_TO). ``keep_failed``: a run the engine stops (SimulationError) returns what it sampled up to
     there with ``failed`` (the engine's message) and no displacement, instead of raising (benchmarks)."""
-    data = copy.deepcopy(base)
-    sample = slow_settings(data, speed, implicit_step)
-    m = actuator(data, remanence_sign)
-    m["path"], t_start, t_pass = pass_path(speed, approach)
-    m["position"] = m["path"]["positions"][0]
-    key_t, key_y = m["path"]["times"], [p[1] for p in m["path"]["positions"]]
-    t_end = t_pass + PASS_AFTER
-    S = data["simulation"]
-    S["duration"], S["domain_lo"], S["domain_hi"] = t_end, list(domain[0]), list(domain[1])
-    if implicit_step is not None:
-        # the Newton solvers model a domain wall a body starts within reach of as a frictionless collider at the
-        # nodes; on the preview grid (dx 2 mm) the domain's floor, two cells under the plate, would carry the robot
-        # instead of its friction plate
-        S["domain_lo"][2] -= IMPLICIT_ROOM
-    sim = simulation(name, data, preview=ctx.preview, device=ctx.device)
-    mass = sim.model.host["mass"].astype(np.float64)
-    rec = {"t": [], "magnet_y": [], "cx": [], "cy": [], "cz": []}
-    w0, logged = time.perf_counter(), [np.inf]
-
-    def take():
-        x = sim.state.x.numpy().astype(np.float64)
-        if not np.isfinite(x).all():
-            raise FloatingPointError(f"{label}: non-finite positions at t = {sim.time:.4f} s")
-        c = (mass[:, None] * x).sum(0) / mass.sum()
-        rec["t"].append(sim.time)
-        rec["magnet_y"].append(float(np.interp(sim.time, key_t, key_y)))  # the path's keyframes, linear between
-        rec["cx"].append(c[0]), rec["cy"].append(c[1]), rec["cz"].append(c[2])
-        if implicit_step is not None and logged[0] - rec["magnet_y"][-1] >= PROGRESS - 1e-12:
-            # a long run's course, line by line, so that a run stopped on the way still says where the robot went
-            logged[0] = rec["magnet_y"][-1]
-            ctx.log(f"    t {sim.time:.3f} s: magnet y {1e3 * rec['magnet_y'][-1]:+.1f} mm, centroid y "
-                    f"{1e3 * c[1]:+.2f} z {1e3 * c[2]:+.2f} mm ({time.perf_counter() - w0:.0f} s wall)")
-
-    try:
-        wall = _sampled(sim, t_end, take, sample)
-    except SimulationError as exc:
-        if not keep_failed:
-            raise
-        out = {k: np.asarray(v) for k, v in rec.items()}
-        out.update(speed=speed, t_start=t_start, t_pass=t_pass, wall_s=time.perf_counter() - w0, dx=sim.model.dx,
-                   particles=int(len(mass)), integrator=sim.integrator_info(), sample_s=sample,
-                   approach=float(approach), failed=str(exc), dy=float("nan"), mean_speed=float("nan"))
-        ctx.log(f"  {label} at {speed * 1e3:.0f} mm/s stopped at t = {sim.time:.3f} s: {exc}")
+    path, t_start, t_pass = pass_path(speed, approach)
+    out = _centroid_run(name, base, path, t_pass + PASS_AFTER, speed, remanence_sign, domain, ctx, label,
+                        implicit_step, keep_failed)
+    out.update(magnet_y=out["my"], t_start=t_start, t_pass=t_pass, approach=float(approach))
+    if out["failed"] is not None:
+        out.update(dy=float("nan"), mean_speed=float("nan"))
         return out
-    out = {k: np.asarray(v) for k, v in rec.items()}
     i0, i1 = np.searchsorted(out["t"], t_start), np.searchsorted(out["t"], t_pass)
-    out.update(speed=speed, t_start=t_start, t_pass=t_pass, wall_s=wall, dx=sim.model.dx, particles=int(len(mass)),
-               integrator=sim.integrator_info(), sample_s=sample, approach=float(approach),
-               dy=float(out["cy"][i1] - out["cy"][i0]), mean_speed=float((out["cy"][i1] - out["cy"][i0]) / (t_pass - t_start)))
+    out.update(dy=float(out["cy"][i1] - out["cy"][i0]),
+               mean_speed=float((out["cy"][i1] - out["cy"][i0]) / (t_pass - t_start)))
     ctx.log(f"  {label} at {speed * 1e3:.0f} mm/s: centroid moved {out['dy'] * 1e3:+.1f} mm along y in the pass "
-            f"({wall:.0f} s wall)")
+            f"({out['wall_s']:.0f} s wall)")
+    return out
+
+
+def stroke_path(start_xy, end_xy, speed: float) -> tuple[dict, tuple[float, float, float]]:
+    """The magnet's path of a stroke at ``speed`` (m/s; :func:`stroke_run`): it waits SETTLE s at Z_START under
+    ``start_xy``, rises to Z_TOP, moves level to under ``end_xy`` and goes down to Z_START again. Returns its path
+    table and the times (t_up, t_moved, t_down) at which it reaches the top, ends its level move and is down."""
+    x0, y0 = map(float, start_xy)
+    x1, y1 = map(float, end_xy)
+    rise = (Z_TOP - Z_START) / speed
+    t_up = SETTLE + rise
+    t_moved = t_up + math.hypot(x1 - x0, y1 - y0) / speed
+    t_down = t_moved + rise
+    positions = [[x0, y0, Z_START], [x0, y0, Z_START], [x0, y0, Z_TOP], [x1, y1, Z_TOP], [x1, y1, Z_START]]
+    return {"times": [0.0, SETTLE, t_up, t_moved, t_down], "positions": positions}, (t_up, t_moved, t_down)
+
+
+def stroke_run(name: str, base: dict, start_xy, end_xy, speed: float, remanence_sign: float, domain, ctx,
+               label: str, implicit_step: float | None = None, keep_failed: bool = False) -> dict:
+    """A stroke of the magnet (:func:`stroke_path`): it rises under ``start_xy`` (the triangle's vertex: seed 002
+    Fig. 4c moves the actuator "from one of the vertex to its opposite side"), moves level under the plate to
+    ``end_xy`` and goes down, all at ``speed`` (m/s), in a domain widened to ``domain``; the mass centre is
+    sampled. Unlike :func:`passing_run` the magnet's rim never sweeps across the robot. Returns times, the magnet's
+    position, the centroid (m) and run facts: ``along`` the centroid's displacement along the level move while the
+    magnet moves level and over the whole stroke (``along_stroke``, the magnet down again and AFTER s more),
+    ``move_speed`` the first over the move's time, ``lift`` the centroid's largest rise. ``implicit_step`` and
+    ``keep_failed`` as in :func:`passing_run`."""
+    path, (t_up, t_moved, t_down) = stroke_path(start_xy, end_xy, speed)
+    out = _centroid_run(name, base, path, t_down + AFTER, speed, remanence_sign, domain, ctx, label, implicit_step,
+                        keep_failed)
+    d = np.subtract(end_xy, start_xy).astype(float)
+    d /= max(float(np.linalg.norm(d)), 1e-300)
+    out.update(t_up=t_up, t_moved=t_moved, t_down=t_down, direction=d.tolist())
+    if out["failed"] is not None:
+        out.update(along=float("nan"), along_stroke=float("nan"), move_speed=float("nan"), lift=float("nan"))
+        return out
+    c = np.stack([out["cx"], out["cy"]], axis=1) @ d
+    i0, i1 = np.searchsorted(out["t"], t_up), np.searchsorted(out["t"], t_moved)
+    out.update(along=float(c[i1] - c[i0]), along_stroke=float(c[-1] - c[0]),
+               move_speed=float((c[i1] - c[i0]) / (t_moved - t_up)), lift=float(out["cz"].max() - out["cz"][0]))
+    ctx.log(f"  {label} at {speed * 1e3:.0f} mm/s: centroid moved {out['along'] * 1e3:+.2f} mm along the stroke while "
+            f"the magnet moved level, {out['along_stroke'] * 1e3:+.2f} mm in all ({out['wall_s']:.0f} s wall)")
     return out
 
 
