@@ -1,8 +1,9 @@
 """Seed 002's triangle under the paper's actuator moving at hand speeds, by the implicit integrator: warping (the
-magnet rising under the top vertex, Fig. 7c) and locomotion (the magnet passing along -y under the robot, Fig. 4c).
+magnet rising under the top vertex, Fig. 7c) and locomotion (Fig. 4c: the magnet passing along -y under the robot,
+or a stroke: rising under the top vertex, moving level to under the opposite side's middle and going down).
 
-    python benchmarks/seed002_slow.py [--motion warp|pass|both] [--speeds 5,10,20] [--step-mm 0.5] [--preview]
-                                      [--dx DX] [--approach-mm 60]
+    python benchmarks/seed002_slow.py [--motion warp|pass|stroke|both] [--speeds 5,10,20] [--step-mm 0.5]
+                                      [--preview] [--dx DX] [--approach-mm 60]
 
 Each run is magsoro.robots._seed002_speeds's rising or passing run of magsoro reproduce triangle, with the implicit
 integrator (backward Euler, no mass damping) stepping ``--step-mm`` of magnet travel per step (dt = step / speed;
@@ -12,10 +13,11 @@ once); the displacement is read over the usual pass. ``--speeds`` in mm/s; ``--p
 through the plate, where the total-Lagrangian form the integrator uses bends far softer than at the full grid; a
 check that the script runs, not a result); ``--dx``: another grid spacing (m). Records per run: the top vertex's largest rise rate (once the magnet has moved 5 mm) and its rise over the run
 (warping),
-the centroid's displacement along the pass and its mean speed (locomotion), the integrator's steps, rejected steps
+the centroid's displacement along the pass and its mean speed (locomotion; a stroke: along the stroke while the
+magnet moves level and over the whole stroke, the speed in the level move and the centroid's largest lift), the integrator's steps, rejected steps
 and Newton iterations, and the wall time. A pass the engine stops keeps its series up to there with ``failed``
 (the engine's message) and no displacement. Writes
-benchmarks/results/<date>-cpu-<commit>-seed002-slow[-preview].json with the machine and the commit.
+benchmarks/results/<date>-cpu-<commit>-seed002-slow-<motion>[-preview].json with the machine and the commit.
 """
 
 import argparse
@@ -39,7 +41,8 @@ PASS_DOMAIN = ((-0.036, -0.170, -0.004), (0.036, 0.110, 0.040))
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--motion", choices=["warp", "pass", "both"], default="both")
+    ap.add_argument("--motion", choices=["warp", "pass", "stroke", "both"], default="both",
+                    help="both: warp and pass")
     ap.add_argument("--speeds", default="5,10,20", help="magnet speeds, mm/s")
     ap.add_argument("--step-mm", type=float, default=0.5, help="magnet travel per implicit step, mm")
     ap.add_argument("--preview", action="store_true", help="the robot's preview grid")
@@ -85,11 +88,25 @@ def main(argv=None) -> int:
                          "dx_m": r["dx"], "particles": r["particles"], "dt_s": r["sample_s"], "integrator": r["integrator"],
                          "t_s": r["t"].tolist(), "magnet_y_m": r["magnet_y"].tolist(), "centroid_x_m": r["cx"].tolist(),
                          "centroid_y_m": r["cy"].tolist(), "centroid_z_m": r["cz"].tolist()})
+        if args.motion == "stroke":
+            side = 0.5 * (corners[(i_top + 1) % 3] + corners[(i_top + 2) % 3])
+            r = sp.stroke_run(triangle.NAME, data, top, side, v, +1.0, PASS_DOMAIN, ctx, "stroke", implicit_step=step,
+                              keep_failed=True)
+            runs.append({"motion": "stroke", "magnet_speed_mm_s": v * 1e3, "failed": r["failed"],
+                         "from_mm": (1e3 * top).tolist(), "to_mm": (1e3 * side).tolist(),
+                         "centroid_along_stroke_in_level_move_mm": 1e3 * r["along"],
+                         "centroid_along_stroke_mm": 1e3 * r["along_stroke"],
+                         "centroid_speed_in_level_move_mm_s": 1e3 * r["move_speed"], "centroid_lift_mm": 1e3 * r["lift"],
+                         "t_up_s": r["t_up"], "t_moved_s": r["t_moved"], "t_down_s": r["t_down"],
+                         "wall_s": round(r["wall_s"], 1), "dx_m": r["dx"], "particles": r["particles"],
+                         "dt_s": r["sample_s"], "integrator": r["integrator"], "t_s": r["t"].tolist(),
+                         "magnet_m": np.stack([r["mx"], r["my"], r["mz"]], 1).tolist(),
+                         "centroid_m": np.stack([r["cx"], r["cy"], r["cz"]], 1).tolist()})
         print({k: val for k, val in runs[-1].items() if not isinstance(val, (list, dict))}, flush=True)
     result = {"benchmark": "seed002_slow", **provenance(), "robot": triangle.NAME, "preview": args.preview,
               "step_mm": args.step_mm, "integrator": "implicit, backward Euler, no mass damping", "runs": runs}
     tag = "-preview" if args.preview else ""
-    out = ROOT / "benchmarks" / "results" / f"{result['date'][:10]}-cpu-{result['commit']}-seed002-slow{tag}.json"
+    out = ROOT / "benchmarks" / "results" / f"{result['date'][:10]}-cpu-{result['commit']}-seed002-slow-{args.motion}{tag}.json"
     out.write_text(json.dumps(result, indent=1))
     print(out)
     return 0

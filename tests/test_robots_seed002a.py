@@ -2,6 +2,8 @@
 (crawling and gripping) under the N35 magnet moved beneath the plate (docs/robots.md). The triangle's preview
 reproduction runs in the default suite; the others' and the full reproductions are slow tests."""
 
+import math
+
 import numpy as np
 import pytest
 
@@ -127,6 +129,22 @@ def test_pass_path_with_an_approach_keeps_the_pass():
     assert y[3] == pytest.approx(sp.PASS_FROM) and y[5] == pytest.approx(sp.PASS_TO)
     moving = ts >= sp.SETTLE
     assert np.allclose(y[moving], sp.PASS_FROM + 0.06 - speed * (ts[moving] - sp.SETTLE))  # one speed throughout
+
+
+def test_stroke_path_rises_moves_level_and_goes_down_at_one_speed():
+    """A stroke's magnet path: SETTLE s at Z_START under the start, up to Z_TOP, level to under the end, down to
+    Z_START, every leg at the stroke's speed (path length over time)."""
+    from magsoro.robots import _seed002_speeds as sp
+
+    speed, a, b = 0.01, (0.0, 0.023), (0.003, -0.0115)
+    path, (t_up, t_moved, t_down) = sp.stroke_path(a, b, speed)
+    p, t = np.asarray(path["positions"]), np.asarray(path["times"])
+    assert p[0].tolist() == p[1].tolist() == [0.0, 0.023, sp.Z_START] and t[1] == sp.SETTLE
+    assert p[2].tolist() == [0.0, 0.023, sp.Z_TOP] and p[3].tolist() == [0.003, -0.0115, sp.Z_TOP]
+    assert p[4].tolist() == [0.003, -0.0115, sp.Z_START]
+    legs = np.linalg.norm(np.diff(p[1:], axis=0), axis=1) / np.diff(t[1:])
+    assert np.allclose(legs, speed) and [t_up, t_moved, t_down] == t[2:].tolist()
+    assert t_moved - t_up == pytest.approx(math.hypot(0.003, 0.0345) / speed)
 
 
 @pytest.mark.slow
