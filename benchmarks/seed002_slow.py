@@ -45,6 +45,9 @@ def main(argv=None) -> int:
                     help="both: warp and pass")
     ap.add_argument("--speeds", default="5,10,20", help="magnet speeds, mm/s")
     ap.add_argument("--step-mm", type=float, default=0.5, help="magnet travel per implicit step, mm")
+    ap.add_argument("--max-step-mm", type=float, default=None,
+                    help="steps grow after easy ones up to this magnet travel, mm (samples that far apart; "
+                         "default --step-mm)")
     ap.add_argument("--preview", action="store_true", help="the robot's preview grid")
     ap.add_argument("--dx", type=float, default=None, help="grid spacing, m (default the scene's)")
     ap.add_argument("--approach-mm", type=float, default=60.0,
@@ -68,6 +71,7 @@ def main(argv=None) -> int:
 
     speeds = [float(v) * 1e-3 for v in args.speeds.split(",")]
     step = args.step_mm * 1e-3
+    max_step = None if args.max_step_mm is None else args.max_step_mm * 1e-3
     runs = []
     for v in speeds:
         if args.motion in ("warp", "both"):
@@ -80,7 +84,7 @@ def main(argv=None) -> int:
                          "t_s": r["t"].tolist(), "vertex_z_m": r["top"].tolist()})
         if args.motion in ("pass", "both"):
             r = sp.passing_run(triangle.NAME, data, v, +1.0, PASS_DOMAIN, ctx, "locomotion", implicit_step=step,
-                               approach=args.approach_mm * 1e-3, keep_failed=True)
+                               approach=args.approach_mm * 1e-3, keep_failed=True, implicit_max_step=max_step)
             runs.append({"motion": "pass", "magnet_speed_mm_s": v * 1e3, "approach_mm": args.approach_mm,
                          "failed": r.get("failed"),
                          "centroid_along_magnet_mm": -1e3 * r["dy"],
@@ -91,7 +95,7 @@ def main(argv=None) -> int:
         if args.motion == "stroke":
             side = 0.5 * (corners[(i_top + 1) % 3] + corners[(i_top + 2) % 3])
             r = sp.stroke_run(triangle.NAME, data, top, side, v, +1.0, PASS_DOMAIN, ctx, "stroke", implicit_step=step,
-                              keep_failed=True)
+                              keep_failed=True, implicit_max_step=max_step)
             runs.append({"motion": "stroke", "magnet_speed_mm_s": v * 1e3, "failed": r["failed"],
                          "from_mm": (1e3 * top).tolist(), "to_mm": (1e3 * side).tolist(),
                          "centroid_along_stroke_in_level_move_mm": 1e3 * r["along"],
@@ -104,7 +108,7 @@ def main(argv=None) -> int:
                          "centroid_m": np.stack([r["cx"], r["cy"], r["cz"]], 1).tolist()})
         print({k: val for k, val in runs[-1].items() if not isinstance(val, (list, dict))}, flush=True)
     result = {"benchmark": "seed002_slow", **provenance(), "robot": triangle.NAME, "preview": args.preview,
-              "step_mm": args.step_mm, "integrator": "implicit, backward Euler, no mass damping", "runs": runs}
+              "step_mm": args.step_mm, "max_step_mm": args.max_step_mm, "integrator": "implicit, backward Euler, no mass damping", "runs": runs}
     tag = "-preview" if args.preview else ""
     out = ROOT / "benchmarks" / "results" / f"{result['date'][:10]}-cpu-{result['commit']}-seed002-slow-{args.motion}{tag}.json"
     out.write_text(json.dumps(result, indent=1))

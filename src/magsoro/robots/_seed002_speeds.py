@@ -71,20 +71,23 @@ def _sampled(sim, t_end: float, take, sample: float = SAMPLE) -> float:
     return time.perf_counter() - w0
 
 
-def slow_settings(data: dict, speed: float, implicit_step: float | None) -> float:
+def slow_settings(data: dict, speed: float, implicit_step: float | None, implicit_max_step: float | None = None) -> float:
     """Make ``data`` a run of the implicit integrator when ``implicit_step`` (m of magnet travel per step) is given:
     backward Euler, steps of implicit_step / ``speed`` (the largest; halved where Newton needs it) and no mass damping
     (the scene's damping settles the explicit engine; at the magnet's speed it would drag the robot with a force
     of c m v). The linear solver is the integrator's 'auto': the robot's contacts with its plate change the
     tangent at nearly every Newton iteration, which turns it iterative on the full grid (10,200 unknowns) and
     leaves the preview's 3,108 to the direct one (benchmarks/README.md, "Contact rounds and kept tangents in
-    implicit steps"). Returns the sampling interval: SAMPLE for the explicit engine, one step for the implicit one."""
+    implicit steps"). ``implicit_max_step`` (m of magnet travel, at least ``implicit_step``): steps grow after easy
+    ones (the integrator's implicit.grow and easy_iterations) up to it, and the samples are that far apart.
+    Returns the sampling interval: SAMPLE for the explicit engine, the largest step for the implicit one."""
     if implicit_step is None:
         return SAMPLE
     dt = float(implicit_step) / float(speed)
+    dt_max = max(dt, float(implicit_max_step) / float(speed)) if implicit_max_step is not None else dt
     data["simulation"].update(integrator="implicit", damping=0.0)
-    data["implicit"] = {"scheme": "backward_euler", "dt": dt, "dt_max": dt}
-    return dt
+    data["implicit"] = {"scheme": "backward_euler", "dt": dt, "dt_max": dt_max}
+    return dt_max
 
 
 def rising_run(name: str, base: dict, xy, speed: float, remanence_sign: float, markers, ctx, label: str,
@@ -136,14 +139,15 @@ def pass_path(speed: float, approach: float = 0.0) -> tuple[dict, float, float]:
 
 
 def _centroid_run(name: str, base: dict, path: dict, t_end: float, speed: float, remanence_sign: float, domain,
-                  ctx, label: str, implicit_step: float | None, keep_failed: bool) -> dict:
+                  ctx, label: str, implicit_step: float | None, keep_failed: bool,
+                  implicit_max_step: float | None = None) -> dict:
     """Scene ``name`` (table ``base``) with the actuator following ``path`` (keyframes: times, positions) until
     ``t_end`` in a domain widened to ``domain`` (lo, hi), the mass centre sampled (the shared part of
     :func:`passing_run` and :func:`stroke_run`; their arguments). Returns times, the magnet's position (from the
     path's keyframes, linear between) and the centroid (m) with run facts; a run the engine stops raises, or with
     ``keep_failed`` returns what it sampled with ``failed`` (the engine's message)."""
     data = copy.deepcopy(base)
-    sample = slow_settings(data, speed, implicit_step)
+    sample = slow_settings(data, speed, implicit_step, implicit_max_step)
     m = actuator(data, remanence_sign)
     m["path"] = path
     m["position"] = list(path["positions"][0])
@@ -190,18 +194,19 @@ def _centroid_run(name: str, base: dict, path: dict, t_end: float, speed: float,
 
 
 def passing_run(name: str, base: dict, speed: float, remanence_sign: float, domain, ctx, label: str,
-                implicit_step: float | None = None, approach: float = 0.0, keep_failed: bool = False) -> dict:
+                implicit_step: float | None = None, approach: float = 0.0, keep_failed: bool = False,
+                implicit_max_step: float | None = None) -> dict:
     """The magnet passes along y from PASS_FROM to PASS_TO under the plate at ``speed`` (m/s) in a domain widened
     to ``domain`` (lo, hi); the mass centre is sampled. ``implicit_step``: run by the implicit integrator
     (:func:`slow_settings`). ``approach`` (m): the magnet starts this much farther along +y and comes in at the same
     speed, so the robot meets its field growing instead of switched on at PASS_FROM (the implicit integrator
     could not start there at hand speeds: benchmarks/README.md); the displacement is still read from PASS_FROM
     to PASS_TO. Returns times, magnet y, centroid (m) and run facts (``t_start``, ``t_pass``: when the magnet is at
-    PASS_FROM and PASS_TO). ``keep_failed``: a run the engine stops (SimulationError) returns what it sampled up to
+    PASS_FROM and PASS_TO). ``implicit_max_step``: :func:`slow_settings`. ``keep_failed``: a run the engine stops (SimulationError) returns what it sampled up to
     there with ``failed`` (the engine's message) and no displacement, instead of raising (benchmarks)."""
     path, t_start, t_pass = pass_path(speed, approach)
     out = _centroid_run(name, base, path, t_pass + PASS_AFTER, speed, remanence_sign, domain, ctx, label,
-                        implicit_step, keep_failed)
+                        implicit_step, keep_failed, implicit_max_step)
     out.update(magnet_y=out["my"], t_start=t_start, t_pass=t_pass, approach=float(approach))
     if out["failed"] is not None:
         out.update(dy=float("nan"), mean_speed=float("nan"))
@@ -229,18 +234,19 @@ def stroke_path(start_xy, end_xy, speed: float) -> tuple[dict, tuple[float, floa
 
 
 def stroke_run(name: str, base: dict, start_xy, end_xy, speed: float, remanence_sign: float, domain, ctx,
-               label: str, implicit_step: float | None = None, keep_failed: bool = False) -> dict:
+               label: str, implicit_step: float | None = None, keep_failed: bool = False,
+               implicit_max_step: float | None = None) -> dict:
     """A stroke of the magnet (:func:`stroke_path`): it rises under ``start_xy`` (the triangle's vertex: seed 002
     Fig. 4c moves the actuator "from one of the vertex to its opposite side"), moves level under the plate to
     ``end_xy`` and goes down, all at ``speed`` (m/s), in a domain widened to ``domain``; the mass centre is
     sampled. Unlike :func:`passing_run` the magnet's rim never sweeps across the robot. Returns times, the magnet's
     position, the centroid (m) and run facts: ``along`` the centroid's displacement along the level move while the
     magnet moves level and over the whole stroke (``along_stroke``, the magnet down again and AFTER s more),
-    ``move_speed`` the first over the move's time, ``lift`` the centroid's largest rise. ``implicit_step`` and
-    ``keep_failed`` as in :func:`passing_run`."""
+    ``move_speed`` the first over the move's time, ``lift`` the centroid's largest rise. ``implicit_step``,
+    ``implicit_max_step`` (:func:`slow_settings`) and ``keep_failed`` as in :func:`passing_run`."""
     path, (t_up, t_moved, t_down) = stroke_path(start_xy, end_xy, speed)
     out = _centroid_run(name, base, path, t_down + AFTER, speed, remanence_sign, domain, ctx, label, implicit_step,
-                        keep_failed)
+                        keep_failed, implicit_max_step)
     d = np.subtract(end_xy, start_xy).astype(float)
     d /= max(float(np.linalg.norm(d)), 1e-300)
     out.update(t_up=t_up, t_moved=t_moved, t_down=t_down, direction=d.tolist())
