@@ -95,12 +95,18 @@ def main(argv=None) -> int:
         if args.motion == "stroke":
             side = 0.5 * (corners[(i_top + 1) % 3] + corners[(i_top + 2) % 3])
             r = sp.stroke_run(triangle.NAME, data, top, side, v, +1.0, PASS_DOMAIN, ctx, "stroke", implicit_step=step,
-                              keep_failed=True, implicit_max_step=max_step)
+                              keep_failed=True, implicit_max_step=max_step, markers=vertices)
+            i0 = int(np.searchsorted(r["t"], sp.SETTLE))
+            i1 = int(np.searchsorted(r["t"], r["t_up"]))
+            rise_rate = sp.largest_rate(r["t"][: i1 + 1], r["top"][: i1 + 1], sp.SETTLE + START_TRAVEL / v)[0]
             runs.append({"motion": "stroke", "magnet_speed_mm_s": v * 1e3, "failed": r["failed"],
                          "from_mm": (1e3 * top).tolist(), "to_mm": (1e3 * side).tolist(),
                          "centroid_along_stroke_in_level_move_mm": 1e3 * r["along"],
                          "centroid_along_stroke_mm": 1e3 * r["along_stroke"],
                          "centroid_speed_in_level_move_mm_s": 1e3 * r["move_speed"], "centroid_lift_mm": 1e3 * r["lift"],
+                         "vertex_rise_rate_in_rise_mm_s": 1e3 * rise_rate,
+                         "vertex_rise_in_rise_mm": 1e3 * float(r["top"][i1] - r["top"][i0]),
+                         "vertex_z_m": r["top"].tolist(),
                          "t_up_s": r["t_up"], "t_moved_s": r["t_moved"], "t_down_s": r["t_down"],
                          "wall_s": round(r["wall_s"], 1), "dx_m": r["dx"], "particles": r["particles"],
                          "dt_s": r["sample_s"], "integrator": r["integrator"], "t_s": r["t"].tolist(),

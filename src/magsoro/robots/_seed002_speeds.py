@@ -140,12 +140,13 @@ def pass_path(speed: float, approach: float = 0.0) -> tuple[dict, float, float]:
 
 def _centroid_run(name: str, base: dict, path: dict, t_end: float, speed: float, remanence_sign: float, domain,
                   ctx, label: str, implicit_step: float | None, keep_failed: bool,
-                  implicit_max_step: float | None = None) -> dict:
+                  implicit_max_step: float | None = None, markers=None) -> dict:
     """Scene ``name`` (table ``base``) with the actuator following ``path`` (keyframes: times, positions) until
     ``t_end`` in a domain widened to ``domain`` (lo, hi), the mass centre sampled (the shared part of
     :func:`passing_run` and :func:`stroke_run`; their arguments). Returns times, the magnet's position (from the
-    path's keyframes, linear between) and the centroid (m) with run facts; a run the engine stops raises, or with
-    ``keep_failed`` returns what it sampled with ``failed`` (the engine's message)."""
+    path's keyframes, linear between), the centroid and the mean height of each of ``markers(X0) -> {key: mask}``
+    (m) with run facts; a run the engine stops raises, or with ``keep_failed`` returns what it sampled with
+    ``failed`` (the engine's message)."""
     data = copy.deepcopy(base)
     sample = slow_settings(data, speed, implicit_step, implicit_max_step)
     m = actuator(data, remanence_sign)
@@ -161,7 +162,8 @@ def _centroid_run(name: str, base: dict, path: dict, t_end: float, speed: float,
         S["domain_lo"][2] -= IMPLICIT_ROOM
     sim = simulation(name, data, preview=ctx.preview, device=ctx.device)
     mass = sim.model.host["mass"].astype(np.float64)
-    rec = {"t": [], "mx": [], "my": [], "mz": [], "cx": [], "cy": [], "cz": []}
+    masks = {} if markers is None else markers(sim.model.host["positions"].astype(np.float64))
+    rec = {"t": [], "mx": [], "my": [], "mz": [], "cx": [], "cy": [], "cz": [], **{k: [] for k in masks}}
     w0, logged = time.perf_counter(), [None]
 
     def take():
@@ -173,6 +175,8 @@ def _centroid_run(name: str, base: dict, path: dict, t_end: float, speed: float,
         rec["t"].append(sim.time)
         for k, v in zip(("mx", "my", "mz", "cx", "cy", "cz"), (*at, *c)):
             rec[k].append(float(v))
+        for k, mask in masks.items():
+            rec[k].append(float(x[mask, 2].mean()))
         if implicit_step is not None and (logged[0] is None or np.linalg.norm(np.subtract(at, logged[0])) >= PROGRESS - 1e-12):
             # a long run's course, line by line, so that a run stopped on the way still says where the robot went
             logged[0] = at
@@ -235,7 +239,7 @@ def stroke_path(start_xy, end_xy, speed: float) -> tuple[dict, tuple[float, floa
 
 def stroke_run(name: str, base: dict, start_xy, end_xy, speed: float, remanence_sign: float, domain, ctx,
                label: str, implicit_step: float | None = None, keep_failed: bool = False,
-               implicit_max_step: float | None = None) -> dict:
+               implicit_max_step: float | None = None, markers=None) -> dict:
     """A stroke of the magnet (:func:`stroke_path`): it rises under ``start_xy`` (the triangle's vertex: seed 002
     Fig. 4c moves the actuator "from one of the vertex to its opposite side"), moves level under the plate to
     ``end_xy`` and goes down, all at ``speed`` (m/s), in a domain widened to ``domain``; the mass centre is
@@ -243,10 +247,11 @@ def stroke_run(name: str, base: dict, start_xy, end_xy, speed: float, remanence_
     position, the centroid (m) and run facts: ``along`` the centroid's displacement along the level move while the
     magnet moves level and over the whole stroke (``along_stroke``, the magnet down again and AFTER s more),
     ``move_speed`` the first over the move's time, ``lift`` the centroid's largest rise. ``implicit_step``,
-    ``implicit_max_step`` (:func:`slow_settings`) and ``keep_failed`` as in :func:`passing_run`."""
+    ``implicit_max_step`` (:func:`slow_settings`) and ``keep_failed`` as in :func:`passing_run`; ``markers(X0) ->
+    {key: mask}`` picks material whose mean height is sampled too (the rise under the start is a warping run)."""
     path, (t_up, t_moved, t_down) = stroke_path(start_xy, end_xy, speed)
     out = _centroid_run(name, base, path, t_down + AFTER, speed, remanence_sign, domain, ctx, label, implicit_step,
-                        keep_failed, implicit_max_step)
+                        keep_failed, implicit_max_step, markers)
     d = np.subtract(end_xy, start_xy).astype(float)
     d /= max(float(np.linalg.norm(d)), 1e-300)
     out.update(t_up=t_up, t_moved=t_moved, t_down=t_down, direction=d.tolist())
