@@ -17,7 +17,7 @@ the centroid's displacement along the pass and its mean speed (locomotion; a str
 magnet moves level and over the whole stroke, the speed in the level move and the centroid's largest lift), the integrator's steps, rejected steps
 and Newton iterations, and the wall time. A pass the engine stops keeps its series up to there with ``failed``
 (the engine's message) and no displacement. Writes
-benchmarks/results/<date>-cpu-<commit>-seed002-slow-<motion>[-preview].json with the machine and the commit.
+benchmarks/results/<date>-cpu-<commit>-seed002-slow-<motion>[-preview]-<speeds>mms.json with the machine and the commit.
 """
 
 import argparse
@@ -116,7 +116,8 @@ def main(argv=None) -> int:
     result = {"benchmark": "seed002_slow", **provenance(), "robot": triangle.NAME, "preview": args.preview,
               "step_mm": args.step_mm, "max_step_mm": args.max_step_mm, "integrator": "implicit, backward Euler, no mass damping", "runs": runs}
     tag = "-preview" if args.preview else ""
-    out = ROOT / "benchmarks" / "results" / f"{result['date'][:10]}-cpu-{result['commit']}-seed002-slow-{args.motion}{tag}.json"
+    out = ROOT / "benchmarks" / "results" / (f"{result['date'][:10]}-cpu-{result['commit']}-seed002-slow-{args.motion}{tag}"
+                                              f"-{args.speeds.replace(',', '_')}mms.json")
     out.write_text(json.dumps(result, indent=1))
     print(out)
     return 0
