@@ -39,6 +39,41 @@ START_TRAVEL = 0.005
 PASS_DOMAIN = ((-0.036, -0.170, -0.004), (0.036, 0.110, 0.040))
 
 
+def side_views(png: Path, frames, run: dict, speed: float) -> Path:
+    """The robot seen from the side (y-z: the stroke runs along -y) at each of ``frames`` ((t, positions) pairs),
+    the magnet's top face drawn where it is in view, the centroid's displacement along the stroke in each title."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    n = len(frames)
+    cols = min(n, 5)
+    rows = -(-n // cols)
+    fig, axes = plt.subplots(rows, cols, figsize=(3.2 * cols, 2.4 * rows), squeeze=False)
+    d = np.asarray(run["direction"])
+    c0 = np.array([run["cx"][0], run["cy"][0]]) @ d
+    for ax, (t, x) in zip(axes.ravel(), frames):
+        mx, my, mz = (float(np.interp(t, run["t"], run[k])) for k in ("mx", "my", "mz"))
+        ax.scatter(1e3 * x[:, 1], 1e3 * x[:, 2], s=1, c=1e3 * x[:, 0], cmap="coolwarm", vmin=-25, vmax=25)
+        ax.axhline(0.0, color="0.5", lw=0.8)  # the plate's top
+        top = 1e3 * (mz + 0.005)
+        if top > -12:
+            ax.add_patch(plt.Rectangle((1e3 * my - 50.0, top - 10.0), 100.0, 10.0, color="0.8", zorder=0))
+        i = int(np.searchsorted(run["t"], t))
+        along = 1e3 * (np.array([run["cx"][min(i, len(run["t"]) - 1)], run["cy"][min(i, len(run["t"]) - 1)]]) @ d - c0)
+        ax.set_title(f"t {t:.2f} s, magnet y {1e3 * my:+.0f} z {1e3 * mz:+.0f}\nrobot {along:+.2f} mm along", fontsize=8)
+        ax.set_xlim(-40, 40), ax.set_ylim(-12, 25), ax.set_aspect("equal"), ax.tick_params(labelsize=7)
+    for ax in axes.ravel()[n:]:
+        ax.axis("off")
+    fig.suptitle(f"triangle stroke at {speed * 1e3:g} mm/s, side view (y, z in mm; colour: x); dx = "
+                 f"{1e3 * run['dx']:.1f} mm", fontsize=9)
+    fig.tight_layout()
+    fig.savefig(png, dpi=110)
+    plt.close(fig)
+    return png
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--motion", choices=["warp", "pass", "stroke", "both"], default="both",
@@ -48,6 +83,8 @@ def main(argv=None) -> int:
     ap.add_argument("--max-step-mm", type=float, default=None,
                     help="steps grow after easy ones up to this magnet travel, mm (samples that far apart; "
                          "default --step-mm)")
+    ap.add_argument("--pictures", type=int, default=3,
+                    help="stroke: side views of the robot at this many times per leg, to a PNG beside the result")
     ap.add_argument("--preview", action="store_true", help="the robot's preview grid")
     ap.add_argument("--dx", type=float, default=None, help="grid spacing, m (default the scene's)")
     ap.add_argument("--approach-mm", type=float, default=60.0,
@@ -72,7 +109,7 @@ def main(argv=None) -> int:
     speeds = [float(v) * 1e-3 for v in args.speeds.split(",")]
     step = args.step_mm * 1e-3
     max_step = None if args.max_step_mm is None else args.max_step_mm * 1e-3
-    runs = []
+    runs, pictures = [], []
     for v in speeds:
         if args.motion in ("warp", "both"):
             r = sp.rising_run(triangle.NAME, data, top, v, +1.0, vertices, ctx, "warping", implicit_step=step)
@@ -95,7 +132,9 @@ def main(argv=None) -> int:
         if args.motion == "stroke":
             side = 0.5 * (corners[(i_top + 1) % 3] + corners[(i_top + 2) % 3])
             r = sp.stroke_run(triangle.NAME, data, top, side, v, +1.0, PASS_DOMAIN, ctx, "stroke", implicit_step=step,
-                              keep_failed=True, implicit_max_step=max_step, markers=vertices)
+                              keep_failed=True, implicit_max_step=max_step, markers=vertices,
+                              snapshots=args.pictures)
+            pictures.append((v, r["frames"], r))
             i0 = int(np.searchsorted(r["t"], sp.SETTLE))
             i1 = int(np.searchsorted(r["t"], r["t_up"]))
             rise_rate = sp.largest_rate(r["t"][: i1 + 1], r["top"][: i1 + 1], sp.SETTLE + START_TRAVEL / v)[0]
@@ -120,6 +159,9 @@ def main(argv=None) -> int:
                                               f"-{args.speeds.replace(',', '_')}mms.json")
     out.write_text(json.dumps(result, indent=1))
     print(out)
+    for v, frames, r in pictures:
+        if frames:
+            print(side_views(out.with_name(f"{out.stem}-{v * 1e3:g}mms.png"), frames, r, v))
     return 0
 
 

@@ -140,13 +140,14 @@ def pass_path(speed: float, approach: float = 0.0) -> tuple[dict, float, float]:
 
 def _centroid_run(name: str, base: dict, path: dict, t_end: float, speed: float, remanence_sign: float, domain,
                   ctx, label: str, implicit_step: float | None, keep_failed: bool,
-                  implicit_max_step: float | None = None, markers=None) -> dict:
+                  implicit_max_step: float | None = None, markers=None, snapshots=()) -> dict:
     """Scene ``name`` (table ``base``) with the actuator following ``path`` (keyframes: times, positions) until
     ``t_end`` in a domain widened to ``domain`` (lo, hi), the mass centre sampled (the shared part of
     :func:`passing_run` and :func:`stroke_run`; their arguments). Returns times, the magnet's position (from the
     path's keyframes, linear between), the centroid and the mean height of each of ``markers(X0) -> {key: mask}``
-    (m) with run facts; a run the engine stops raises, or with ``keep_failed`` returns what it sampled with
-    ``failed`` (the engine's message)."""
+    (m) with run facts; ``frames``: the particles' positions (m) at the first samples at or after the times
+    ``snapshots`` (s), as (time, positions) pairs. A run the engine stops raises, or with ``keep_failed`` returns
+    what it sampled with ``failed`` (the engine's message)."""
     data = copy.deepcopy(base)
     sample = slow_settings(data, speed, implicit_step, implicit_max_step)
     m = actuator(data, remanence_sign)
@@ -165,11 +166,16 @@ def _centroid_run(name: str, base: dict, path: dict, t_end: float, speed: float,
     masks = {} if markers is None else markers(sim.model.host["positions"].astype(np.float64))
     rec = {"t": [], "mx": [], "my": [], "mz": [], "cx": [], "cy": [], "cz": [], **{k: [] for k in masks}}
     w0, logged = time.perf_counter(), [None]
+    pending, frames = sorted(float(t) for t in snapshots), []
 
     def take():
         x = sim.state.x.numpy().astype(np.float64)
         if not np.isfinite(x).all():
             raise FloatingPointError(f"{label}: non-finite positions at t = {sim.time:.4f} s")
+        if pending and sim.time >= pending[0] - 1e-9:
+            frames.append((sim.time, x.copy()))
+            while pending and sim.time >= pending[0] - 1e-9:
+                pending.pop(0)
         c = (mass[:, None] * x).sum(0) / mass.sum()
         at = [float(np.interp(sim.time, key_t, key_p[:, k])) for k in range(3)]
         rec["t"].append(sim.time)
@@ -193,7 +199,7 @@ def _centroid_run(name: str, base: dict, path: dict, t_end: float, speed: float,
         ctx.log(f"  {label} at {speed * 1e3:.0f} mm/s stopped at t = {sim.time:.3f} s: {exc}")
     out = {k: np.asarray(v) for k, v in rec.items()}
     out.update(speed=speed, wall_s=time.perf_counter() - w0, dx=sim.model.dx, particles=int(len(mass)),
-               integrator=sim.integrator_info(), sample_s=sample, failed=failed)
+               integrator=sim.integrator_info(), sample_s=sample, failed=failed, frames=frames)
     return out
 
 
@@ -239,7 +245,7 @@ def stroke_path(start_xy, end_xy, speed: float) -> tuple[dict, tuple[float, floa
 
 def stroke_run(name: str, base: dict, start_xy, end_xy, speed: float, remanence_sign: float, domain, ctx,
                label: str, implicit_step: float | None = None, keep_failed: bool = False,
-               implicit_max_step: float | None = None, markers=None) -> dict:
+               implicit_max_step: float | None = None, markers=None, snapshots: int = 0) -> dict:
     """A stroke of the magnet (:func:`stroke_path`): it rises under ``start_xy`` (the triangle's vertex: seed 002
     Fig. 4c moves the actuator "from one of the vertex to its opposite side"), moves level under the plate to
     ``end_xy`` and goes down, all at ``speed`` (m/s), in a domain widened to ``domain``; the mass centre is
@@ -248,10 +254,14 @@ def stroke_run(name: str, base: dict, start_xy, end_xy, speed: float, remanence_
     magnet moves level and over the whole stroke (``along_stroke``, the magnet down again and AFTER s more),
     ``move_speed`` the first over the move's time, ``lift`` the centroid's largest rise. ``implicit_step``,
     ``implicit_max_step`` (:func:`slow_settings`) and ``keep_failed`` as in :func:`passing_run`; ``markers(X0) ->
-    {key: mask}`` picks material whose mean height is sampled too (the rise under the start is a warping run)."""
+    {key: mask}`` picks material whose mean height is sampled too (the rise under the start is a warping run);
+    ``snapshots``: the particles' positions kept at that many times in each leg (``frames``), for pictures."""
     path, (t_up, t_moved, t_down) = stroke_path(start_xy, end_xy, speed)
+    keys = path["times"][1:]  # the robot's shape at the stroke's turns and between them (``snapshots`` per leg)
+    when = [keys[0]] + [a + (b - a) * (k + 1) / max(snapshots, 1) for a, b in zip(keys[:-1], keys[1:])
+                        for k in range(max(snapshots, 1))] if snapshots else []
     out = _centroid_run(name, base, path, t_down + AFTER, speed, remanence_sign, domain, ctx, label, implicit_step,
-                        keep_failed, implicit_max_step, markers)
+                        keep_failed, implicit_max_step, markers, when)
     d = np.subtract(end_xy, start_xy).astype(float)
     d /= max(float(np.linalg.norm(d)), 1e-300)
     out.update(t_up=t_up, t_moved=t_moved, t_down=t_down, direction=d.tolist())
