@@ -39,41 +39,6 @@ START_TRAVEL = 0.005
 PASS_DOMAIN = ((-0.036, -0.170, -0.004), (0.036, 0.110, 0.040))
 
 
-def side_views(png: Path, frames, run: dict, speed: float) -> Path:
-    """The robot seen from the side (y-z: the stroke runs along -y) at each of ``frames`` ((t, positions) pairs),
-    the magnet's top face drawn where it is in view, the centroid's displacement along the stroke in each title."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    n = len(frames)
-    cols = min(n, 5)
-    rows = -(-n // cols)
-    fig, axes = plt.subplots(rows, cols, figsize=(3.2 * cols, 2.4 * rows), squeeze=False)
-    d = np.asarray(run["direction"])
-    c0 = np.array([run["cx"][0], run["cy"][0]]) @ d
-    for ax, (t, x) in zip(axes.ravel(), frames):
-        mx, my, mz = (float(np.interp(t, run["t"], run[k])) for k in ("mx", "my", "mz"))
-        ax.scatter(1e3 * x[:, 1], 1e3 * x[:, 2], s=1, c=1e3 * x[:, 0], cmap="coolwarm", vmin=-25, vmax=25)
-        ax.axhline(0.0, color="0.5", lw=0.8)  # the plate's top
-        top = 1e3 * (mz + 0.005)
-        if top > -12:
-            ax.add_patch(plt.Rectangle((1e3 * my - 50.0, top - 10.0), 100.0, 10.0, color="0.8", zorder=0))
-        i = int(np.searchsorted(run["t"], t))
-        along = 1e3 * (np.array([run["cx"][min(i, len(run["t"]) - 1)], run["cy"][min(i, len(run["t"]) - 1)]]) @ d - c0)
-        ax.set_title(f"t {t:.2f} s, magnet y {1e3 * my:+.0f} z {1e3 * mz:+.0f}\nrobot {along:+.2f} mm along", fontsize=8)
-        ax.set_xlim(-40, 40), ax.set_ylim(-12, 25), ax.set_aspect("equal"), ax.tick_params(labelsize=7)
-    for ax in axes.ravel()[n:]:
-        ax.axis("off")
-    fig.suptitle(f"triangle stroke at {speed * 1e3:g} mm/s, side view (y, z in mm; colour: x); dx = "
-                 f"{1e3 * run['dx']:.1f} mm", fontsize=9)
-    fig.tight_layout()
-    fig.savefig(png, dpi=110)
-    plt.close(fig)
-    return png
-
-
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--motion", choices=["warp", "pass", "stroke", "both"], default="both",
@@ -161,7 +126,8 @@ def main(argv=None) -> int:
     print(out)
     for v, frames, r in pictures:
         if frames:
-            print(side_views(out.with_name(f"{out.stem}-{v * 1e3:g}mms.png"), frames, r, v))
+            print(sp.stroke_side_views(out.with_name(f"{out.stem}-{v * 1e3:g}mms.png"), frames, r,
+                                       f"triangle stroke at {v * 1e3:g} mm/s"))
     return 0
 
 

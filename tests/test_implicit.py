@@ -541,3 +541,35 @@ def test_auto_linear_solver_turns_iterative_only_where_tangents_are_not_kept(tmp
     monkeypatch.setattr(linear, "DIRECT_MAX_UNKNOWNS", n)
     assert integ._linear_kind(n) == "direct"
     assert integ._linear_kind(implicit.DIRECT_MAX_UNKNOWNS + 1) == "iterative"
+
+
+def test_steps_land_on_the_keyframes_of_the_loads(tmp_path, monkeypatch):
+    """The implicit steps land on every keyframe of the scene's tables (here a keyframed field turning at 13 ms,
+    between the 5 ms steps), evened out to there (three of 13/3 ms, not 5, 5 and 3), and a step that starts on a
+    keyframe is told so (``turn``: Newton starts from the last state)."""
+    from magsoro.mpm.newton import implicit
+    from magsoro.scene import load_scene
+    from magsoro.simulation import Simulation
+
+    text = CANTILEVER.read_text().replace("duration = 0.12", "duration = 0.03\nintegrator = \"implicit\"")
+    text = text.replace('type = "uniform"\nB = [0.0, 0.0059, 0.0]\nprofile = { type = "ramp", duration = 0.04 }',
+                        'type = "keyframes"\ntimes = [0.0, 0.013, 0.03]\n'
+                        'values = [[0.0, 0.0, 0.0], [0.0, 0.004, 0.0], [0.0, 0.0059, 0.0]]')
+    assert 'type = "keyframes"' in text
+    path = tmp_path / "c.toml"
+    path.write_text(text + "\n[implicit]\ndt = 0.005\ndt_max = 0.005\n")
+    sim = Simulation(load_scene(path), source=str(path))
+    turns = []
+    try_step = implicit.ImplicitIntegrator.try_step
+
+    def recorded(integ, dt, turn=False):
+        turns.append((round(integ.t, 9), round(dt, 9), turn))
+        return try_step(integ, dt, turn=turn)
+
+    monkeypatch.setattr(implicit.ImplicitIntegrator, "try_step", recorded)
+    sim.advance_to(0.03)
+    starts = [t for t, _, _ in turns]
+    assert 0.013 in starts and sim.time == pytest.approx(0.03)
+    assert [dt for t, dt, _ in turns if t < 0.013] == pytest.approx([0.013 / 3] * 3)
+    assert [dt for t, dt, _ in turns if t >= 0.013] == pytest.approx([0.017 / 4] * 4)  # 17 ms in four even steps
+    assert [t for t, _, turn in turns if turn] == [0.0, 0.013]

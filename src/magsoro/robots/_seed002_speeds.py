@@ -277,6 +277,41 @@ def stroke_run(name: str, base: dict, start_xy, end_xy, speed: float, remanence_
     return out
 
 
+def stroke_side_views(png, frames, run: dict, title: str):
+    """PNG of the robot seen from the side (y-z; colour x) at each of ``frames`` ((t, positions) pairs) of a
+    :func:`stroke_run` result ``run``, the magnet's top face drawn where it is in view, the centroid's displacement
+    along the stroke in each panel's title."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    n = len(frames)
+    cols = min(n, 5)
+    rows = -(-n // cols)
+    fig, axes = plt.subplots(rows, cols, figsize=(3.2 * cols, 2.4 * rows), squeeze=False)
+    d = np.asarray(run["direction"])
+    c0 = np.array([run["cx"][0], run["cy"][0]]) @ d
+    for ax, (t, x) in zip(axes.ravel(), frames):
+        mx, my, mz = (float(np.interp(t, run["t"], run[k])) for k in ("mx", "my", "mz"))
+        ax.scatter(1e3 * x[:, 1], 1e3 * x[:, 2], s=1, c=1e3 * x[:, 0], cmap="coolwarm", vmin=-25, vmax=25)
+        ax.axhline(0.0, color="0.5", lw=0.8)  # the plate's top
+        top = 1e3 * (mz + 0.005)
+        if top > -12:
+            ax.add_patch(plt.Rectangle((1e3 * my - 50.0, top - 10.0), 100.0, 10.0, color="0.8", zorder=0))
+        i = int(np.searchsorted(run["t"], t))
+        along = 1e3 * (np.array([run["cx"][min(i, len(run["t"]) - 1)], run["cy"][min(i, len(run["t"]) - 1)]]) @ d - c0)
+        ax.set_title(f"t {t:.2f} s, magnet y {1e3 * my:+.0f} z {1e3 * mz:+.0f}\nrobot {along:+.2f} mm along", fontsize=8)
+        ax.set_xlim(-40, 40), ax.set_ylim(-12, 25), ax.set_aspect("equal"), ax.tick_params(labelsize=7)
+    for ax in axes.ravel()[n:]:
+        ax.axis("off")
+    fig.suptitle(f"{title}, side view (y, z in mm; colour: x); dx = {1e3 * run['dx']:.1f} mm", fontsize=9)
+    fig.tight_layout()
+    fig.savefig(png, dpi=110)
+    plt.close(fig)
+    return png
+
+
 def magnet_speed_for(paper: float, magnet_speeds, speeds) -> float | None:
     """The magnet speed at which the measured speed equals the paper's (linear in between the measured magnet
     speeds; None outside them or when the speeds do not grow with the magnet's)."""

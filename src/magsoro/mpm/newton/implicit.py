@@ -511,17 +511,22 @@ class ImplicitIntegrator(StaticSolver):
         self.model.update_stimuli(t)
         self.model.update_pressures(t)
 
-    def try_step(self, dt: float) -> StepResult:
+    def try_step(self, dt: float, turn: bool = False) -> StepResult:
         """Advance from the current time by ``dt`` (s). On success the nodes' state, the time and the colliders'
-        friction anchors move on; on failure nothing changes."""
+        friction anchors move on; on failure nothing changes. ``turn``: the loads' rates jump at the current time
+        (a keyframe of a path or table), so Newton starts from the last state instead of where the last velocity
+        carries the body."""
         s = self.scheme
         self.begin_step(dt)
         scale = self._force_scale(self.field_time)
         setups = self.linear_setups
         u0, v0, a0 = self.u_nodes, self.v_nodes, self.a_nodes
         # predictor: constant velocity (a_n's term can throw the lightest nodes at a body's edge, whose lumped masses
-        # carry large accelerations, far enough to invert their particles' F)
-        guess = self.hold(u0 + dt * v0, self.t + dt)  # moving clamps' nodes: where the clamps are at the step's end
+        # carry large accelerations, far enough to invert their particles' F); at a turn of the loads the last state
+        # (the triangle of scenes/triangle_stroke.toml, its magnet turning from rising to moving level under it:
+        # from the rising velocity the steps after the turn failed at 60, 30 and 15 ms on the preview grid, 90 s
+        # of Newton iterations; from the last state none, benchmarks/README.md)
+        guess = self.hold(u0 if turn else u0 + dt * v0, self.t + dt)  # moving clamps: where they are at the end
         try:
             u1, ok, its, norm, message = self._step_newton(guess, scale)
             crossing = self.wall_crossing(u1) if ok else None

@@ -1,0 +1,204 @@
+"""Triangular robot of seed 002 (sec 4.2, Fig. 4c) taking one stroke of the paper's actuator at a hand's speed, by
+the implicit integrator (scenes/triangle_stroke.toml).
+
+The paper moves the actuator by hand "from one of the vertex to its opposite side" and reports a locomotion speed
+of 1.5 mm/s, with neither the magnet's path nor its speed. Read as a stroke (magsoro.robots._seed002_speeds.
+stroke_run): the magnet rises under the top vertex from 80 mm below the plate, moves level to under the middle of
+the opposite side and goes down again, every leg at one speed. The reproduction runs the stroke at 5, 10 and 20
+mm/s (the preview: 20 mm/s on the coarse grid) and reads
+
+- how far the robot's centroid goes along the stroke (the magnet down again), and while the magnet moves level;
+- how fast the top vertex rises while the magnet rises under it (the warping run of ``magsoro reproduce
+  triangle``, seed 002 sec 4.3: 9 mm/s);
+- the robot's speed the paper's 1.5 mm/s compares with: the displacement per stroke over the stroke's time, at
+  the magnet speed that makes the paper's warping speed (the vertex's rise rate grows in proportion to the magnet's
+  speed, so that speed follows from the three runs).
+
+The full run also strokes at 20 mm/s on the preview grid, for the convergence row.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from magsoro.robots.base import Context, ReproduceResult, Robot, plot_curve, scene_data, write_csv
+
+NAME = "triangle_stroke"
+SPEEDS = [0.005, 0.01, 0.02]   # m/s (preview: the last)
+#: magnet travel per implicit step (m): the first step and the largest the steps grow to after easy ones. On the
+#: preview grid 0.25 to 1 mm gave the displacements of 0.25 mm throughout to 0.01 mm (benchmarks/README.md); the
+#: preview itself steps 0.5 to 2 mm (4 to 7 % off those) to stay within a few minutes
+STEPS = (0.25e-3, 1.0e-3)
+PREVIEW_STEPS = (0.5e-3, 2.0e-3)
+PAPER_LOCO_SPEED = 1.5   # mm/s, seed 002 sec 4.2 (Fig. 4c)
+PAPER_WARP_SPEED = 9.0   # mm/s, seed 002 sec 4.3 (Fig. 7c)
+#: the robot's speed is checked against the paper's within this factor either way (the paper gives neither the
+#: magnet's path nor its speed, so a stroke's length and time are ours)
+SPEED_FACTOR = 2.0
+#: the displacement per stroke at 5 and 20 mm/s within this fraction of each other: at hand speeds the robot's
+#: inertia is negligible and the stroke is quasi-static
+QUASI_STATIC_TOL = 0.10
+#: the displacement per stroke on the two grids within this fraction (issue "The seeds' slow experiments")
+CONVERGENCE_TOL = 0.10
+
+
+def _ends(data: dict):
+    """The stroke's start (the top vertex) and end (the middle of the opposite side), (x, y) in m."""
+    from magsoro.robots.triangle import outer_vertices
+
+    corners = outer_vertices(data)
+    i = int(np.argmax(corners[:, 1]))
+    return corners[i], 0.5 * (corners[(i + 1) % 3] + corners[(i + 2) % 3])
+
+
+def strokes(ctx: Context, data: dict, speeds, steps, pictures: int = 0) -> list[dict]:
+    """One stroke per magnet speed (m/s) on ``ctx``'s grid, the top vertex's height sampled; ``steps`` (first,
+    largest) in m of magnet travel. Each result gains ``warp_rate`` (the top vertex's largest rise rate while the
+    magnet rises, m/s) and ``warp_rise`` (its rise by the top of the stroke, m)."""
+    from magsoro.robots import _seed002_speeds as sp
+
+    top, side = _ends(data)
+    S = data["simulation"]
+    # the scene's floor already has the Newton solvers' room under the plate (stroke_run lowers it once more)
+    domain = (list(S["domain_lo"]), list(S["domain_hi"]))
+
+    def vertex(X0):
+        return {"top": np.linalg.norm(X0[:, :2] - top, axis=1) < 0.002}
+
+    out = []
+    for v in speeds:
+        r = sp.stroke_run(NAME, data, top, side, v, +1.0, domain, ctx, f"stroke at dx {S['dx'] * 1e3:g} mm",
+                          implicit_step=steps[0], implicit_max_step=steps[1], markers=vertex, snapshots=pictures)
+        i0, i1 = int(np.searchsorted(r["t"], sp.SETTLE)), int(np.searchsorted(r["t"], r["t_up"]))
+        # once the magnet has moved 5 mm (the first step meets the settling robot)
+        r["warp_rate"] = sp.largest_rate(r["t"][: i1 + 1], r["top"][: i1 + 1], sp.SETTLE + 0.005 / v)[0]
+        r["warp_rise"] = float(r["top"][i1] - r["top"][i0])
+        out.append(r)
+    return out
+
+
+def reproduce(ctx: Context) -> ReproduceResult:
+    from magsoro.robots import _seed002_speeds as sp
+    from magsoro.robots.base import Context as Ctx
+    from magsoro.validation.registry import Row
+
+    data = scene_data(NAME)
+    speeds = SPEEDS[-1:] if ctx.preview else SPEEDS
+    runs = strokes(ctx, data, speeds, PREVIEW_STEPS if ctx.preview else STEPS, pictures=2)
+    coarse = None
+    if not ctx.preview:  # the convergence row: the fastest stroke on the preview grid too
+        coarse = strokes(Ctx(out=ctx.out, preview=True, device=ctx.device, log=ctx.log), data, SPEEDS[-1:],
+                         STEPS)[0]
+    v = np.array([r["speed"] for r in runs])
+    along = np.array([r["along_stroke"] for r in runs])
+    level = np.array([r["along"] for r in runs])
+    rate = np.array([r["warp_rate"] for r in runs])
+    length = np.array([sum(np.linalg.norm(np.diff(np.asarray(sp.stroke_path(*_ends(data), s)[0]["positions"]),
+                                                  axis=0), axis=1)) for s in v])
+    duration = length / v
+    table = {"magnet_speed_mm_s": 1e3 * v, "centroid_along_stroke_mm": 1e3 * along,
+             "centroid_along_level_move_mm": 1e3 * level, "centroid_lift_mm": 1e3 * np.array([r["lift"] for r in runs]),
+             "vertex_rise_rate_mm_s": 1e3 * rate, "vertex_rise_mm": 1e3 * np.array([r["warp_rise"] for r in runs]),
+             "stroke_time_s": duration, "robot_speed_over_stroke_mm_s": 1e3 * along / duration,
+             "wall_s": np.array([r["wall_s"] for r in runs])}
+    csv = write_csv(ctx.out / f"{NAME}.csv", table)
+    dx = runs[0]["dx"]
+    png = plot_curve(ctx.out / f"{NAME}.png", 1e3 * v,
+                     {"centroid along the stroke": 1e3 * along, "while the magnet moves level": 1e3 * level},
+                     "magnet speed (mm/s)", "displacement (mm)", "Triangular robot: displacement per stroke",
+                     note=f"dx = {dx * 1e3:.1f} mm; implicit integrator; the paper gives no magnet speed",
+                     legend_loc="center right")
+    # the course of each stroke against the magnet's travel (the same course at every speed if quasi-static)
+    course = {}
+    for r in runs:
+        travel = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(np.stack([r["mx"], r["my"], r["mz"]], 1),
+                                                                           axis=0), axis=1))])
+        c = np.stack([r["cx"], r["cy"]], 1) @ np.asarray(r["direction"])
+        course[f"{r['speed'] * 1e3:g} mm/s"] = (1e3 * travel, 1e3 * (c - c[0]))
+    course_png = _course_plot(ctx.out / f"{NAME}_course.png", course, dx)
+    course_csv = write_csv(ctx.out / f"{NAME}_course.csv", {
+        f"{k.replace(' mm/s', 'mms')}_{q}": arr for k, (a, b) in course.items() for q, arr in (("travel_mm", a),
+                                                                                          ("along_mm", b))})
+    views = sp.stroke_side_views(ctx.out / f"{NAME}_views.png", runs[-1]["frames"], runs[-1],
+                                 f"triangle stroke at {runs[-1]['speed'] * 1e3:g} mm/s")
+
+    case = f"robot-{NAME}"
+    inputs = {"dx_mm": dx * 1e3, "magnet_speeds_mm_s": list(map(float, 1e3 * v))}
+    fast = runs[-1]
+    rows = [Row(case, "centroid displacement along the stroke at the fastest magnet speed (mm), at least 0.2 mm "
+                      "(a cell's fifth) the magnet's way", inputs | {"magnet_speed_mm_s": fast["speed"] * 1e3},
+                0.2, 1e3 * fast["along_stroke"], float(max(0.0, 0.2 - 1e3 * fast["along_stroke"])), 0.0)]
+    # the magnet speed that makes the paper's warping speed: the rise rate in proportion to the magnet's speed
+    ratio = float(np.sum(rate * v) / np.sum(v * v)) if np.all(np.isfinite(rate)) else float("nan")
+    v_paper = PAPER_WARP_SPEED * 1e-3 / ratio if ratio > 0 else float("nan")
+    per_stroke = float(np.mean(along))
+    robot_speed = 1e3 * per_stroke * v_paper / float(length[0]) if math.isfinite(v_paper) else float("nan")
+    if not ctx.preview:
+        spread = float(abs(along[0] - along[-1]) / max(abs(along[-1]), 1e-12))
+        rows.append(Row(case, "displacement per stroke at 5 mm/s against 20 mm/s, |difference| / at 20 mm/s: the "
+                              "stroke is quasi-static", inputs, 0.0, spread, spread, QUASI_STATIC_TOL))
+        gap = float(abs(coarse["along_stroke"] - fast["along_stroke"]) / max(abs(fast["along_stroke"]), 1e-12))
+        rows.append(Row(case, f"displacement per stroke at 20 mm/s, dx {coarse['dx'] * 1e3:g} mm against "
+                              f"{dx * 1e3:g} mm, |difference| / the finer", inputs | {"coarse_mm": 1e3 * coarse["along_stroke"]},
+                        0.0, gap, gap, CONVERGENCE_TOL))
+    off = abs(math.log(robot_speed / PAPER_LOCO_SPEED) / math.log(SPEED_FACTOR)) if robot_speed > 0 else float("inf")
+    rows.append(Row(case, f"robot speed over a stroke at the magnet speed of the paper's warping speed (mm/s) vs "
+                          f"seed 002's {PAPER_LOCO_SPEED} mm/s; error: log base {SPEED_FACTOR:g} of the ratio",
+                    inputs | {"magnet_speed_for_9_mm_s_warping": 1e3 * v_paper, "stroke_length_mm": 1e3 * float(length[0])},
+                    PAPER_LOCO_SPEED, robot_speed, off, 1.0))
+    runs_text = ", ".join(f"{1e3 * a:+.2f} mm at {1e3 * s:g} mm/s" for a, s in zip(along, v))
+    summary = (f"One stroke (the magnet rising under the top vertex, moving level 34.6 mm to under the opposite side "
+               f"and going down) moves the robot {runs_text} along the stroke (dx {dx * 1e3:g} mm, implicit "
+               f"integrator); while the magnet moves level it goes {1e3 * level[-1]:+.2f} mm. The top vertex rises at "
+               f"{ratio:.2f} times the magnet's speed, so the paper's warping speed (9 mm/s) needs a magnet at "
+               f"{1e3 * v_paper:.0f} mm/s; a {1e3 * float(length[0]):.0f} mm stroke at that speed gives the robot "
+               f"{robot_speed:.2f} mm/s against the paper's {PAPER_LOCO_SPEED} mm/s"
+               + (f"; on the coarse grid (dx {coarse['dx'] * 1e3:g} mm) the stroke moves it "
+                  f"{1e3 * coarse['along_stroke']:+.2f} mm" if coarse is not None else "") + ".")
+    info = {"particles": fast["particles"], "dx_m": dx, "solver": "implicit (backward Euler)",
+            "run_wall_s": round(float(sum(r["wall_s"] for r in runs)), 1),
+            "steps_m_of_travel": list(PREVIEW_STEPS if ctx.preview else STEPS),
+            "integrators": [r["integrator"] for r in runs],
+            "magnet_speed_for_paper_warping_mm_s": 1e3 * v_paper, "robot_speed_at_it_mm_s": robot_speed,
+            "stroke_length_m": float(length[0])}
+    if coarse is not None:
+        info.update(coarse_dx_m=coarse["dx"], coarse_along_stroke_mm=1e3 * coarse["along_stroke"],
+                    coarse_wall_s=round(coarse["wall_s"], 1))
+    figures = [{"csv": course_csv, "png": course_png,
+                "caption": "the centroid's displacement along the stroke against the magnet's travel, per magnet speed"},
+               {"csv": csv, "png": views, "caption": "side views of the robot during the fastest stroke (y, z; colour x)"}]
+    return ReproduceResult(NAME, csv, png, None, summary, rows, info, figures)
+
+
+def _course_plot(png, course: dict, dx: float):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(5.2, 3.8), dpi=120)
+    for label, (travel, along) in course.items():
+        ax.plot(travel, along, label=f"magsoro: {label}")
+    ax.set_xlabel("magnet travel (mm): up 74, level 34.6, down 74")
+    ax.set_ylabel("centroid along the stroke (mm)")
+    ax.set_title(f"Triangular robot: course of one stroke\ndx = {dx * 1e3:.1f} mm", fontsize=9)
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(png)
+    plt.close(fig)
+    return png
+
+
+ROBOT = Robot(
+    name=NAME,
+    title="Triangular robot (a stroke at a hand's speed)",
+    source="seed 002 sec 4.2",
+    quantity="displacement per stroke of the magnet from a vertex to the opposite side, at 5-20 mm/s (Fig. 4c)",
+    sentence="The triangle of seed 002 under one stroke of the paper's actuator at a hand's speed: the magnet rises "
+             "under a vertex, moves level to under the opposite side and goes down; how far the robot goes, by the "
+             "implicit integrator.",
+    reproduce=reproduce,
+)
