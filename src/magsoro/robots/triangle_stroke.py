@@ -69,7 +69,7 @@ def strokes(ctx: Context, data: dict, speeds, steps, pictures: int = 0) -> list[
 
     out = []
     for v in speeds:
-        r = sp.stroke_run(NAME, data, top, side, v, +1.0, domain, ctx, f"stroke at dx {S['dx'] * 1e3:g} mm",
+        r = sp.stroke_run(NAME, data, top, side, v, +1.0, domain, ctx, "stroke" + (" (preview grid)" if ctx.preview else ""),
                           implicit_step=steps[0], implicit_max_step=steps[1], markers=vertex, snapshots=pictures)
         i0, i1 = int(np.searchsorted(r["t"], sp.SETTLE)), int(np.searchsorted(r["t"], r["t_up"]))
         # once the magnet has moved 5 mm (the first step meets the settling robot)
