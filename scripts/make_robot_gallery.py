@@ -4,8 +4,8 @@
 
 On top of ``magsoro.robots.gallery.gallery_markdown`` this script
 
-- states which engine produced the committed results (the "Engine of the results" paragraph, ``ENGINE`` below:
-  edit it when results are re-run);
+- says where the committed results' provenance is (the "Engine of the results" paragraph, ``ENGINE`` below: each
+  result.json's ``run`` and ``history``);
 - shows a robot's 3D picture drawn by ``magsoro render`` when docs/robots/NAME/NAME_3d.png is present (and
   NAME_3d.gif beside it), with a one-line caption written from docs/robots/NAME/NAME_3d.json: which run it was
   drawn from (``magsoro run scenes/NAME.toml``, full resolution or ``--preview``), the colour mode, the view and
@@ -20,40 +20,10 @@ from pathlib import Path
 
 from magsoro.robots.gallery import gallery_markdown
 
-ENGINE = """Engine of the results: every result was computed with the engine of issue "Engine 2.0"
-or a later one (scene default `formulation = "auto"`: total Lagrangian for one body, updated with contact;
-frictional contact between bodies with free separation; self-contact where a scene asks for it). walker was
-re-run with it and magnetic_chain was made on 2026-11-24; gripper and pentagram were re-run on 2026-11-26 with the
-contact law of commit a03a409 (a minimum mass fraction at contact nodes between bodies): gripper at commit 47cb910
-on one core shared with other jobs (hence its wall time), pentagram with its magnet under the plate (commit
-71a6c38), and arch once more at commit 52e7539 (the same result; its summary now says why it saturates); bistable_arch, curling_strip,
-c_shape, l_shape and s_shape were made on 2026-11-26. On 2026-11-26 (the repository between commits 8547b65 and
-9d708e2) arch, cross, obstacle_beam, pentahedron, strip_magnet and triangle were re-run in full, and
-continuum_discrete, continuum_soft and tentacle were redone once their reproductions solved the field levels with
-the static solver. Later on 2026-11-26 cross and triangle were re-run in full with their speeds under the moving
-magnet (commits d4e276a and f543fcc; their field sweeps came out as before), and hexahedron, whose result had
-predated "Engine 2.0", at commit d05a375 (974 s on one core; beta at 45 mT 45.9 deg against 46.8 deg with the old
-engine). Later still, pentagram was re-run once its domain was widened to x = -80 mm (commit 3bd8e1b: a strip had
-come within the walls' reach at -50 mm; crawl +54.45 mm against +54.4, the grip unchanged; 417 s beside the test
-suite). obstacle_beam was redone once its reproduction solved the field levels with the static solver, whose
-colliders now meet the beam's surface (49 s against 174 s; one level, 10 mT, also settled by the dynamics as a
-check: 0.4 % apart). Against the gallery's earlier dynamic sweep of the same scene, the pressed twin differs by
-+10.4 % at 3 mT, +2.4 % at 6 mT, +0.75 % at 10 mT and within 0.5 % above: at first touch the engine's node contact
-holds the beam about a cell (1.5 mm) off the pin, and it comes to the surface only as the contact is pressed
-(particle centres 1.56, 1.20, 0.92, 0.61, 0.37 mm from the pin at 3-20 mT; their radius is 0.375 mm).
-strip_magnet was redone once its reproduction solved each magnet gap with the static solver (184 s against 579 s
-for the dynamic sweep; the strain 0.4-0.7 % below the dynamic sweep's at every gap, e.g. 7.29 % against 7.35 %
-at 37 mm). tail_crush and tail_pull (seed 004's bench tests of the everted growing robot) were made on
-2026-11-28 with the engine of commit 0641bf2 (the contact classification that no longer crashes with self-contact
-beside two contact groups); tail_crush's checks and summary were recomputed from its committed CSV after two
-corrections to the report (commit abb6c58). triangle and cross were re-run in full on 2026-11-28 once their field
-sweeps were solved by the static solver along the magnet's path (triangle at commit cec654f, cross at 4985439; the
-speeds under the moving magnet by the dynamics, as before): triangle 2069 s
-against 2184 s (the sweep 123 s against 243 s; W_t and H_t within 1.2 % of the dynamic sweep's from 15 to 45 mT,
-W_t 22 % and 5 % below at 5 and 10 mT), cross 791 s against 886 s (the two sweeps 70 s against 143 s); every check
-still passes. everting_tube (seed 004's tube everted in axisymmetric MPM) was made on 2026-11-30 at commit
-a0da799, the implicit integrator without contact rounds on self-contact: 1820 s, with the test suite running on the
-second core for most of it. Engine changes committed after a result was made are not in it.
+ENGINE = """Engine of the results: each robot's `docs/robots/NAME/result.json` says where its result came from:
+`run` (the date, commit and machine of the reproduction, recorded from 2026-11-30 on) and `history` (when and with
+which engine it was made or re-run, and what changed). Engine changes committed after a result was made are not
+in it.
 
 The 3D robots' entries also show a picture and an animation drawn by `magsoro render` from one run of the robot's
 scene (`magsoro run scenes/NAME.toml`): `magsoro reproduce` keeps no particle frames, so that run is separate from

@@ -80,7 +80,10 @@ def gallery_markdown(docs_dir: Path) -> str:
                            f"{c['error']:.3g} (tolerance {c['tolerance']:.3g}): {mark}")
             if res["checks"]:
                 out.append("")
-            out.append(f"Full run: {res['wall_s']:.0f} s wall on the 2-core CPU.")
+            run = res.get("run")
+            made = f" Made on {run['date'][:10]} at commit {run['commit']}." if run else ""
+            how = " How it came about: its result.json (`history`)." if res.get("history") else ""
+            out.append(f"Full run: {res['wall_s']:.0f} s wall on the 2-core CPU.{made}{how}")
         else:
             out.append("No full-resolution result has been committed for this robot yet.")
         out.append("")
