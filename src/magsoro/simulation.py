@@ -249,6 +249,8 @@ class Simulation:
     total-Lagrangian form (:func:`prepare_static`); a Simulation built otherwise is rebuilt so at that call.
     """
 
+    _keyframes = None  # the scene's keyframe times (_keyframe_times), found on the first implicit advance
+
     def __init__(self, scene: Scene, device: str | None = None, source: str = "scene"):
         self.scene = scene
         self.source = source
@@ -803,7 +805,7 @@ class Simulation:
         and stimulus tables, damping profiles; not [static] times): the loads' rates jump there."""
         from pydantic import BaseModel
 
-        if getattr(self, "_keyframes", None) is None:
+        if self._keyframes is None:
             times = set()
 
             def walk(obj):

@@ -25,7 +25,7 @@ import time
 import numpy as np
 
 from magsoro.errors import SimulationError
-from magsoro.robots.base import plot_curve, simulation, write_csv
+from magsoro.robots.base import _save, plot_curve, simulation, write_csv
 
 ACTUATOR_BR = 0.5099   # T: 50 mT at the face centre of the 100 mm x 10 mm disc (scenes/pentagram.toml)
 Z_TOP = -0.006         # m: magnet centre with its top face 1 mm below the plate top (z = 0 is the plate top)
@@ -252,7 +252,8 @@ def stroke_run(name: str, base: dict, start_xy, end_xy, speed: float, remanence_
     sampled. Unlike :func:`passing_run` the magnet's rim never sweeps across the robot. Returns times, the magnet's
     position, the centroid (m) and run facts: ``along`` the centroid's displacement along the level move while the
     magnet moves level and over the whole stroke (``along_stroke``, the magnet down again and AFTER s more),
-    ``move_speed`` the first over the move's time, ``lift`` the centroid's largest rise. ``implicit_step``,
+    ``move_speed`` the first over the move's time, ``lift`` the centroid's largest rise, ``course`` the centroid
+    along the stroke from its start at each sample. ``implicit_step``,
     ``implicit_max_step`` (:func:`slow_settings`) and ``keep_failed`` as in :func:`passing_run`; ``markers(X0) ->
     {key: mask}`` picks material whose mean height is sampled too (the rise under the start is a warping run);
     ``snapshots``: the particles' positions kept at that many times in each leg (``frames``), for pictures."""
@@ -269,6 +270,7 @@ def stroke_run(name: str, base: dict, start_xy, end_xy, speed: float, remanence_
         out.update(along=float("nan"), along_stroke=float("nan"), move_speed=float("nan"), lift=float("nan"))
         return out
     c = np.stack([out["cx"], out["cy"]], axis=1) @ d
+    out["course"] = c - c[0]  # the centroid along the stroke from where it started (m), per sample
     i0, i1 = np.searchsorted(out["t"], t_up), np.searchsorted(out["t"], t_moved)
     out.update(along=float(c[i1] - c[i0]), along_stroke=float(c[-1] - c[0]),
                move_speed=float((c[i1] - c[i0]) / (t_moved - t_up)), lift=float(out["cz"].max() - out["cz"][0]))
@@ -290,8 +292,6 @@ def stroke_side_views(png, frames, run: dict, title: str):
     cols = min(n, 5)
     rows = -(-n // cols)
     fig, axes = plt.subplots(rows, cols, figsize=(3.2 * cols, 2.4 * rows), squeeze=False)
-    d = np.asarray(run["direction"])
-    c0 = np.array([run["cx"][0], run["cy"][0]]) @ d
     for ax, (t, x) in zip(axes.ravel(), frames):
         mx, my, mz = (float(np.interp(t, run["t"], run[k])) for k in ("mx", "my", "mz"))
         ax.scatter(1e3 * x[:, 1], 1e3 * x[:, 2], s=1, c=1e3 * x[:, 0], cmap="coolwarm", vmin=-25, vmax=25)
@@ -299,15 +299,15 @@ def stroke_side_views(png, frames, run: dict, title: str):
         top = 1e3 * (mz + 0.005)
         if top > -12:
             ax.add_patch(plt.Rectangle((1e3 * my - 50.0, top - 10.0), 100.0, 10.0, color="0.8", zorder=0))
-        i = int(np.searchsorted(run["t"], t))
-        along = 1e3 * (np.array([run["cx"][min(i, len(run["t"]) - 1)], run["cy"][min(i, len(run["t"]) - 1)]]) @ d - c0)
+        along = 1e3 * run["course"][min(int(np.searchsorted(run["t"], t)), len(run["t"]) - 1)]
         ax.set_title(f"t {t:.2f} s, magnet y {1e3 * my:+.0f} z {1e3 * mz:+.0f}\nrobot {along:+.2f} mm along", fontsize=8)
         ax.set_xlim(-40, 40), ax.set_ylim(-12, 25), ax.set_aspect("equal"), ax.tick_params(labelsize=7)
     for ax in axes.ravel()[n:]:
         ax.axis("off")
     fig.suptitle(f"{title}, side view (y, z in mm; colour: x); dx = {1e3 * run['dx']:.1f} mm", fontsize=9)
+    fig.set_dpi(110)
     fig.tight_layout()
-    fig.savefig(png, dpi=110)
+    _save(fig, png)
     plt.close(fig)
     return png
 

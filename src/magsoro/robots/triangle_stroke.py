@@ -23,7 +23,7 @@ import math
 
 import numpy as np
 
-from magsoro.robots.base import Context, ReproduceResult, Robot, plot_curve, scene_data, write_csv
+from magsoro.robots.base import Context, ReproduceResult, Robot, _save, plot_curve, scene_data, write_csv
 
 NAME = "triangle_stroke"
 SPEEDS = [0.005, 0.01, 0.02]   # m/s (preview: the last)
@@ -95,9 +95,8 @@ def reproduce(ctx: Context) -> ReproduceResult:
     along = np.array([r["along_stroke"] for r in runs])
     level = np.array([r["along"] for r in runs])
     rate = np.array([r["warp_rate"] for r in runs])
-    length = np.array([sum(np.linalg.norm(np.diff(np.asarray(sp.stroke_path(*_ends(data), s)[0]["positions"]),
-                                                  axis=0), axis=1)) for s in v])
-    duration = length / v
+    duration = np.array([r["t_down"] - sp.SETTLE for r in runs])  # the magnet's time on the move
+    length = v * duration
     table = {"magnet_speed_mm_s": 1e3 * v, "centroid_along_stroke_mm": 1e3 * along,
              "centroid_along_level_move_mm": 1e3 * level, "centroid_lift_mm": 1e3 * np.array([r["lift"] for r in runs]),
              "vertex_rise_rate_mm_s": 1e3 * rate, "vertex_rise_mm": 1e3 * np.array([r["warp_rise"] for r in runs]),
@@ -115,8 +114,7 @@ def reproduce(ctx: Context) -> ReproduceResult:
     for r in runs:
         travel = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(np.stack([r["mx"], r["my"], r["mz"]], 1),
                                                                            axis=0), axis=1))])
-        c = np.stack([r["cx"], r["cy"]], 1) @ np.asarray(r["direction"])
-        course[f"{r['speed'] * 1e3:g} mm/s"] = (1e3 * travel, 1e3 * (c - c[0]))
+        course[f"{r['speed'] * 1e3:g} mm/s"] = (1e3 * travel, 1e3 * r["course"])
     course_png = _course_plot(ctx.out / f"{NAME}_course.png", course, dx)
     course_csv = write_csv(ctx.out / f"{NAME}_course.csv", {
         f"{k.replace(' mm/s', 'mms')}_{q}": arr for k, (a, b) in course.items() for q, arr in (("travel_mm", a),
@@ -187,7 +185,7 @@ def _course_plot(png, course: dict, dx: float):
     ax.grid(alpha=0.3)
     ax.legend(fontsize=7)
     fig.tight_layout()
-    fig.savefig(png)
+    _save(fig, png)
     plt.close(fig)
     return png
 
