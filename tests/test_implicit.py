@@ -521,7 +521,7 @@ def test_auto_linear_solver_turns_iterative_only_where_tangents_are_not_kept(tmp
     (here the static threshold is lowered to 0 so the small block lies in between): the block sliding on its
     friction floor keeps its factorisations (measured 5 setups in 209 Newton iterations) and stays direct; steps
     that make a new linear solver at every iteration turn it iterative once they fill more than half of the last
-    REUSE_WINDOW iterations, for the rest of the run; below the static threshold it is direct whatever the steps do."""
+    REUSE_WINDOW iterations (a step in progress counts as far as it went), for the rest of the run; below the static threshold it is direct whatever the steps do."""
     from magsoro.mpm.newton import implicit, linear
 
     monkeypatch.setattr(linear, "DIRECT_MAX_UNKNOWNS", 0)
@@ -537,6 +537,13 @@ def test_auto_linear_solver_turns_iterative_only_where_tangents_are_not_kept(tmp
     assert integ._linear_kind(n) == "iterative"
     for _ in range(implicit.REUSE_WINDOW):
         integ._note_reuse(3, 0)
+    assert integ._linear_kind(n) == "iterative"
+    # a step in progress counts before its end: more than REUSE_MAX * REUSE_WINDOW setups in its first iterations
+    integ._reuse, integ._per_iteration = [], False
+    integ._live = (integ.linear_setups, 1)
+    integ.linear_setups += 16
+    assert integ._linear_kind(n) == "direct"
+    integ.linear_setups += 1
     assert integ._linear_kind(n) == "iterative"
     monkeypatch.setattr(linear, "DIRECT_MAX_UNKNOWNS", n)
     assert integ._linear_kind(n) == "direct"

@@ -303,6 +303,7 @@ class ImplicitIntegrator(StaticSolver):
         self.steps = self.rejected = self.newton_iterations = self.tangents = 0
         self._reuse = []  # (Newton iterations, linear setups) of the steps of the last REUSE_WINDOW iterations ('auto')
         self._per_iteration = False  # 'auto' saw a new linear solver at nearly every iteration (REUSE_MAX)
+        self._live = None  # (linear setups before, Newton iterations so far) of the step in progress ('auto')
         self._kept = None  # (dt, LinearSolver of a tangent) reused across Newton iterations and steps
         self._start_from_state()
         self.a_nodes = self.consistent_acceleration()
@@ -520,6 +521,7 @@ class ImplicitIntegrator(StaticSolver):
         self.begin_step(dt)
         scale = self._force_scale(self.field_time)
         setups = self.linear_setups
+        self._live = (setups, 0)
         u0, v0, a0 = self.u_nodes, self.v_nodes, self.a_nodes
         # predictor: constant velocity (a_n's term can throw the lightest nodes at a body's edge, whose lumped masses
         # carry large accelerations, far enough to invert their particles' F); at a turn of the loads the last state
@@ -538,6 +540,7 @@ class ImplicitIntegrator(StaticSolver):
         finally:
             self._inertia = None
         self.newton_iterations += its
+        self._live = None
         self._note_reuse(its, self.linear_setups - setups)
         if not ok:
             self.rejected += 1
@@ -561,11 +564,25 @@ class ImplicitIntegrator(StaticSolver):
         self._reuse.append((iterations, setups))
         while sum(i for i, _ in self._reuse[1:]) >= REUSE_WINDOW:
             self._reuse.pop(0)
+        self._check_reuse()
+
+    def _check_reuse(self):
+        """Turn 'auto' iterative once the linear setups of the kept steps and of the step in progress exceed
+        REUSE_MAX of their Newton iterations, or of REUSE_WINDOW while there are fewer: a step that already made
+        more than REUSE_MAX * REUSE_WINDOW new linear solvers (the contact rounds of its first iterations) fills
+        any window it will be part of, so the rule need not wait for the step's end (the triangle landing on its
+        plate at 10,200 unknowns: 75 s of factorisations in its first Newton iteration, benchmarks/README.md)."""
+        if self._per_iteration:
+            return
         its = sum(i for i, _ in self._reuse)
-        if not self._per_iteration and its >= REUSE_WINDOW and sum(n for _, n in self._reuse) > REUSE_MAX * its:
+        setups = sum(n for _, n in self._reuse)
+        if self._live is not None:
+            its += self._live[1]
+            setups += self.linear_setups - self._live[0]
+        if setups > REUSE_MAX * max(its, REUSE_WINDOW):
             self._per_iteration = True
             log.info("implicit: a new linear solver at %d of the last %d Newton iterations; 'auto' solves "
-                     "iteratively from here", sum(n for _, n in self._reuse), its)
+                     "iteratively from here", setups, its)
 
     def _linear_kind(self, unknowns: int) -> str:
         """'direct' or 'iterative': the scene's linear_solver; 'auto' direct up to the static solver's threshold
@@ -579,6 +596,7 @@ class ImplicitIntegrator(StaticSolver):
             return "direct"
         if unknowns > self.direct_max_unknowns:
             return "iterative"
+        self._check_reuse()
         return "iterative" if self._per_iteration else "direct"
 
     def _step_newton(self, u, scale):
@@ -688,6 +706,7 @@ class ImplicitIntegrator(StaticSolver):
                 self._kept = history = self._anderson = None  # a stale tangent: make it anew at this iterate
                 continue
             it += 1
+            self._live = (self._live[0], it) if self._live is not None else None
             slow = n_try > REFRESH_RATE * norm and (fresh or changed)
             u, r, norm = u + alpha * step, r_try, n_try
             history.moved(alpha)
