@@ -229,6 +229,29 @@ def passing_run(name: str, base: dict, speed: float, remanence_sign: float, doma
     return out
 
 
+def rise_path(xy, speed: float) -> tuple[dict, float]:
+    """The magnet's path of a rise at ``speed`` (m/s; :func:`rise_run`): it waits SETTLE s at Z_START under ``xy``
+    and rises to Z_TOP. Returns its path table and the time it reaches the top."""
+    x, y = map(float, xy)
+    t_up = SETTLE + (Z_TOP - Z_START) / speed
+    return {"times": [0.0, SETTLE, t_up], "positions": [[x, y, Z_START], [x, y, Z_START], [x, y, Z_TOP]]}, t_up
+
+
+def rise_run(name: str, base: dict, xy, speed: float, remanence_sign: float, domain, ctx, label: str, markers,
+             implicit_step: float | None = None, implicit_max_step: float | None = None) -> dict:
+    """The rise of :func:`rising_run` (the magnet under ``xy`` from Z_START to Z_TOP at ``speed``, AFTER s more) in
+    a domain widened to ``domain`` (lo, hi), sampled as :func:`stroke_run` samples (at the implicit integrator's
+    largest step, with progress lines); ``markers(X0) -> {key: mask}`` picks the material whose mean height is
+    sampled. Returns the sampled series (times ``t``, the magnet's position ``mx``, ``my``, ``mz``, the centroid
+    ``cx``, ``cy``, ``cz`` and one per marker, m) with run facts and ``t_up``."""
+    path, t_up = rise_path(xy, speed)
+    out = _centroid_run(name, base, path, t_up + AFTER, speed, remanence_sign, domain, ctx, label, implicit_step,
+                        False, implicit_max_step, markers)
+    out["t_up"] = t_up
+    ctx.log(f"  {label} at {speed * 1e3:.0f} mm/s: {out['wall_s']:.0f} s wall")
+    return out
+
+
 def stroke_path(start_xy, end_xy, speed: float) -> tuple[dict, tuple[float, float, float]]:
     """The magnet's path of a stroke at ``speed`` (m/s; :func:`stroke_run`): it waits SETTLE s at Z_START under
     ``start_xy``, rises to Z_TOP, moves level to under ``end_xy`` and goes down to Z_START again. Returns its path

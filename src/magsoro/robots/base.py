@@ -215,6 +215,29 @@ def plot_curve(path: Path, x, series: dict[str, np.ndarray], xlabel: str, ylabel
     return Path(path)
 
 
+def plot_courses(path: Path, courses: dict[str, tuple], xlabel: str, ylabel: str, title: str, note: str = "",
+                 dashed=lambda label: False) -> Path:
+    """PNG of simulated curves that each have their own x (label -> (x, y): a run's course against its load),
+    lines without markers, ``dashed(label)`` ones dashed. ``note`` goes under the title."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(5.2, 3.8), dpi=120)
+    for label, (x, y) in courses.items():
+        ax.plot(x, y, "--" if dashed(label) else "-", label=f"magsoro: {label}")
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel(ylabel)
+    ax.set_title(title + (f"\n{note}" if note else ""), fontsize=9)
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=7)
+    fig.tight_layout()
+    _save(fig, path)
+    plt.close(fig)
+    return Path(path)
+
+
 def _save(fig, path: Path) -> None:
     path = Path(path)
     tmp = path.with_name(path.name + ".tmp" + path.suffix)

@@ -23,7 +23,7 @@ import math
 
 import numpy as np
 
-from magsoro.robots.base import Context, ReproduceResult, Robot, _save, plot_curve, scene_data, write_csv
+from magsoro.robots.base import Context, ReproduceResult, Robot, plot_courses, plot_curve, scene_data, write_csv
 
 NAME = "triangle_stroke"
 SPEEDS = [0.005, 0.01, 0.02]   # m/s (preview: the last)
@@ -115,7 +115,9 @@ def reproduce(ctx: Context) -> ReproduceResult:
         travel = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(np.stack([r["mx"], r["my"], r["mz"]], 1),
                                                                            axis=0), axis=1))])
         course[f"{r['speed'] * 1e3:g} mm/s"] = (1e3 * travel, 1e3 * r["course"])
-    course_png = _course_plot(ctx.out / f"{NAME}_course.png", course, dx)
+    course_png = plot_courses(ctx.out / f"{NAME}_course.png", course, "magnet travel (mm): up 74, level 34.6, down 74",
+                              "centroid along the stroke (mm)", "Triangular robot: course of one stroke",
+                              note=f"dx = {dx * 1e3:.1f} mm")
     course_csv = write_csv(ctx.out / f"{NAME}_course.csv", {
         f"{k.replace(' mm/s', 'mms')}_{q}": arr for k, (a, b) in course.items() for q, arr in (("travel_mm", a),
                                                                                           ("along_mm", b))})
@@ -168,26 +170,6 @@ def reproduce(ctx: Context) -> ReproduceResult:
                 "caption": "the centroid's displacement along the stroke against the magnet's travel, per magnet speed"},
                {"csv": csv, "png": views, "caption": "side views of the robot during the fastest stroke (y, z; colour x)"}]
     return ReproduceResult(NAME, csv, png, None, summary, rows, info, figures)
-
-
-def _course_plot(png, course: dict, dx: float):
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, ax = plt.subplots(figsize=(5.2, 3.8), dpi=120)
-    for label, (travel, along) in course.items():
-        ax.plot(travel, along, label=f"magsoro: {label}")
-    ax.set_xlabel("magnet travel (mm): up 74, level 34.6, down 74")
-    ax.set_ylabel("centroid along the stroke (mm)")
-    ax.set_title(f"Triangular robot: course of one stroke\ndx = {dx * 1e3:.1f} mm", fontsize=9)
-    ax.grid(alpha=0.3)
-    ax.legend(fontsize=7)
-    fig.tight_layout()
-    _save(fig, png)
-    plt.close(fig)
-    return png
 
 
 ROBOT = Robot(
