@@ -53,6 +53,9 @@ def reproduce(name: str, out=None, preview: bool = False, device: str | None = N
     ctx = Context(out=out, preview=preview, device=device)
     if log is not None:
         ctx.log = log
+    from magsoro.bench.runner import provenance
+
+    made = provenance()  # the commit whose code runs: taken before a long run during which HEAD may move on
     t0 = time.perf_counter()
     scene_notes()  # forget earlier reproductions' runs
     res = robot.reproduce(ctx)
@@ -60,12 +63,11 @@ def reproduce(name: str, out=None, preview: bool = False, device: str | None = N
     notes = scene_notes()
     for note in notes:
         ctx.log(f"{name}: note: {note}")
-    from magsoro.bench.runner import provenance
     from magsoro.io.files import atomic_write_json
 
     atomic_write_json(out / "result.json", {
         "name": name, "title": robot.title, "source": robot.source, "quantity": robot.quantity,
-        "preview": bool(preview), "wall_s": round(wall, 1), "run": provenance(), "summary": res.summary,
+        "preview": bool(preview), "wall_s": round(wall, 1), "run": made, "summary": res.summary,
         "files": {"csv": res.csv.name, "png": res.png.name, "animation": res.animation.name if res.animation else None,
                   "figures": [{"csv": Path(f["csv"]).name, "png": Path(f["png"]).name, "caption": f["caption"]}
                               for f in res.figures]},
