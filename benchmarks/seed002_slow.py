@@ -30,9 +30,6 @@ import numpy as np
 from magsoro.bench.runner import provenance
 
 ROOT = Path(__file__).resolve().parents[1]
-#: the rise rate is read once the magnet has moved this far (m): the first step switches the field on and the
-#: vertex lifts about 1 mm in it (a step of 25-100 ms, where the explicit engine's 40 ms of settling hold it)
-START_TRAVEL = 0.005
 #: the pass's domain (m): reproduce's (magsoro.robots.triangle.LOCO_DOMAIN) with room along +y up to the magnet's
 #: start, since a slow magnet draws the robot towards it before it passes (the implicit integrator models only the
 #: walls a body starts at)
@@ -79,7 +76,7 @@ def main(argv=None) -> int:
         if args.motion in ("warp", "both"):
             r = sp.rising_run(triangle.NAME, data, top, v, +1.0, vertices, ctx, "warping", implicit_step=step)
             i0 = int(np.searchsorted(r["t"], sp.SETTLE))
-            rate = sp.largest_rate(r["t"], r["top"], sp.SETTLE + START_TRAVEL / v)[0]
+            rate = sp.moving_rate(r["t"], r["top"], v)
             runs.append({"motion": "warp", "magnet_speed_mm_s": v * 1e3, "vertex_rise_rate_mm_s": 1e3 * rate,
                          "vertex_rise_mm": 1e3 * float(r["top"][-1] - r["top"][i0]), "wall_s": round(r["wall_s"], 1),
                          "dx_m": r["dx"], "particles": r["particles"], "dt_s": r["sample_s"], "integrator": r["integrator"],
@@ -102,7 +99,7 @@ def main(argv=None) -> int:
             pictures.append((v, r["frames"], r))
             i0 = int(np.searchsorted(r["t"], sp.SETTLE))
             i1 = int(np.searchsorted(r["t"], r["t_up"]))
-            rise_rate = sp.largest_rate(r["t"][: i1 + 1], r["top"][: i1 + 1], sp.SETTLE + START_TRAVEL / v)[0]
+            rise_rate = sp.moving_rate(r["t"][: i1 + 1], r["top"][: i1 + 1], v)
             runs.append({"motion": "stroke", "magnet_speed_mm_s": v * 1e3, "failed": r["failed"],
                          "from_mm": (1e3 * top).tolist(), "to_mm": (1e3 * side).tolist(),
                          "centroid_along_stroke_in_level_move_mm": 1e3 * r["along"],

@@ -63,8 +63,8 @@ def deflection(run: dict, mode: str) -> np.ndarray:
 def rises(ctx: Context, data: dict, speeds, steps) -> dict:
     """One rise per mode and magnet speed (m/s) on ``ctx``'s grid; ``steps`` (first, largest) in m of magnet travel.
     Each result gains ``deflection`` (its samples, m), ``rate`` (the largest deflection rate once the magnet has
-    moved 5 mm, m/s), ``top`` (the deflection at the end, the magnet at its top, from the flat start, m) and
-    ``growth`` (the same less the deflection when the magnet starts to rise, m)."""
+    moved _seed002_speeds.START_TRAVEL, m/s), ``top`` (the deflection at the end, the magnet at its top, from the
+    flat start, m) and ``growth`` (the same less the deflection when the magnet starts to rise, m)."""
     from magsoro.robots import _seed002_speeds as sp
     from magsoro.robots.cross import markers
 
@@ -79,7 +79,7 @@ def rises(ctx: Context, data: dict, speeds, steps) -> dict:
                             implicit_step=steps[0], implicit_max_step=steps[1])
             d = deflection(r, mode)
             i0 = int(np.searchsorted(r["t"], sp.SETTLE))
-            r.update(deflection=d, rate=sp.largest_rate(r["t"], d, sp.SETTLE + 0.005 / v)[0],
+            r.update(deflection=d, rate=sp.moving_rate(r["t"], d, v),
                      top=float(d[-1] - d[0]), growth=float(d[-1] - d[i0]))
             out[mode].append(r)
     return out

@@ -72,8 +72,7 @@ def strokes(ctx: Context, data: dict, speeds, steps, pictures: int = 0) -> list[
         r = sp.stroke_run(NAME, data, top, side, v, +1.0, domain, ctx, "stroke" + (" (preview grid)" if ctx.preview else ""),
                           implicit_step=steps[0], implicit_max_step=steps[1], markers=vertex, snapshots=pictures)
         i0, i1 = int(np.searchsorted(r["t"], sp.SETTLE)), int(np.searchsorted(r["t"], r["t_up"]))
-        # once the magnet has moved 5 mm (the first step meets the settling robot)
-        r["warp_rate"] = sp.largest_rate(r["t"][: i1 + 1], r["top"][: i1 + 1], sp.SETTLE + 0.005 / v)[0]
+        r["warp_rate"] = sp.moving_rate(r["t"][: i1 + 1], r["top"][: i1 + 1], v)
         r["warp_rise"] = float(r["top"][i1] - r["top"][i0])
         out.append(r)
     return out

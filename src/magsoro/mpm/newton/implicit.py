@@ -706,7 +706,7 @@ class ImplicitIntegrator(StaticSolver):
                 self._kept = history = self._anderson = None  # a stale tangent: make it anew at this iterate
                 continue
             it += 1
-            self._live = (self._live[0], it) if self._live is not None else None
+            self._live = (self._live[0], it)  # try_step set it
             slow = n_try > REFRESH_RATE * norm and (fresh or changed)
             u, r, norm = u + alpha * step, r_try, n_try
             history.moved(alpha)
