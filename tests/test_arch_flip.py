@@ -57,17 +57,24 @@ def test_arch_flip_preview_closes_into_a_loop_and_tips_over(tmp_path):
 
 
 def test_explicit_references_are_the_benchmark_records():
-    """arch_flip.EXPLICIT carries the newest benchmarks/results/*-arch-flip-explicit.json (benchmarks/arch_flip_explicit.py)
-    to its stated digits, and its line through the three speeds passes within 0.1 mT of each."""
+    """arch_flip.EXPLICIT carries, per magnet speed, the newest benchmarks/results/*-arch-flip-explicit.json that ran
+    it (benchmarks/arch_flip_explicit.py) to its stated digits, and the passage law through LAW_SPEEDS_MM_S passes
+    within 0.1 mT of each of them."""
     import json
     from pathlib import Path
 
-    records = [json.loads(f.read_text()) for f in
-               (Path(__file__).resolve().parents[1] / "benchmarks" / "results").glob("*-arch-flip-explicit.json")]
-    assert records
-    runs = max(records, key=lambda r: r["date"])["runs"]
-    assert [r["magnet_speed_mm_s"] for r in runs] == list(af.EXPLICIT["magnet_speed_mm_s"])
-    assert [r["flip_level_mT"] for r in runs] == pytest.approx(af.EXPLICIT["flip_level_mT"], abs=0.005)
-    assert [r["flip_time_s"] for r in runs] == pytest.approx(af.EXPLICIT["flip_time_s"], abs=0.0005)
-    for v, b in zip(af.EXPLICIT["magnet_speed_mm_s"], af.EXPLICIT["flip_level_mT"]):
-        assert af.explicit_level_at(v) == pytest.approx(b, abs=0.1)
+    records = sorted((json.loads(f.read_text()) for f in
+                      (Path(__file__).resolve().parents[1] / "benchmarks" / "results").glob("*-arch-flip-explicit.json")),
+                     key=lambda r: r["date"])
+    for v in af.EXPLICIT["magnet_speed_mm_s"]:
+        run = [r for rec in records for r in rec["runs"] if r["magnet_speed_mm_s"] == v][-1]
+        assert run["flip_level_mT"] == pytest.approx(af.explicit(v), abs=0.005)
+        assert run["flip_time_s"] == pytest.approx(af.explicit(v, "flip_time_s"), abs=0.0005)
+    for v in af.LAW_SPEEDS_MM_S:
+        assert af.explicit_level_at(v) == pytest.approx(af.explicit(v), abs=0.1)
+
+
+def test_passage_law_fit_recovers_its_parameters():
+    v = np.array([5.0, 20.0, 80.0])
+    l0, c = af.passage_law(v, 9.0 + 0.05 * v ** (2.0 / 3.0))
+    assert (l0, c) == pytest.approx((9.0, 0.05), rel=1e-9)
