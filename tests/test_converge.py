@@ -50,6 +50,25 @@ def test_richardson_oscillating_two_spacings_and_round_off():
         estimate([2.0, 1.0], [1.0, float("nan")])
 
 
+
+def test_components_zero_by_symmetry_are_reported_as_zero_not_fitted():
+    """A probe's component that stays at round-off while another is millimetres (the cross's centre x and y at
+    1e-14 to 7e-10 m against its z at 7 mm, benchmarks/results/*-cross-rise-converge.json) is zero by symmetry: no
+    order (those values gave 10.8), no panel; a component at a thousandth of the scale is still fitted."""
+    from magsoro.convergence.study import probe_scale
+
+    h = [0.002, 0.001, 0.0005]
+    points = {"centre_x": list(zip(h, [-2.97e-14, -4.52e-13, -7.32e-10])),
+              "centre_z": list(zip(h, [9.47e-3, 6.81e-3, 6.77e-3])), "force": list(zip(h, [1.0, 2.0, 3.0]))}
+    assert probe_scale("centre_x", points) == pytest.approx(9.47e-3)
+    assert probe_scale("force", points) is None
+    zero = estimate(h, [v for _, v in points["centre_x"]], scale=9.47e-3)
+    assert zero.behaviour == "zero" and zero.value == 0.0 and zero.uncertainty == pytest.approx(7.32e-10)
+    assert zero.order is None and "zero by symmetry" in zero.summary()
+    assert estimate(h, [v for _, v in points["centre_x"]]).behaviour != "zero"  # no scale, no judgement
+    small = estimate(h, [1.0e-5, 1.2e-5, 1.25e-5], scale=9.47e-3)
+    assert small.behaviour == "monotone" and small.order == pytest.approx(2.0)
+
 # -- magsoro converge on the cantilever ---------------------------------------------------------------------------
 
 def rod_tip():

@@ -9,14 +9,16 @@ import numpy as np
 
 
 def plot_study(path: Path, estimates: dict, scene: str, feature: str) -> Path:
-    """One panel per quantity (at most 6 shown): the values (dots), the fitted ``f0 + C dx^p`` through the finest
+    """One panel per quantity (at most 6 shown; those zero by symmetry left out): the values (dots), the fitted ``f0 + C dx^p`` through the finest
     two (line, when an order was measured or assumed), ``f0`` at dx = 0 with its band; returns ``path``."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    items = [(c, e) for c, e in estimates.items() if e is not None][:6]
+    items = [(c, e) for c, e in estimates.items() if e is not None and e.behaviour != "zero"][:6]
+    if not items:
+        items = [(c, e) for c, e in estimates.items() if e is not None][:6]
     n = len(items)
     cols = min(n, 3)
     rows = (n + cols - 1) // cols

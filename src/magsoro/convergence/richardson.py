@@ -27,6 +27,10 @@ GCI_SAFETY = 1.25
 ORDER_RANGE = (0.05, 12.0)
 #: differences below this fraction of the value are round-off, not discretisation error
 ROUND_OFF = 1e-10
+#: a quantity whose values all stay below this fraction of its scale (``estimate(..., scale=)``: e.g. the largest
+#: component of the same probe) is zero, by symmetry, to round-off: float32 runs carry relative noise near 1e-7,
+#: float64 runs whose steps stop at a residual tolerance near 1e-8
+ZERO = 1e-6
 
 
 @dataclass
@@ -74,6 +78,8 @@ class Estimate:
             return f"finest {self.value:.6g}{band} (values oscillate: no order; band half the finest three's spread)"
         if self.behaviour == "converged":
             return f"{self.value:.6g} (the finest values agree to round-off)"
+        if self.behaviour == "zero":
+            return f"0 (every value within {self.uncertainty:.3g} of zero, under {ZERO:g} of the probe's scale: zero by symmetry)"
         if self.behaviour == "no power law":
             return f"finest {self.value:.6g}{band} (monotone, but no order between {ORDER_RANGE[0]:g} and {ORDER_RANGE[1]:g} fits)"
         return f"finest {self.value:.6g}, change from the coarser {self.values[-1] - self.values[-2]:+.4g} (give a third spacing, or --order)"
@@ -107,14 +113,17 @@ def observed_order(h, f) -> float | None:
     return None
 
 
-def estimate(h, values, order: float | None = None) -> Estimate:
+def estimate(h, values, order: float | None = None, scale: float | None = None) -> Estimate:
     """Richardson estimate from ``values`` at spacings ``h`` (two or more, any order); ``order``: assume this
-    order instead of measuring it (needed with two spacings)."""
+    order instead of measuring it (needed with two spacings); ``scale``: the size of the quantity's kind (e.g. the
+    largest component of the same probe), below ZERO of which every value is zero by symmetry."""
     h, f = _sorted(h, values)
     if len(h) < 2:
         raise ValueError("a convergence estimate needs values at two or more spacings")
     if len(set(h)) != len(h):
         raise ValueError("the spacings must differ")
+    if scale is not None and scale > 0 and max(abs(v) for v in f) <= ZERO * scale:
+        return Estimate(h, f, "zero", 0.0, float(max(abs(v) for v in f)))
     triples = []
     for i in range(len(h) - 2):
         p = observed_order(h[i:i + 3], f[i:i + 3])

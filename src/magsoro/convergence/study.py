@@ -107,6 +107,17 @@ def feature_value(rows: list[list[float]], j: int, feature: str) -> float:
     return max(col, key=abs)
 
 
+def probe_scale(column: str, points: dict) -> float | None:
+    """The largest |value| over every run of the columns of ``column``'s probe (``NAME_x``, ``NAME_y``, ``NAME_z``
+    share one probe NAME); None for a column of no such group."""
+    stem, sep, axis = column.rpartition("_")
+    if not sep or axis not in ("x", "y", "z"):
+        return None
+    values = [abs(v) for c, pts in points.items() if c.rpartition("_")[0] == stem and c.rpartition("_")[2] in ("x", "y", "z")
+              for _, v in pts]
+    return max(values, default=None)
+
+
 def run_one(scene: str, dx: float, folder: Path, mode: str, args) -> RunRow:
     """``magsoro run SCENE --set simulation.dx=DX --out FOLDER`` in this process (quiet); its status from run.json."""
     from magsoro.commands.run import run as run_command
@@ -199,9 +210,11 @@ def study(args) -> int:
             + (f"; {shown}" if shown else ""))
     done = [r for r in rows if r.status == "completed"]
     estimates: dict[str, Estimate | None] = {}
-    for c in columns or []:
-        pts = [(r.dx, r.values.get(c)) for r in done if isinstance(r.values.get(c), float) and math.isfinite(r.values[c])]
-        estimates[c] = estimate([p[0] for p in pts], [p[1] for p in pts], order=args.order) if len(pts) >= 2 else None
+    points = {c: [(r.dx, r.values.get(c)) for r in done
+                  if isinstance(r.values.get(c), float) and math.isfinite(r.values[c])] for c in columns or []}
+    for c, pts in points.items():
+        estimates[c] = (estimate([p[0] for p in pts], [p[1] for p in pts], order=args.order,
+                                 scale=probe_scale(c, points)) if len(pts) >= 2 else None)
     _write_csv(out / "converge.csv", rows, columns or [])
     figure = None
     if estimates and any(e is not None for e in estimates.values()):
