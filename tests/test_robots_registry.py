@@ -99,3 +99,16 @@ material = "ecoflex-00-30"
     sc = load_scene(path, preview=True)
     assert sc.simulation.dx == 2e-3 and sc.simulation.duration == 0.005
     assert load_scene(path).simulation.dx == 1e-3
+
+
+def test_write_csv_pads_shorter_columns_with_empty_cells(tmp_path):
+    """Runs sampled at their own steps go side by side in one CSV: the shorter columns end in empty cells, read
+    back as nan (an arch_flip run with 1,107 samples beside longer ones stopped on an IndexError before)."""
+    import numpy as np
+
+    from magsoro.robots.base import read_csv, write_csv
+
+    path = write_csv(tmp_path / "c.csv", {"a": [1.0, 2.0], "b": [1.0, 2.0, 3.0], "c": []})
+    back = read_csv(path)
+    assert back["b"].tolist() == [1.0, 2.0, 3.0]
+    assert back["a"][:2].tolist() == [1.0, 2.0] and np.isnan(back["a"][2]) and np.isnan(back["c"]).all()

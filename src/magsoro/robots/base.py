@@ -156,14 +156,15 @@ def run(sim, duration: float | None = None, every: float | None = None, frames: 
 
 # -- outputs ----------------------------------------------------------------------------------------------
 def write_csv(path: Path, columns: dict[str, list | np.ndarray]) -> Path:
-    """Columns (equal lengths) to a CSV file, atomically."""
+    """Columns to a CSV file, atomically; a column shorter than the longest ends in empty cells (:func:`read_csv`
+    reads them as nan): runs sampled at their own steps side by side."""
     from magsoro.io.files import atomic_write_text
 
     names = list(columns)
-    n = len(next(iter(columns.values()))) if columns else 0
+    n = max((len(c) for c in columns.values()), default=0)
     lines = [",".join(names)]
     for i in range(n):
-        lines.append(",".join(_fmt(columns[k][i]) for k in names))
+        lines.append(",".join(_fmt(columns[k][i]) if i < len(columns[k]) else "" for k in names))
     atomic_write_text(Path(path), "\n".join(lines) + "\n")
     return Path(path)
 
