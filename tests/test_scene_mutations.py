@@ -221,3 +221,14 @@ def test_deeply_nested_values_in_a_scene_file_are_refused(tmp_path):
                 load(path)
             msg = str(exc.value).strip()
             assert "\n" not in msg and msg.startswith(f"{path}: "), msg
+
+
+def test_pressure_cavity_of_the_wrong_dimension_is_refused():
+    """A 2D scene's pressure cavity with a 3-component size (found by the mutations above): one line naming
+    bodies[0].pressure.cavity.size, as for a body's own shape."""
+    data = copy.deepcopy(SCENES["axisymmetric_tube.toml"])
+    data["bodies"][0]["pressure"]["cavity"]["size"] = [0.002, 0.006, 0.006]
+    with pytest.raises(SceneError) as exc:
+        parse_scene(data, str(SCENES_DIR / "axisymmetric_tube.toml"), SCENES_DIR)
+    msg = str(exc.value)
+    assert "\n" not in msg and "pressure.cavity.size" in msg, msg

@@ -319,6 +319,8 @@ def check_scene(scene: Scene, source: str, base_dir: Path | None) -> None:
         if b.name in names[:i]:
             raise SceneError(f"{bsrc}: {bkey}.name: duplicate body name '{b.name}'")
         _check_shape(b.shape, dim, f"{bkey}.shape", bsrc, b.base_dir)
+        if b.pressure is not None:
+            _check_shape(b.pressure.cavity, dim, f"{bkey}.pressure.cavity", bsrc, b.base_dir)
         _vec_len(b.velocity, dim, f"{bkey}.velocity", bsrc)
         stim = getattr(b.material, "stimulus", None)
         if stim is not None:
