@@ -47,6 +47,10 @@ def test_reproduce_cli_lists_and_refuses_unknown_names():
     assert bad.returncode == 2 and "unknown robot 'no_such_robot'" in bad.stderr
     with pytest.raises(RobotError, match="known:"):
         get("no_such_robot")
+    zero = subprocess.run([sys.executable, "-m", "magsoro", "reproduce", "walker", "--workers", "0"],
+                          capture_output=True, text=True)
+    assert zero.returncode == 2 and zero.stderr.strip().splitlines() == [
+        "magsoro reproduce: error: --workers 0: give a whole number of processes, 1 or more"]
 
 
 def test_validate_lists_a_case_per_robot():

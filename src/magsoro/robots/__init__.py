@@ -44,13 +44,15 @@ def get(name: str) -> Robot:
     return ROBOTS[name]
 
 
-def reproduce(name: str, out=None, preview: bool = False, device: str | None = None, log=None) -> ReproduceResult:
+def reproduce(name: str, out=None, preview: bool = False, device: str | None = None, log=None,
+              workers: int = 1) -> ReproduceResult:
     """Run robot ``name`` and write its curve (CSV, PNG) and animation into ``out``
-    (default runs/reproduce/<name>, or runs/reproduce/<name>-preview)."""
+    (default runs/reproduce/<name>, or runs/reproduce/<name>-preview). ``workers``: processes the robot's
+    independent simulations may run in at once (:func:`magsoro.robots.base.run_jobs`; 1: one after the other)."""
     robot = get(name)
     out = Path(out) if out is not None else Path("runs") / "reproduce" / (name + ("-preview" if preview else ""))
     out.mkdir(parents=True, exist_ok=True)
-    ctx = Context(out=out, preview=preview, device=device)
+    ctx = Context(out=out, preview=preview, device=device, workers=max(1, int(workers)))
     if log is not None:
         ctx.log = log
     from magsoro.bench.runner import provenance
@@ -71,7 +73,7 @@ def reproduce(name: str, out=None, preview: bool = False, device: str | None = N
         "files": {"csv": res.csv.name, "png": res.png.name, "animation": res.animation.name if res.animation else None,
                   "figures": [{"csv": Path(f["csv"]).name, "png": Path(f["png"]).name, "caption": f["caption"]}
                               for f in res.figures]},
-        "info": res.info, "checks": [r.as_dict() for r in res.rows], "passed": res.passed, "notes": notes,
+        "info": res.info | {"workers": ctx.workers}, "checks": [r.as_dict() for r in res.rows], "passed": res.passed, "notes": notes,
     })
     return res
 

@@ -32,7 +32,8 @@ import math
 
 import numpy as np
 
-from magsoro.robots.base import Context, ReproduceResult, Robot, plot_courses, scene_data, simulation, write_csv
+from magsoro.robots.base import (Context, Job, ReproduceResult, Robot, plot_courses, run_jobs, scene_data, simulation,
+                                 write_csv)
 
 NAME = "arch_flip"
 SPEEDS = [0.005, 0.01, 0.02]  # m/s (preview: the last)
@@ -300,8 +301,13 @@ def reproduce(ctx: Context) -> ReproduceResult:
 
     data = scene_data(NAME)
     speeds = SPEEDS[-1:] if ctx.preview else SPEEDS
-    runs = [flip_run(ctx, data, v) for v in speeds]
-    fine = None if ctx.preview else flip_run(ctx, data, SPEEDS[-1], dx=FINE_DX, label=" (dx 0.25 mm)")
+    # independent rises, in worker processes where ctx.workers allows: the fine grid's, the longest, first
+    jobs = [] if ctx.preview else [Job(flip_run, ctx, (data, SPEEDS[-1]), {"dx": FINE_DX, "label": " (dx 0.25 mm)"},
+                                       label=f"{SPEEDS[-1] * 1e3:g} mm/s, dx {FINE_DX * 1e3:g} mm")]
+    jobs += [Job(flip_run, ctx, (data, v), label=f"{v * 1e3:g} mm/s") for v in reversed(speeds)]
+    done = run_jobs(ctx, jobs)
+    fine = None if ctx.preview else done.pop(0)
+    runs = done[::-1]
     v = np.array(speeds)
     level = np.array([r["level"] for r in runs])
     dur = np.array([r["duration"] for r in runs])

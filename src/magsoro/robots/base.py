@@ -28,15 +28,23 @@ class RobotError(MagsoroError):
     """A robot cannot be reproduced (unknown name, scene folder missing, a run that failed)."""
 
 
+def stderr_log(msg: str) -> None:
+    """The default progress logger: one line on stderr."""
+    print(msg, file=sys.stderr, flush=True)
+
+
 @dataclass
 class Context:
     """What ``reproduce`` gets: the output folder (created), ``preview`` (coarse and short: the scene's
-    [preview] table), the device and a progress logger (stderr)."""
+    [preview] table), the device, a progress logger (stderr) and ``workers``: how many processes
+    :func:`run_jobs` may run a reproduction's independent simulations in (1: one after the other, in this
+    process)."""
 
     out: Path
     preview: bool = False
     device: str | None = None
-    log: Callable[[str], None] = field(default=lambda msg: print(msg, file=sys.stderr, flush=True))
+    log: Callable[[str], None] = field(default=stderr_log)
+    workers: int = 1
 
 
 @dataclass
@@ -141,6 +149,104 @@ def simulation(name: str, data: dict | None = None, preview: bool = False, devic
     sim = Simulation(scene(name, data, preview), device=device, source=str(scenes_dir() / f"{name}.toml"))
     _run_notes.append(sim.scene_notes)  # reproduce() reports the scene notes of every run it made
     return sim
+
+
+# -- independent simulations in parallel ----------------------------------------------------------------------
+@dataclass
+class Job:
+    """One of a reproduction's independent simulations, for :func:`run_jobs`: ``fn(ctx, *args, **kwargs)``.
+    ``fn`` is a module-level function and ``args``, ``kwargs`` and its return value can be pickled (a worker
+    process runs it); ``label`` prefixes its progress lines there."""
+
+    fn: Callable
+    ctx: Context
+    args: tuple = ()
+    kwargs: dict = field(default_factory=dict)
+    label: str = ""
+
+
+class _Prefixed:
+    """A worker's progress logger: stderr lines that start with its job's label."""
+
+    def __init__(self, label: str):
+        self.label = label
+
+    def __call__(self, msg: str) -> None:
+        stderr_log(f"[{self.label}] {msg}" if self.label else msg)
+
+
+def _run_job(job: Job):
+    """In a worker process: run ``job``; returns (ok, value or exception, scene notes, traceback text)."""
+    import pickle
+    import traceback
+
+    scene_notes()
+    try:
+        value = job.fn(job.ctx, *job.args, **job.kwargs)
+        return True, value, scene_notes(), ""
+    except Exception as exc:  # noqa: BLE001 - handed to the parent, which raises it
+        text = traceback.format_exc()
+        try:
+            pickle.loads(pickle.dumps(exc))
+        except Exception:  # noqa: BLE001 - an exception that cannot travel: the parent gets its text
+            exc = None
+        return False, exc, scene_notes(), text
+
+
+#: how often (s) run_jobs looks for finished jobs
+JOB_POLL_S = 0.2
+
+
+def run_jobs(ctx: Context, jobs: list[Job]) -> list:
+    """The results of ``jobs``, in their order. With ``ctx.workers`` > 1 and more than one job they run at once in
+    that many worker processes (spawned, each job in a fresh one, numerical libraries single-threaded and the
+    engine's CPU threads shared out), longest first if the jobs are given so; otherwise one after the other here.
+    The workers' scene notes join this process's (:func:`scene_notes`). The first job that fails stops the others
+    and its exception is raised here, with the worker's traceback as a note."""
+    workers = min(max(1, int(ctx.workers)), len(jobs))
+    if workers <= 1:
+        return [j.fn(j.ctx, *j.args, **j.kwargs) for j in jobs]
+    import multiprocessing
+
+    from magsoro.mpm.runtime import usable_cores
+
+    jobs = [Job(j.fn, _portable(j.ctx, j.label), j.args, j.kwargs, j.label) for j in jobs]
+    env = {"OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1", "NUMEXPR_NUM_THREADS": "1",
+           "VECLIB_MAXIMUM_THREADS": "1", "MAGSORO_THREADS": str(max(1, usable_cores() // workers))}
+    saved = {k: os.environ.get(k) for k in env}
+    os.environ.update(env)  # the workers inherit it (a replacement worker too: kept until the pool is gone)
+    try:
+        with multiprocessing.get_context("spawn").Pool(workers, maxtasksperchild=1) as pool:
+            pending = {i: pool.apply_async(_run_job, (j,)) for i, j in enumerate(jobs)}
+            results: dict = {}
+            while pending:
+                for i in [i for i, p in pending.items() if p.ready()]:
+                    ok, value, notes, text = pending.pop(i).get()
+                    _run_notes.append(notes)
+                    if not ok:
+                        if value is None:
+                            raise RobotError(f"{jobs[i].label or jobs[i].fn.__name__}: failed in a worker "
+                                             f"process:\n{text}")
+                        value.add_note(f"(in the worker process of '{jobs[i].label or jobs[i].fn.__name__}')\n{text}")
+                        raise value
+                    results[i] = value
+                if pending:
+                    time.sleep(JOB_POLL_S)
+    finally:
+        for k, v in saved.items():
+            if v is None:
+                os.environ.pop(k, None)
+            else:
+                os.environ[k] = v
+    return [results[i] for i in range(len(jobs))]
+
+
+def _portable(ctx: Context, label: str) -> Context:
+    """``ctx`` for a worker process: its logger replaced by one that prefixes ``label`` (any logger given here
+    stays here) and one worker (a job does not start workers of its own)."""
+    from dataclasses import replace
+
+    return replace(ctx, log=_Prefixed(label), workers=1)
 
 
 def run(sim, duration: float | None = None, every: float | None = None, frames: "FrameRecorder | None" = None,

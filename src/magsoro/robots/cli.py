@@ -19,6 +19,9 @@ def add_arguments(p: argparse.ArgumentParser, names: bool = True) -> None:
     p.add_argument("--out", metavar="DIR",
                    help="output folder (default runs/reproduce/NAME[-preview]; with several robots: DIR/NAME)")
     p.add_argument("--device", help="cpu, cuda or cuda:N (default: the scene's)")
+    p.add_argument("--workers", type=int, metavar="N",
+                   help="processes a robot's independent simulations (speeds, resolutions) run in at once "
+                        "(default: one per usable core on the CPU, 1 on CUDA)")
     p.add_argument("--json", action="store_true", help="print the results (files, summary, checks) as JSON")
 
 
@@ -41,13 +44,22 @@ def run_reproduce(args) -> int:
     except RobotError as exc:
         print(f"magsoro reproduce: error: {exc}", file=sys.stderr)
         return 2
+    workers = getattr(args, "workers", None)
+    if workers is not None and workers < 1:
+        print(f"magsoro reproduce: error: --workers {workers}: give a whole number of processes, 1 or more",
+              file=sys.stderr)
+        return 2
+    if workers is None:
+        from magsoro.mpm.runtime import usable_cores
+
+        workers = 1 if (args.device or "cpu").startswith("cuda") else usable_cores()
     results, ok = [], True
     for n in names:
         out = None
         if args.out:
             out = Path(args.out) / n if len(names) > 1 else Path(args.out)
         t0 = time.perf_counter()
-        res = reproduce(n, out=out, preview=args.preview, device=args.device)
+        res = reproduce(n, out=out, preview=args.preview, device=args.device, workers=workers)
         wall = time.perf_counter() - t0
         ok &= res.passed
         results.append((res, wall))

@@ -65,12 +65,12 @@ def deflection(run: dict, mode: str) -> np.ndarray:
     return run["centre"] - run["tips"] if mode == "arching" else run["tips"] - run["centre"]
 
 
-def rises(ctx: Context, data: dict, speeds, steps, dx: float | None = None) -> dict:
-    """One rise per mode and magnet speed (m/s) on ``ctx``'s grid, or at spacing ``dx`` (m; the scene's particles
-    per cell) when given; ``steps`` (first, largest) in m of magnet travel.
-    Each result gains ``deflection`` (its samples, m), ``rate`` (the largest deflection rate once the magnet has
-    moved _seed002_speeds.START_TRAVEL, m/s), ``top`` (the deflection at the end, the magnet at its top, from the
-    flat start, m) and ``growth`` (the same less the deflection when the magnet starts to rise, m)."""
+def rise(ctx: Context, data: dict, mode: str, speed: float, steps, dx: float | None = None) -> dict:
+    """One rise of ``mode`` (MODES) at ``speed`` (m/s) on ``ctx``'s grid, or at spacing ``dx`` (m; the scene's
+    particles per cell) when given; ``steps`` (first, largest) in m of magnet travel. The result gains
+    ``deflection`` (its samples, m), ``rate`` (the largest deflection rate once the magnet has moved
+    _seed002_speeds.START_TRAVEL, m/s), ``top`` (the deflection at the end, the magnet at its top, from the flat
+    start, m) and ``growth`` (the same less the deflection when the magnet starts to rise, m)."""
     from magsoro.robots import _seed002_speeds as sp
     from magsoro.robots.cross import markers
 
@@ -80,19 +80,30 @@ def rises(ctx: Context, data: dict, speeds, steps, dx: float | None = None) -> d
     grid = " (preview grid)" if ctx.preview else (f" (dx {dx * 1e3:g} mm)" if dx is not None else "")
     S = data["simulation"]
     domain = (list(S["domain_lo"]), list(S["domain_hi"]))
-    out = {}
-    for mode, sign in MODES:
-        out[mode] = []
-        for v in speeds:
-            r = sp.rise_run(NAME, data, (0.0, 0.0), v, sign, domain, ctx,
-                            mode + grid, markers,
-                            implicit_step=steps[0], implicit_max_step=steps[1])
-            d = deflection(r, mode)
-            i0 = int(np.searchsorted(r["t"], sp.SETTLE))
-            r.update(deflection=d, rate=sp.moving_rate(r["t"], d, v),
-                     top=float(d[-1] - d[0]), growth=float(d[-1] - d[i0]))
-            out[mode].append(r)
-    return out
+    r = sp.rise_run(NAME, data, (0.0, 0.0), speed, dict(MODES)[mode], domain, ctx, mode + grid, markers,
+                    implicit_step=steps[0], implicit_max_step=steps[1])
+    d = deflection(r, mode)
+    i0 = int(np.searchsorted(r["t"], sp.SETTLE))
+    r.update(deflection=d, rate=sp.moving_rate(r["t"], d, speed), top=float(d[-1] - d[0]), growth=float(d[-1] - d[i0]))
+    return r
+
+
+def rises(ctx: Context, data: dict, groups: list[tuple]) -> list[dict]:
+    """The rises of every mode and speed of each group (``ctx``, speeds in m/s, ``steps`` as in :func:`rise`,
+    ``dx`` or None), as jobs that run at once where the first ``ctx.workers`` allows (:func:`run_jobs`, the groups'
+    jobs in the order given: the longest first). Returns, per group, {mode: [result per speed]}."""
+    from magsoro.robots.base import Job, run_jobs
+
+    keys, jobs = [], []
+    for g, (c, speeds, steps, dx) in enumerate(groups):
+        grid = " preview grid" if c.preview else (f" dx {dx * 1e3:g} mm" if dx is not None else "")
+        for mode, _ in MODES:
+            for v in reversed(speeds):  # the fastest first
+                keys.append((g, mode, v))
+                jobs.append(Job(rise, c, (data, mode, v, steps, dx), label=f"{mode} {v * 1e3:g} mm/s{grid}"))
+    done = dict(zip(keys, run_jobs(ctx, jobs)))
+    return [{mode: [done[(g, mode, v)] for v in speeds] for mode, _ in MODES}
+            for g, (_, speeds, _, _) in enumerate(groups)]
 
 
 def reproduce(ctx: Context) -> ReproduceResult:
@@ -102,11 +113,13 @@ def reproduce(ctx: Context) -> ReproduceResult:
 
     data = scene_data(NAME)
     speeds = SPEEDS[-1:] if ctx.preview else SPEEDS
-    runs = rises(ctx, data, speeds, PREVIEW_STEPS if ctx.preview else STEPS)
     coarse = fine = None
-    if not ctx.preview:  # the fastest rise on the preview grid (for the record) and twice as fine (convergence row)
-        coarse = rises(Ctx(out=ctx.out, preview=True, device=ctx.device, log=ctx.log), data, SPEEDS[-1:], STEPS)
-        fine = rises(ctx, data, SPEEDS[-1:], STEPS, dx=FINE_DX)
+    if ctx.preview:
+        runs, = rises(ctx, data, [(ctx, speeds, PREVIEW_STEPS, None)])
+    else:  # the fastest rise twice as fine (convergence row; the longest runs, first) and on the preview grid
+        fine, runs, coarse = rises(ctx, data, [
+            (ctx, SPEEDS[-1:], STEPS, FINE_DX), (ctx, speeds, STEPS, None),
+            (Ctx(out=ctx.out, preview=True, device=ctx.device, log=ctx.log, workers=1), SPEEDS[-1:], STEPS, None)])
     v = np.array(speeds)
     rate = {m: np.array([r["rate"] for r in runs[m]]) for m, _ in MODES}
     growth = {m: np.array([r["growth"] for r in runs[m]]) for m, _ in MODES}

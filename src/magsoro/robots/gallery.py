@@ -22,6 +22,9 @@ docs/robots/NAME`).
   CPU; the pentagram's crawl runs the whole 200 mm magnet pass, at 400 mm/s instead of 200: 169 s in all on
   2026-11-26, with the test suite running beside it);
   `magsoro run scenes/NAME.toml --preview --out DIR` shows one run of the scene.
+- A robot whose reproduction runs several independent simulations (speeds, resolutions) runs them at once, one
+  per core (`--workers N` to choose; `--workers 1` runs them one after the other). Each simulation then takes
+  somewhat longer than alone, since the processes share the memory bandwidth.
 - `magsoro validate --all` runs every robot's preview with its acceptance checks (cases `robot-NAME`).
 
 How bodies, parts and magnetisation profiles are written: docs/geometry.md.

@@ -53,43 +53,56 @@ def _ends(data: dict):
     return corners[i], 0.5 * (corners[(i + 1) % 3] + corners[(i + 2) % 3])
 
 
-def strokes(ctx: Context, data: dict, speeds, steps, pictures: int = 0) -> list[dict]:
-    """One stroke per magnet speed (m/s) on ``ctx``'s grid, the top vertex's height sampled; ``steps`` (first,
-    largest) in m of magnet travel. Each result gains ``warp_rate`` (the top vertex's largest rise rate while the
-    magnet rises, m/s) and ``warp_rise`` (its rise by the top of the stroke, m)."""
+def _near(X0, centre, radius: float) -> dict:
+    """The material within ``radius`` (m) of ``centre`` (x, y) in the plane: the top vertex (stroke_run's markers)."""
+    return {"top": np.linalg.norm(X0[:, :2] - np.asarray(centre), axis=1) < radius}
+
+
+def stroke(ctx: Context, data: dict, speed: float, steps, pictures: int = 0) -> dict:
+    """One stroke at ``speed`` (m/s) on ``ctx``'s grid, the top vertex's height sampled; ``steps`` (first, largest)
+    in m of magnet travel. The result gains ``warp_rate`` (the top vertex's largest rise rate while the magnet
+    rises, m/s) and ``warp_rise`` (its rise by the top of the stroke, m)."""
+    from functools import partial
+
     from magsoro.robots import _seed002_speeds as sp
 
     top, side = _ends(data)
     S = data["simulation"]
     # the scene's floor already has the Newton solvers' room under the plate (stroke_run lowers it once more)
     domain = (list(S["domain_lo"]), list(S["domain_hi"]))
+    r = sp.stroke_run(NAME, data, top, side, speed, +1.0, domain, ctx, "stroke" + (" (preview grid)" if ctx.preview else ""),
+                      implicit_step=steps[0], implicit_max_step=steps[1], markers=partial(_near, centre=top, radius=0.002),
+                      snapshots=pictures)
+    i0, i1 = int(np.searchsorted(r["t"], sp.SETTLE)), int(np.searchsorted(r["t"], r["t_up"]))
+    r["warp_rate"] = sp.moving_rate(r["t"][: i1 + 1], r["top"][: i1 + 1], speed)
+    r["warp_rise"] = float(r["top"][i1] - r["top"][i0])
+    return r
 
-    def vertex(X0):
-        return {"top": np.linalg.norm(X0[:, :2] - top, axis=1) < 0.002}
 
-    out = []
-    for v in speeds:
-        r = sp.stroke_run(NAME, data, top, side, v, +1.0, domain, ctx, "stroke" + (" (preview grid)" if ctx.preview else ""),
-                          implicit_step=steps[0], implicit_max_step=steps[1], markers=vertex, snapshots=pictures)
-        i0, i1 = int(np.searchsorted(r["t"], sp.SETTLE)), int(np.searchsorted(r["t"], r["t_up"]))
-        r["warp_rate"] = sp.moving_rate(r["t"][: i1 + 1], r["top"][: i1 + 1], v)
-        r["warp_rise"] = float(r["top"][i1] - r["top"][i0])
-        out.append(r)
-    return out
+def strokes(ctx: Context, data: dict, speeds, steps, pictures: int = 0, coarse: bool = False) -> list[dict]:
+    """One stroke (:func:`stroke`) per magnet speed (m/s), and with ``coarse`` the last speed again on the preview
+    grid (last in the list), as jobs that run at once where ``ctx.workers`` allows (:func:`run_jobs`)."""
+    from magsoro.robots.base import Job, run_jobs
+
+    # the fastest first: its turns took the longest (benchmarks/README.md); the coarse grid's stroke, the shortest,
+    # last, so that the workers start with the long ones
+    jobs = [Job(stroke, ctx, (data, v, steps, pictures), label=f"{v * 1e3:g} mm/s") for v in reversed(speeds)]
+    if coarse:
+        jobs.append(Job(stroke, Context(out=ctx.out, preview=True, device=ctx.device, log=ctx.log, workers=1),
+                        (data, speeds[-1], steps), label=f"{speeds[-1] * 1e3:g} mm/s, preview grid"))
+    done = run_jobs(ctx, jobs)
+    return done[: len(speeds)][::-1] + done[len(speeds):]
 
 
 def reproduce(ctx: Context) -> ReproduceResult:
     from magsoro.robots import _seed002_speeds as sp
-    from magsoro.robots.base import Context as Ctx
     from magsoro.validation.registry import Row
 
     data = scene_data(NAME)
     speeds = SPEEDS[-1:] if ctx.preview else SPEEDS
-    runs = strokes(ctx, data, speeds, PREVIEW_STEPS if ctx.preview else STEPS, pictures=2)
-    coarse = None
-    if not ctx.preview:  # the convergence row: the fastest stroke on the preview grid too
-        coarse = strokes(Ctx(out=ctx.out, preview=True, device=ctx.device, log=ctx.log), data, SPEEDS[-1:],
-                         STEPS)[0]
+    # the full run's convergence row: the fastest stroke on the preview grid too (with the full grid's steps)
+    runs = strokes(ctx, data, speeds, PREVIEW_STEPS if ctx.preview else STEPS, pictures=2, coarse=not ctx.preview)
+    coarse = None if ctx.preview else runs.pop()
     v = np.array([r["speed"] for r in runs])
     along = np.array([r["along_stroke"] for r in runs])
     level = np.array([r["along"] for r in runs])
