@@ -175,11 +175,16 @@ class _Prefixed:
         stderr_log(f"[{self.label}] {msg}" if self.label else msg)
 
 
-def _run_job(job: Job):
-    """In a worker process: run ``job``; returns (ok, value or exception, scene notes, traceback text)."""
+def _run_job(job: Job, quiet: bool = False):
+    """In a worker process: run ``job`` (``quiet``: Warp's banner and load lines off, as in the parent); returns
+    (ok, value or exception, scene notes, traceback text)."""
     import pickle
     import traceback
 
+    if quiet:
+        from magsoro.console import configure_warp
+
+        configure_warp()
     scene_notes()
     try:
         value = job.fn(job.ctx, *job.args, **job.kwargs)
@@ -211,13 +216,15 @@ def run_jobs(ctx: Context, jobs: list[Job]) -> list:
     from magsoro.mpm.runtime import usable_cores
 
     jobs = [Job(j.fn, _portable(j.ctx, j.label), j.args, j.kwargs, j.label) for j in jobs]
-    env = {"OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1", "NUMEXPR_NUM_THREADS": "1",
-           "VECLIB_MAXIMUM_THREADS": "1", "MAGSORO_THREADS": str(max(1, usable_cores() // workers))}
+    quiet = "warp" in sys.modules and bool(sys.modules["warp"].config.quiet)  # the workers' Warp as this one's
+    from magsoro.sweep.worker import SINGLE_THREAD_ENV
+
+    env = {**SINGLE_THREAD_ENV, "MAGSORO_THREADS": str(max(1, usable_cores() // workers))}
     saved = {k: os.environ.get(k) for k in env}
     os.environ.update(env)  # the workers inherit it (a replacement worker too: kept until the pool is gone)
     try:
         with multiprocessing.get_context("spawn").Pool(workers, maxtasksperchild=1) as pool:
-            pending = {i: pool.apply_async(_run_job, (j,)) for i, j in enumerate(jobs)}
+            pending = {i: pool.apply_async(_run_job, (j, quiet)) for i, j in enumerate(jobs)}
             results: dict = {}
             while pending:
                 for i in [i for i, p in pending.items() if p.ready()]:

@@ -53,6 +53,9 @@ def run_reproduce(args) -> int:
         from magsoro.mpm.runtime import usable_cores
 
         workers = 1 if (args.device or "cpu").startswith("cuda") else usable_cores()
+    from magsoro.console import configure_warp
+
+    configure_warp()  # Warp's banner and module-load lines off stdout (--json prints there), as in magsoro run
     results, ok = [], True
     for n in names:
         out = None
