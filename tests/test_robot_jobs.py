@@ -19,6 +19,18 @@ def _facts(ctx: Context, value: float, note: str = ""):
             "blas": os.environ.get("OPENBLAS_NUM_THREADS"), "workers": ctx.workers, "preview": ctx.preview}
 
 
+def _waits(ctx: Context, k: int, together: int):
+    """A job that marks its start in ctx.out and waits (up to 60 s) until ``together`` jobs have started; returns
+    how many had."""
+    import time
+
+    (ctx.out / f"started_{k}").touch()
+    t0 = time.monotonic()
+    while len(list(ctx.out.glob("started_*"))) < together and time.monotonic() - t0 < 60.0:
+        time.sleep(0.05)
+    return {"started": len(list(ctx.out.glob("started_*")))}
+
+
 class _Unpicklable(Exception):
     def __init__(self, a, b):  # pickling rebuilds it with one argument: it cannot travel
         super().__init__(f"{a} {b}")
@@ -72,6 +84,17 @@ def test_a_failing_job_raises_its_exception_with_the_workers_traceback(tmp_path)
     with pytest.raises(RobotError, match="travel: failed in a worker process") as info:
         run_jobs(ctx, [Job(_fails, ctx, ("other",), label="travel"), Job(_facts, ctx, (1.0,))])
     assert "_Unpicklable: cannot travel" in str(info.value)
+
+
+def test_balanced_jobs_run_all_at_once_up_to_twice_the_workers(tmp_path):
+    ctx = Context(out=tmp_path, workers=2)
+    out = run_jobs(ctx, [Job(_waits, ctx, (k, 4)) for k in range(5)], balanced=True)
+    # the first four wait for each other (with two processes they would wait in vain); the fifth starts after them
+    assert all(o["started"] >= 4 for o in out[:4])
+    assert out[4]["started"] == 5
+    ctx1 = Context(out=tmp_path, workers=1)
+    assert {o["pid"] for o in run_jobs(ctx1, [Job(_facts, ctx1, (1.0,)), Job(_facts, ctx1, (2.0,))], balanced=True)} == {
+        os.getpid()}
 
 
 def test_one_job_or_one_worker_runs_here(tmp_path):

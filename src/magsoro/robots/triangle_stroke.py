@@ -84,13 +84,13 @@ def strokes(ctx: Context, data: dict, speeds, steps, pictures: int = 0, coarse: 
     grid (last in the list), as jobs that run at once where ``ctx.workers`` allows (:func:`run_jobs`)."""
     from magsoro.robots.base import Job, run_jobs
 
-    # the fastest first: its turns took the longest (benchmarks/README.md); the coarse grid's stroke, the shortest,
-    # last, so that the workers start with the long ones
+    # the strokes take about as long as each other (20 to 30 minutes), so all run at once where the workers allow
+    # (balanced), the coarse grid's (5 minutes) last
     jobs = [Job(stroke, ctx, (data, v, steps, pictures), label=f"{v * 1e3:g} mm/s") for v in reversed(speeds)]
     if coarse:
         jobs.append(Job(stroke, Context(out=ctx.out, preview=True, device=ctx.device, log=ctx.log, workers=1),
                         (data, speeds[-1], steps), label=f"{speeds[-1] * 1e3:g} mm/s, preview grid"))
-    done = run_jobs(ctx, jobs)
+    done = run_jobs(ctx, jobs, balanced=True)
     return done[: len(speeds)][::-1] + done[len(speeds):]
 
 
