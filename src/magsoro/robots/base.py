@@ -222,11 +222,10 @@ def run_jobs(ctx: Context, jobs: list[Job], balanced: bool = False) -> list:
     import multiprocessing
 
     from magsoro.mpm.runtime import usable_cores
+    from magsoro.sweep.worker import SINGLE_THREAD_ENV
 
     jobs = [Job(j.fn, _portable(j.ctx, j.label), j.args, j.kwargs, j.label) for j in jobs]
     quiet = "warp" in sys.modules and bool(sys.modules["warp"].config.quiet)  # the workers' Warp as this one's
-    from magsoro.sweep.worker import SINGLE_THREAD_ENV
-
     env = {**SINGLE_THREAD_ENV, "MAGSORO_THREADS": str(max(1, usable_cores() // workers))}
     saved = {k: os.environ.get(k) for k in env}
     os.environ.update(env)  # the workers inherit it (a replacement worker too: kept until the pool is gone)
@@ -239,10 +238,10 @@ def run_jobs(ctx: Context, jobs: list[Job], balanced: bool = False) -> list:
                     ok, value, notes, text = pending.pop(i).get()
                     _run_notes.append(notes)
                     if not ok:
+                        name = jobs[i].label or jobs[i].fn.__name__
                         if value is None:
-                            raise RobotError(f"{jobs[i].label or jobs[i].fn.__name__}: failed in a worker "
-                                             f"process:\n{text}")
-                        value.add_note(f"(in the worker process of '{jobs[i].label or jobs[i].fn.__name__}')\n{text}")
+                            raise RobotError(f"{name}: failed in a worker process:\n{text}")
+                        value.add_note(f"(in the worker process of '{name}')\n{text}")
                         raise value
                     results[i] = value
                 if pending:
