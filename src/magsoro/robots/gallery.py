@@ -19,8 +19,8 @@ docs/robots/NAME`).
 - `magsoro reproduce --list` names them all; `magsoro reproduce NAME` (or `python scenes/NAME/reproduce.py`)
   runs one at full resolution and writes NAME.csv, NAME.png, NAME.gif and result.json.
 - `--preview` runs the coarse settings of the scene's `[preview]` table (each under 3 minutes on a 2-core
-  CPU; the pentagram's crawl runs the whole 200 mm magnet pass, at 400 mm/s instead of 200: 169 s in all on
-  2026-11-26, with the test suite running beside it);
+  CPU; the pentagram's crawl runs the whole 200 mm magnet pass, at 400 mm/s instead of 200, and its gait
+  study only the scene's 5 mm hinges: 102 s in all on two workers);
   `magsoro run scenes/NAME.toml --preview --out DIR` shows one run of the scene.
 - A robot whose reproduction runs several independent simulations (speeds, resolutions) runs them at once, one
   per core (`--workers N` to choose; `--workers 1` runs them one after the other). Each simulation then takes

@@ -11,6 +11,13 @@ thin (1 mm) hinges, the parts magnetised up / outwards / down from the centre ou
   plate, as in the paper's experiment (seed 002 sec 4.1: 50 mT at the centre of the magnet's face); the quantities
   are the robot's displacement along the pass and its mean speed over the pass (the paper gives no magnet speed).
   The grip sweep uses the N35 of sec 3 instead (``GRIP_REMANENCE``), not the scene's crawl magnet.
+
+The paper describes the crawl's gait on one strip (Fig. 14a): with the magnet under the strip's outermost part
+(part 3) the middle part (part 2) is lifted into an arch; with the magnet under the robot's centre the strip
+stands as a centrosymmetric table, part 2 upright between parts 1 and 3 lying parallel. The paper gives no hinge
+lengths, so the full run looks for that gait with hinges of 1, 3 and 5 mm (the thick parts sharing the rest of
+the 40 mm strip) at the scene's 200 mm/s and at 50 mm/s: six crawls, each read on strip 1 (along -x, the first
+the magnet meets) at the four moments of the figure, with side views of each.
 """
 
 from __future__ import annotations
